@@ -1,0 +1,135 @@
+"""Input checks shared by every package: fail early, name the argument, the value and the fix."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi.errors import InputError
+
+FloatArray = NDArray[np.floating[Any]]
+
+_MIN_SIDE_PX = 2
+
+
+def as_image(image: object, name: str, *, allow_nan: bool = False) -> FloatArray:
+    """Return `image` as a 2-D float array following the dtype policy.
+
+    float32 and float64 are kept (no copy); bool and integer images become float64. Anything else, NaN or
+    inf, fewer or more than two dimensions, or a side under two pixels raises :class:`InputError`.
+    """
+    if not isinstance(image, np.ndarray):
+        raise InputError(
+            f"{name} must be a numpy array of shape (rows, cols); got {type(image).__name__}. "
+            f"Try np.asarray({name})."
+        )
+    if image.ndim != 2:
+        raise InputError(
+            f"{name} must be 2-D (rows, cols); got shape {image.shape}. "
+            "Convert colour images to grey (e.g. cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)) first."
+        )
+    if min(image.shape) < _MIN_SIDE_PX:
+        raise InputError(
+            f"{name} must be at least {_MIN_SIDE_PX}x{_MIN_SIDE_PX} pixels; got shape {image.shape}. "
+            "Pass a non-empty image."
+        )
+    if image.dtype in (np.float32, np.float64):
+        result: FloatArray = image
+    elif image.dtype == np.bool_ or np.issubdtype(image.dtype, np.integer):
+        result = image.astype(np.float64)
+    else:
+        raise InputError(
+            f"{name} has dtype={image.dtype}, which is not supported. "
+            "Try 'float32', 'float64', an unsigned integer or bool image."
+        )
+    if not allow_nan and not np.isfinite(result).all():
+        bad = int(np.count_nonzero(~np.isfinite(result)))
+        raise InputError(
+            f"{name} contains {bad} NaN or inf pixel(s). Replace them (e.g. np.nan_to_num) "
+            "or mark them invalid with a mask."
+        )
+    return result
+
+
+def as_mask(mask: object, name: str, shape: tuple[int, ...]) -> NDArray[np.bool_]:
+    """Return `mask` as a bool array of `shape` (True = use this pixel)."""
+    if not isinstance(mask, np.ndarray):
+        raise InputError(f"{name} must be a numpy bool array of shape {shape}; got {type(mask).__name__}.")
+    if mask.shape != shape:
+        raise InputError(f"{name} must have shape {shape} (the image's); got {mask.shape}.")
+    if mask.dtype != np.bool_:
+        if not (np.issubdtype(mask.dtype, np.integer) or np.issubdtype(mask.dtype, np.floating)):
+            raise InputError(f"{name} has dtype={mask.dtype}; pass a bool array (True = valid pixel).")
+        return mask != 0
+    return mask
+
+
+def same_shape(first: np.ndarray, second: np.ndarray, names: tuple[str, str]) -> None:
+    """Raise unless the two arrays have the same shape."""
+    if first.shape != second.shape:
+        raise InputError(
+            f"{names[0]} and {names[1]} must have the same shape; got {first.shape} and {second.shape}. "
+            "Crop or resize one to match the other."
+        )
+
+
+def finite_number(value: object, name: str) -> float:
+    """Return `value` as a finite float or raise."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} must be a number; got {value!r}.")
+    number = float(value)
+    if not math.isfinite(number):
+        raise InputError(f"{name} must be finite; got {value!r}.")
+    return number
+
+
+def in_range(
+    value: object,
+    name: str,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_inclusive: bool = True,
+    high_inclusive: bool = True,
+) -> float:
+    """Return `value` as a float if it lies in the given interval, else raise naming the interval."""
+    number = finite_number(value, name)
+    too_low = low is not None and (number < low if low_inclusive else number <= low)
+    too_high = high is not None and (number > high if high_inclusive else number >= high)
+    if too_low or too_high:
+        left = "[" if low_inclusive else "("
+        right = "]" if high_inclusive else ")"
+        interval = f"{left}{'-inf' if low is None else low}, {'inf' if high is None else high}{right}"
+        raise InputError(f"{name} must be in {interval}; got {value!r}.")
+    return number
+
+
+def positive_int(value: object, name: str, *, minimum: int = 1) -> int:
+    """Return `value` as an int >= `minimum` or raise."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{name} must be an integer >= {minimum}; got {value!r}.")
+    if value < minimum:
+        raise InputError(f"{name} must be an integer >= {minimum}; got {value!r}.")
+    return int(value)
+
+
+def choice(value: object, name: str, options: Iterable[str]) -> str:
+    """Return `value` if it is one of `options`, else raise listing them."""
+    allowed = tuple(options)
+    if not isinstance(value, str) or value not in allowed:
+        listed = ", ".join(repr(option) for option in allowed)
+        raise InputError(f"{name}={value!r} is not known. Choose one of {listed}.")
+    return value
+
+
+def as_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
+    """Return a Generator from a Generator, a seed or None (fresh entropy)."""
+    if rng is None or isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+        return np.random.default_rng(rng)
+    if isinstance(rng, np.random.Generator):
+        return rng
+    raise InputError(f"rng must be a numpy Generator, an int seed or None; got {rng!r}.")

@@ -1,0 +1,1 @@
+"""Real reference/inspection pair datasets (DeepPCB) and the synthetic flaw-pattern generator."""
