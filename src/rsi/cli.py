@@ -1,0 +1,368 @@
+"""The ``rsi`` command: parses arguments, calls :mod:`rsi.mission`, :mod:`rsi.report` and the core, prints.
+
+Nothing here computes: every command is a thin shell over a library function. Heavy modules (numpy, OpenCV,
+matplotlib) are imported inside the commands so that ``rsi --help`` stays fast.
+
+Exit codes (also in every ``--help`` epilog): see :data:`EXIT_CODES`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from enum import Enum
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
+
+import typer
+
+from rsi.errors import DatasetError, ImageFileError, InputError
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from rsi.detection.detect import Flaw
+    from rsi.detection.roc import RocCurve
+    from rsi.mission.pair import DemoRun, PairResult
+
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_INVALID_VALUE = 3
+EXIT_FILE = 4
+EXIT_INTERNAL = 5
+EXIT_CODES: Mapping[int, str] = {
+    EXIT_OK: "success",
+    EXIT_USAGE: "usage error: unknown command or option, bad choice, missing argument (typer)",
+    EXIT_INVALID_VALUE: "invalid value (InputError): e.g. p-false-alarm outside (0, 0.5), even flaw size",
+    EXIT_FILE: "missing or unreadable file or folder (ImageFileError, DatasetError, OS error)",
+    EXIT_INTERNAL: "internal error: a bug; please report it with the command line",
+}
+_EPILOG = (
+    "Exit codes: " + "; ".join(f"{code} {text.split(':')[0]}" for code, text in EXIT_CODES.items()) + "."
+)
+DEFAULT_OUT = Path("rsi-results")
+"""Where ``rsi demo`` writes unless told otherwise."""
+_MAX_TABLE_ROWS = 20
+_ROC_TABLE_P_FALSE_ALARM = (1e-6, 1e-5, 1e-4, 1e-3)
+_DEEPPCB_KEYS = (
+    "pairs",
+    "defects",
+    "recall",
+    "precision",
+    "f1",
+    "false_alarms_per_image",
+    "iou_recall",
+    "iou_precision",
+    "seconds_per_pair",
+)
+
+
+class FlawModel(str, Enum):
+    """Seed §2.4 flaw models selectable on the command line."""
+
+    single = "single"
+    uniform = "uniform"
+    peak = "peak"
+
+
+class Polarity(str, Enum):
+    """Which sign of change counts as a flaw."""
+
+    both = "both"
+    dark = "dark"
+    bright = "bright"
+
+
+class RegistrationModel(str, Enum):
+    """Motion models of ``rsi.imaging.registration.MODELS`` (kept in step by a test)."""
+
+    translation = "translation"
+    euclidean = "euclidean"
+    similarity = "similarity"
+    affine = "affine"
+    homography = "homography"
+
+
+class Method(str, Enum):
+    """Likelihood-ratio test or its morphological-erosion approximation (seed §2.4)."""
+
+    lrt = "lrt"
+    erosion = "erosion"
+
+
+class Split(str, Enum):
+    """DeepPCB splits."""
+
+    trainval = "trainval"
+    test = "test"
+
+
+app = typer.Typer(
+    name="rsi",
+    help="Robotic surface inspection: compare reference and inspection images and find flaws "
+    "(after Volpe & Balaram, JPL). Start with `rsi demo`.",
+    epilog=_EPILOG,
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+eval_app = typer.Typer(help="Score rsi on public benchmark datasets.", epilog=_EPILOG, no_args_is_help=True)
+app.add_typer(eval_app, name="eval")
+
+
+def _fail(code: int, message: str) -> NoReturn:
+    # One line on stderr, no traceback: the message already names the argument, the value and the fix.
+    typer.echo(f"rsi: error: {' '.join(message.split())}", err=True)
+    raise typer.Exit(code)
+
+
+@contextlib.contextmanager
+def _errors() -> Iterator[None]:
+    """Map library errors to the documented exit codes (file errors first: they are InputErrors too)."""
+    try:
+        yield
+    except (ImageFileError, DatasetError, OSError) as error:
+        _fail(EXIT_FILE, str(error) or type(error).__name__)
+    except InputError as error:
+        _fail(EXIT_INVALID_VALUE, str(error))
+    except Exception as error:
+        _fail(EXIT_INTERNAL, f"internal error ({type(error).__name__}): {error}")
+
+
+def _stdout() -> Console:
+    from rich.console import Console
+
+    return Console(highlight=False)
+
+
+@contextlib.contextmanager
+def _progress_bar(description: str) -> Iterator[Callable[[str, int, int], None]]:
+    """A rich progress bar on stderr (stdout stays clean for --json), fed ``update(stage, done, total)``."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+    with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
+        task = progress.add_task(description, total=None)
+
+        def update(stage: str, completed: int, total: int) -> None:
+            progress.update(task, description=f"{description}: {stage}", completed=completed, total=total)
+
+        yield update
+
+
+def _print_json(record: Mapping[str, Any]) -> None:
+    from rsi.report.writers import json_ready
+
+    # One line, last on stdout: scripts read it with `tail -n 1`.
+    typer.echo(json.dumps(json_ready(record), allow_nan=False))
+
+
+def _flaw_table(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None, title: str) -> Any:
+    from rich.table import Table
+
+    table = Table(title=title)
+    for column in ("#", "row", "col", "area px", "score", "polarity", *(("truth",) if is_true else ())):
+        table.add_column(column, justify="right")
+    for number, flaw in enumerate(flaws[:_MAX_TABLE_ROWS], start=1):
+        verdict = (("flaw" if is_true[number - 1] else "FALSE ALARM"),) if is_true else ()
+        table.add_row(
+            str(number),
+            f"{flaw.row:.1f}",
+            f"{flaw.col:.1f}",
+            str(flaw.area_px),
+            f"{flaw.score:.1f}",
+            flaw.polarity,
+            *verdict,
+        )
+    if len(flaws) > _MAX_TABLE_ROWS:
+        table.caption = f"... and {len(flaws) - _MAX_TABLE_ROWS} more (all in flaws.csv)"
+    return table
+
+
+@app.command()
+def demo(
+    *,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the scene, flaw positions and sensor noise.")] = 0,
+    out: Annotated[Path, typer.Option("--out", help="Results folder (created if missing).")] = DEFAULT_OUT,
+) -> None:
+    """Simulate an inspection with seeded ~1 mm flaws, find them, and write pictures and scores."""
+    with _errors():
+        from rsi.mission.pair import run_synthetic_demo
+
+        with _progress_bar("demo") as update:
+            run = run_synthetic_demo(out, seed=seed, progress=update)
+        _print_demo(run, out)
+
+
+def _print_demo(run: DemoRun, out: Path) -> None:
+    result, console = run.result, _stdout()
+    score, detection = result.score, result.pair.detection
+    console.print(_flaw_table(detection.flaws, is_true=score.is_true, title="Flaws found (strongest first)"))
+    console.print(
+        f"Recall: {score.found_count}/{score.truth_count} seeded flaws found ({score.recall:.0%}); "
+        f"false alarms: {score.false_alarms}; "
+        f"{detection.flaw_model} model at P_F = {detection.p_false_alarm:g} per pixel."
+    )
+    if detection.registration is not None:
+        found_x, found_y = detection.registration.translation_xy
+        true_x, true_y = result.shift_xy
+        console.print(
+            f"Registration: shift ({found_x:.2f}, {found_y:.2f}) px; true ({true_x:.2f}, {true_y:.2f}) px."
+        )
+    console.print(f"Simulated in {result.elapsed_s:.1f} s. Results in {out}/: {', '.join(sorted(run.files))}")
+
+
+@app.command("inspect")
+def inspect_command(
+    *,
+    reference: Annotated[Path, typer.Argument(help="Reference image (PNG, TIFF or JPEG; 8 or 16 bit).")],
+    inspection: Annotated[Path, typer.Argument(help="Inspection image of the same surface.")],
+    out: Annotated[Path, typer.Option("--out", help="Results folder (created if missing).")],
+    flaw_model: Annotated[FlawModel, typer.Option(help="Seed §2.4 flaw model.")] = FlawModel.single,
+    size: Annotated[int, typer.Option(help="Flaw window side in pixels (odd).")] = 3,
+    p_false_alarm: Annotated[
+        float, typer.Option(help="Per-pixel false-alarm probability, in (0, 0.5).")
+    ] = 1e-5,
+    polarity: Annotated[Polarity, typer.Option(help="Which changes count as flaws.")] = Polarity.both,
+    model: Annotated[
+        RegistrationModel, typer.Option(help="Registration motion model.")
+    ] = RegistrationModel.translation,
+    method: Annotated[
+        Method, typer.Option(help="Likelihood-ratio test or erosion approximation.")
+    ] = Method.lrt,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,
+) -> None:
+    """Register REFERENCE to INSPECTION, detect flaws, write flaws.json/.csv and PNG pictures to --out."""
+    with _errors():
+        from rsi.imaging.io import read_image
+        from rsi.mission.pair import inspect_pair
+        from rsi.report.writers import write_pair_report
+
+        result = inspect_pair(
+            read_image(reference),
+            read_image(inspection),
+            flaw_model=flaw_model.value,
+            size=size,
+            p_false_alarm=p_false_alarm,
+            polarity=polarity.value,
+            registration_model=model.value,
+            method=method.value,
+        )
+        files = write_pair_report(out, result)
+        _print_inspection(result, files, as_json=as_json)
+
+
+def _print_inspection(result: PairResult, files: Mapping[str, Path], *, as_json: bool) -> None:
+    from rsi.report.writers import flaw_records, pair_summary
+
+    if as_json:
+        _print_json({**pair_summary(result), "flaws": flaw_records(result.flaws), "files": files})
+        return
+    console = _stdout()
+    console.print(_flaw_table(result.flaws, title="Flaws found (strongest first)"))
+    detection = result.detection
+    console.print(
+        f"{len(result.flaws)} flaw(s) at P_F = {detection.p_false_alarm:g} per pixel "
+        f"(threshold {detection.threshold:.2f}); results in {Path(next(iter(files.values()))).parent}/"
+    )
+
+
+@app.command()
+def register(
+    *,
+    reference: Annotated[Path, typer.Argument(help="Reference image.")],
+    inspection: Annotated[Path, typer.Argument(help="Inspection image.")],
+    model: Annotated[RegistrationModel, typer.Option(help="Motion model.")] = RegistrationModel.translation,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object instead of a table.")
+    ] = False,
+) -> None:
+    """Register REFERENCE to INSPECTION (seed §2.3 Gauss-Newton) and print the motion and photometry."""
+    with _errors():
+        from rsi.imaging.io import read_image
+        from rsi.imaging.registration import register as register_images
+        from rsi.report.writers import registration_record
+
+        registration = register_images(read_image(reference), read_image(inspection), model=model.value)
+        record = registration_record(registration) or {}
+        if as_json:
+            _print_json(record)
+            return
+        _print_record(record, title=f"Registration ({model.value})")
+
+
+def _print_record(record: Mapping[str, Any], *, title: str) -> None:
+    from rich.table import Table
+
+    from rsi.report.writers import json_ready
+
+    table = Table(title=title, show_header=False)
+    table.add_column("field")
+    table.add_column("value")
+    for key, value in json_ready(record).items():
+        table.add_row(key, json.dumps(value) if isinstance(value, list) else str(value))
+    _stdout().print(table)
+
+
+@app.command()
+def roc(
+    *,
+    strength: Annotated[float, typer.Option(help="Flaw strength in noise sigmas (strongest pixel).")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for roc.png and roc.csv.")],
+    flaw_model: Annotated[FlawModel | None, typer.Option(help="One flaw model; default: all three.")] = None,
+    size: Annotated[int, typer.Option(help="Flaw window side in pixels (odd).")] = 3,
+) -> None:
+    """Theoretical ROC curves (seed §2.4: P_D against P_F) as roc.png and roc.csv."""
+    with _errors():
+        import numpy as np
+
+        from rsi.detection.roc import theoretical_roc
+        from rsi.report.writers import write_roc_report
+
+        models = [flaw_model] if flaw_model is not None else list(FlawModel)
+        curves = [theoretical_roc(m.value, strength_sigma=strength, size=size) for m in models]
+        files = write_roc_report(out, curves, title=f"Theoretical ROC, flaw strength {strength:g} sigma")
+        table_points = np.asarray(_ROC_TABLE_P_FALSE_ALARM)
+        points = [
+            theoretical_roc(m.value, strength_sigma=strength, size=size, p_false_alarm=table_points)
+            for m in models
+        ]
+        _print_roc(points, files)
+
+
+def _print_roc(points: Sequence[RocCurve], files: Mapping[str, Path]) -> None:
+    from rich.table import Table
+
+    table = Table(title="P_D at selected P_F (per pixel)")
+    table.add_column("curve")
+    for p_false_alarm in _ROC_TABLE_P_FALSE_ALARM:
+        table.add_column(f"P_F={p_false_alarm:g}", justify="right")
+    for curve in points:
+        table.add_row(curve.label, *(f"{p:.3f}" for p in curve.p_detection))
+    console = _stdout()
+    console.print(table)
+    console.print(f"Wrote {', '.join(str(path) for path in files.values())}")
+
+
+@eval_app.command("deeppcb")
+def eval_deeppcb(
+    *,
+    root: Annotated[Path, typer.Argument(help="DeepPCB checkout (the folder holding PCBData/).")],
+    split: Annotated[Split, typer.Option(help="Which list of pairs to score.")] = Split.test,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="End with one JSON object on the last stdout line.")
+    ] = False,
+) -> None:
+    """Score rsi on DeepPCB template/tested pairs: recall, precision, F1, false alarms per image."""
+    with _errors():
+        from rsi.datasets.evaluate import evaluate_deeppcb
+
+        with _progress_bar(f"DeepPCB {split.value}") as update:
+            evaluation = evaluate_deeppcb(root, split=split.value, progress=update)
+        record = {key: getattr(evaluation, key) for key in _DEEPPCB_KEYS}
+        if as_json:
+            _print_json(record)
+            return
+        _print_record(record, title=f"DeepPCB {split.value}")

@@ -1,0 +1,381 @@
+"""Flaw detection by a calibrated likelihood-ratio test on the registered difference image (seed §2.4).
+
+``detect`` registers the reference to the inspection image, forms the difference
+``d = inspection - (gain * warped_reference + bias)``, models its per-pixel noise variance
+(:mod:`rsi.detection.noise`) and tests, at every pixel, "no flaw" against "a flaw of the model's shape
+centred here". With Gaussian noise the log-likelihood ratio is the matched filter
+
+    T = corr(d / var, w) / sqrt(corr(1 / var, w^2)),
+
+which is exactly N(0, 1) without a flaw, so a requested per-pixel false-alarm probability fixes the
+threshold (Neyman-Pearson). ``docs/detection.md`` gives the derivation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from rsi._validate import as_image, as_mask, choice, in_range, positive_int, same_shape
+from rsi.detection import noise
+from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
+from rsi.detection.roc import METHODS, POLARITIES, thresholds
+from rsi.errors import InputError
+from rsi.imaging.compensation import Compensated
+from rsi.imaging.registration import MODELS, Registration, register
+
+Float32Array = NDArray[np.float32]
+BoolArray = NDArray[np.bool_]
+
+_VARIANCE_FLOOR = np.float32(1e-20)  # keeps 1/var finite where a noise-free model predicts zero
+_VALID_WEIGHT = 0.999  # a warped validity map below this touched an invalid reference pixel
+
+
+@dataclass(frozen=True)
+class Flaw:
+    """One detected flaw: an 8-connected component of the detection mask.
+
+    Attributes
+    ----------
+    row, col : float
+        Centroid in inspection-image pixels.
+    bbox : tuple of int
+        ``(row0, col0, row1, col1)``, half-open.
+    area_px : int
+        Pixels in the component.
+    score : float
+        Peak score in the component.
+    polarity : {"dark", "bright"}
+        Sign of the change at the peak.
+    """
+
+    row: float
+    col: float
+    bbox: tuple[int, int, int, int]
+    area_px: int
+    score: float
+    polarity: str
+
+
+@dataclass(frozen=True)
+class Detection:
+    """Result of :func:`detect`; all maps have the inspection image's shape (M, N).
+
+    Attributes
+    ----------
+    score : ndarray of shape (M, N), float32
+        Test score: ``|T|`` for ``"both"``, ``-T`` for ``"dark"``, ``T`` for ``"bright"`` (eroded for
+        ``method="erosion"``); 0 where invalid.
+    statistic : ndarray of shape (M, N), float32
+        Signed statistic (positive = brighter than predicted); 0 where invalid.
+    mask : ndarray of shape (M, N), bool
+        ``(score > threshold) & valid``.
+    threshold : float
+        Threshold giving the requested per-pixel false-alarm probability.
+    flaws : tuple of Flaw
+        Connected components of ``mask`` with at least ``min_area_px`` pixels, strongest first.
+    difference : ndarray of shape (M, N), float32
+        ``d = inspection - (gain * warped_reference + bias)``; 0 where invalid.
+    sigma : ndarray of shape (M, N), float32
+        Noise standard deviation of ``d`` as the test sees it (the flaw model's interpolation factor
+        included; before self-calibration); 0 where invalid.
+    valid : ndarray of shape (M, N), bool
+        Pixels where the test is defined.
+    registration : Registration or None
+        The registration used (None: images taken as aligned).
+    flaw_model, method, polarity : str
+        The settings used.
+    p_false_alarm : float
+        Requested per-pixel false-alarm probability.
+    """
+
+    score: Float32Array
+    statistic: Float32Array
+    mask: BoolArray
+    threshold: float
+    flaws: tuple[Flaw, ...]
+    difference: Float32Array
+    sigma: Float32Array
+    valid: BoolArray
+    registration: Registration | None
+    flaw_model: str
+    method: str
+    p_false_alarm: float
+    polarity: str
+
+
+@dataclass(frozen=True)
+class _Input:
+    """One image as the detector needs it: intensities, validity and sensor variance (None = unknown)."""
+
+    image: Float32Array
+    valid: BoolArray | None
+    variance: Float32Array | float | None
+
+
+@dataclass(frozen=True)
+class _Aligned:
+    """The reference brought into the inspection frame."""
+
+    predicted: Float32Array  # gain * warped_reference + bias
+    valid: BoolArray
+    variance: Float32Array | float | None  # the reference's sensor variance, warped
+    gain: float
+    bias: float
+    fraction_xy: tuple[float, float] | None  # sub-pixel phase of a translation; None: varies
+
+
+def _unpack(image: object, name: str, noise_sigma: float | None) -> _Input:
+    if isinstance(image, Compensated):
+        pixels = as_image(image.image, f"{name}.image").astype(np.float32, copy=False)
+        valid = as_mask(image.valid, f"{name}.valid", pixels.shape)
+        # seed §2.2: ambient interpolation error is extra noise; with a known sensor sigma only it is added.
+        extra = image.interpolation_variance if noise_sigma is not None else image.variance
+        base = 0.0 if noise_sigma is None else noise_sigma**2
+        variance = np.asarray(extra, dtype=np.float32) + np.float32(base)
+        return _Input(pixels, valid, variance)
+    if not isinstance(image, np.ndarray):
+        raise InputError(
+            f"{name} must be a numpy array of shape (rows, cols) or a Compensated image; "
+            f"got {type(image).__name__}."
+        )
+    pixels = as_image(image, name).astype(np.float32, copy=False)
+    return _Input(pixels, None, None if noise_sigma is None else noise_sigma**2)
+
+
+def _resolve_registration(
+    registration: object, reference: _Input, inspection: _Input, model: str
+) -> Registration | None:
+    if registration is None:
+        same_shape(reference.image, inspection.image, ("reference", "inspection"))
+        return None
+    if isinstance(registration, Registration):
+        return registration
+    if isinstance(registration, str) and registration == "auto":
+        return register(reference.image, inspection.image, model=model)
+    raise InputError(
+        f"registration must be 'auto', a Registration or None; got {registration!r}. "
+        "Pass registration=None if the images are already aligned."
+    )
+
+
+def _warp_optional(
+    registration: Registration, values: Float32Array | float | None, shape: tuple[int, int]
+) -> Float32Array | float | None:
+    if values is None or isinstance(values, float):
+        return values
+    warped, _ = registration.warp(values, output_shape=shape, photometric=False)
+    return np.asarray(warped, dtype=np.float32)
+
+
+def _align(reference: _Input, inspection: _Input, registration: Registration | None) -> _Aligned:
+    shape = (int(inspection.image.shape[0]), int(inspection.image.shape[1]))
+    if registration is None:
+        valid = np.ones(shape, bool) if reference.valid is None else reference.valid
+        return _Aligned(reference.image, valid, reference.variance, 1.0, 0.0, (0.0, 0.0))
+    predicted, valid = registration.warp(reference.image, output_shape=shape, photometric=True)
+    valid = np.asarray(valid, dtype=bool)
+    if reference.valid is not None:
+        warped_valid, _ = registration.warp(reference.valid.astype(np.float32), output_shape=shape,
+                                            photometric=False)
+        valid = valid & (warped_valid > _VALID_WEIGHT)
+    fraction = None
+    if registration.model == "translation":
+        tx, ty = registration.translation_xy
+        fraction = (tx % 1.0, ty % 1.0)
+    return _Aligned(np.asarray(predicted, dtype=np.float32), valid,
+                    _warp_optional(registration, reference.variance, shape),
+                    float(registration.gain), float(registration.bias), fraction)
+
+
+def _factor(weights: NDArray[np.float64], fraction_xy: tuple[float, float] | None) -> float:
+    if fraction_xy is None:
+        return noise.mean_interpolation_factor(weights)
+    return noise.interpolation_factor(weights, fraction_xy)
+
+
+def _sensor_variances(
+    inspection: _Input, aligned: _Aligned, difference: Float32Array, valid: BoolArray
+) -> tuple[Float32Array | float, Float32Array | float]:
+    """Sensor variance of the inspection and of the warped reference; fitted to ``d`` when unknown."""
+    if inspection.variance is not None and aligned.variance is not None:
+        return inspection.variance, aligned.variance
+    single = _factor(np.ones((1, 1)), aligned.fraction_xy)
+    coefficients = noise.fit_sensor_variance(difference, aligned.predicted, valid, gain=aligned.gain,
+                                             bias=aligned.bias, factor=single)
+    reference_intensity = (aligned.predicted - np.float32(aligned.bias)) * np.float32(1.0 / aligned.gain)
+    return (noise.affine_variance(aligned.predicted, coefficients),
+            noise.affine_variance(reference_intensity, coefficients))
+
+
+def _lrt(difference: Float32Array, inverse_variance: Float32Array, weights: NDArray[np.float64]) -> Float32Array:
+    # seed §2.4: for Gaussian noise the log-likelihood ratio of "flaw s*w here" is linear in d: a weighted
+    # sum over the window, normalised to unit variance under H0.
+    if weights.shape == (1, 1):
+        single: Float32Array = difference * np.sqrt(inverse_variance)
+        return single
+    kernel = weights.astype(np.float32)
+    numerator = cv2.filter2D(difference * inverse_variance, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+    denominator = cv2.filter2D(inverse_variance, -1, kernel * kernel, borderType=cv2.BORDER_CONSTANT)
+    statistic: Float32Array = numerator / np.sqrt(np.maximum(denominator, _VARIANCE_FLOOR))
+    return statistic
+
+
+def _lrt_scores(statistic: Float32Array, valid: BoolArray, weights: NDArray[np.float64]) -> tuple[
+    Float32Array, Float32Array, BoolArray
+]:
+    return statistic, -statistic, valid
+
+
+def _erosion_scores(statistic: Float32Array, valid: BoolArray, weights: NDArray[np.float64]) -> tuple[
+    Float32Array, Float32Array, BoolArray
+]:
+    # seed §2.4 sub-optimal test: a flaw needs every footprint pixel beyond t_e, i.e. the grey erosion
+    # (minimum over the footprint) of z beyond t_e. Pixels whose footprint leaves the valid area are invalid.
+    footprint = (weights != 0).astype(np.uint8)
+    bright = cv2.erode(statistic, footprint)
+    dark = cv2.erode(-statistic, footprint)
+    eroded_valid = cv2.erode(valid.astype(np.uint8), footprint, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    return bright, dark, eroded_valid.astype(bool)
+
+
+_METHOD_SCORES: dict[str, Callable[[Float32Array, BoolArray, NDArray[np.float64]],
+                                   tuple[Float32Array, Float32Array, BoolArray]]] = {
+    "lrt": _lrt_scores,
+    "erosion": _erosion_scores,
+}
+
+# Which filter the noise model serves: the LRT sees d through w, the erosion test pixel by pixel.
+_NOISE_FILTER: dict[str, Callable[[NDArray[np.float64]], NDArray[np.float64]]] = {
+    "lrt": lambda weights: weights,
+    "erosion": lambda weights: np.ones((1, 1)),
+}
+
+_POLARITY_SCORE: dict[str, Callable[[Float32Array, Float32Array], Float32Array]] = {
+    "both": np.maximum,
+    "dark": lambda bright, dark: dark,
+    "bright": lambda bright, dark: bright,
+}
+
+
+def _flaws(mask: BoolArray, score: Float32Array, statistic: Float32Array, min_area_px: int) -> tuple[Flaw, ...]:
+    count, labels, stats, centroids = cv2.connectedComponentsWithStats(mask.view(np.uint8), connectivity=8)
+    keep = [label for label in range(1, count) if stats[label, cv2.CC_STAT_AREA] >= min_area_px]
+    if not keep:
+        return ()
+    peaks = ndimage.maximum_position(score, labels, keep)
+    found = []
+    for label, (row, col) in zip(keep, peaks, strict=True):
+        x, y, width, height, area = (int(value) for value in stats[label])
+        found.append(Flaw(row=float(centroids[label, 1]), col=float(centroids[label, 0]),
+                          bbox=(y, x, y + height, x + width), area_px=area, score=float(score[row, col]),
+                          polarity="bright" if statistic[row, col] > 0 else "dark"))
+    return tuple(sorted(found, key=lambda flaw: -flaw.score))
+
+
+def detect(
+    reference: NDArray[Any] | Compensated,
+    inspection: NDArray[Any] | Compensated,
+    *,
+    flaw_model: str = "single",
+    size: int = 3,
+    peak_ratio: float = 2.0,
+    kernel: NDArray[Any] | None = None,
+    method: str = "lrt",
+    p_false_alarm: float = 1e-5,
+    polarity: str = "both",
+    noise_sigma: float | None = None,
+    registration: str | Registration | None = "auto",
+    registration_model: str = "translation",
+    min_area_px: int = 1,
+) -> Detection:
+    """Detect flaws in an inspection image by comparison with a reference image (seed §2.4).
+
+    Parameters
+    ----------
+    reference, inspection : ndarray of shape (M, N) or Compensated
+        Images (float32 used internally). A :class:`Compensated` image brings its validity and noise
+        variance. Without registration they must have the same shape.
+    flaw_model : {"single", "uniform", "peak", "kernel"}
+        Expected flaw shape; see :func:`rsi.detection.flaw_models.flaw_kernel` for ``size``,
+        ``peak_ratio`` and ``kernel``.
+    method : {"lrt", "erosion"}
+        Likelihood-ratio test (matched filter), or the seed's sub-optimal morphological-erosion test.
+    p_false_alarm : float
+        Requested per-pixel false-alarm probability, in (0, 0.5).
+    polarity : {"both", "dark", "bright"}
+        Which changes count as flaws.
+    noise_sigma : float, optional
+        Known sensor noise std of each image (intensity units), > 0. None: fit a read + shot noise model
+        to ``d`` and rescale the statistic by its robust scale (self-calibrated test).
+    registration : "auto", Registration or None
+        ``"auto"`` registers with ``registration_model``; a Registration is used as given; None takes the
+        images as aligned.
+    registration_model : str
+        Model for ``registration="auto"``, one of :data:`rsi.imaging.registration.MODELS`.
+    min_area_px : int
+        Components of the mask smaller than this are not reported as flaws.
+
+    Returns
+    -------
+    Detection
+        Score maps, mask, threshold and the list of flaws.
+
+    Notes
+    -----
+    Noise variance of ``d`` at a pixel: ``v_insp + gain^2 F v_ref + sx^2 gx^2 + sy^2 gy^2`` with ``F`` the
+    bilinear-resampling factor for the flaw model (:func:`rsi.detection.noise.interpolation_factor`),
+    ``(sx, sy)`` the registration's ``shift_std_px`` and ``g`` the gradient of the predicted image.
+    """
+    chosen_model = choice(flaw_model, "flaw_model", FLAW_MODELS)
+    chosen_method = choice(method, "method", METHODS)
+    chosen_polarity = choice(polarity, "polarity", POLARITIES)
+    probability = in_range(p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False,
+                           high_inclusive=False)
+    sigma_known = None if noise_sigma is None else in_range(noise_sigma, "noise_sigma", low=0.0,
+                                                            low_inclusive=False)
+    choice(registration_model, "registration_model", MODELS)
+    min_area = positive_int(min_area_px, "min_area_px")
+    weights = flaw_kernel(chosen_model, size=size, peak_ratio=peak_ratio, kernel=kernel)
+
+    reference_in = _unpack(reference, "reference", sigma_known)
+    inspection_in = _unpack(inspection, "inspection", sigma_known)
+    used_registration = _resolve_registration(registration, reference_in, inspection_in, registration_model)
+    aligned = _align(reference_in, inspection_in, used_registration)
+    valid = aligned.valid if inspection_in.valid is None else aligned.valid & inspection_in.valid
+
+    difference = inspection_in.image - aligned.predicted
+    difference[~valid] = 0.0
+    variance_inspection, variance_reference = _sensor_variances(inspection_in, aligned, difference, valid)
+    factor = _factor(_NOISE_FILTER[chosen_method](weights), aligned.fraction_xy)
+    variance = variance_inspection + np.float32(aligned.gain**2 * factor) * variance_reference
+    if used_registration is not None and any(used_registration.shift_std_px):
+        variance = variance + noise.misregistration_variance(aligned.predicted, used_registration.shift_std_px)
+    variance = np.maximum(np.broadcast_to(variance, difference.shape), _VARIANCE_FLOOR)
+    inverse_variance = (np.float32(1.0) / variance).astype(np.float32, copy=False)
+    inverse_variance[~valid] = 0.0
+
+    per_pixel = chosen_method == "erosion"
+    statistic = _lrt(difference, inverse_variance, np.ones((1, 1)) if per_pixel else weights)
+    if sigma_known is None:
+        # Self-calibration: under H0 the statistic is N(0, 1); its robust scale absorbs noise-model error.
+        scale = noise.robust_scale(statistic, valid)
+        if scale > 0.0:
+            statistic = statistic * np.float32(1.0 / scale)
+    bright, dark, valid = _METHOD_SCORES[chosen_method](statistic, valid, weights)
+    score = np.where(valid, _POLARITY_SCORE[chosen_polarity](bright, dark), np.float32(0.0))
+    signed = np.where(valid, np.where(bright >= dark, bright, -dark), np.float32(0.0))
+    threshold = float(thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method,
+                                 weights=weights)[0])
+    mask = (score > threshold) & valid
+    sigma = np.where(valid, np.sqrt(variance), np.float32(0.0)).astype(np.float32, copy=False)
+    return Detection(score=score, statistic=signed, mask=mask, threshold=threshold,
+                     flaws=_flaws(mask, score, signed, min_area), difference=difference, sigma=sigma,
+                     valid=valid, registration=used_registration, flaw_model=chosen_model,
+                     method=chosen_method, p_false_alarm=probability, polarity=chosen_polarity)

@@ -1,0 +1,172 @@
+"""Noise model of the difference image ``d = inspection - (gain * warped_reference + bias)`` (seed §2.4).
+
+The seed treats every error source as extra noise on ``d``: sensor noise of both images, the noise
+reduction and correlation caused by resampling the reference, residual mis-registration (seed §2.3) and
+ambient-light interpolation (seed §2.2). This module holds those pieces; ``docs/detection.md`` derives them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy import optimize, signal
+
+FloatArray = NDArray[np.float64]
+Float32Array = NDArray[np.float32]
+
+MAD_TO_SIGMA = 1.4826  # 1 / Phi^-1(3/4): MAD of N(0, s^2) is s / 1.4826
+_ROBUST_SAMPLES = 50_000  # subsample size for robust scales: relative error ~ 1.17 / sqrt(n) ~ 0.5 %
+_FIT_SAMPLES = 16_000
+_FIT_BINS = 16
+_FRACTION_GRID = 8  # fractions averaged for warps whose sub-pixel phase varies over the image
+
+
+def bilinear_weights(fraction_xy: tuple[float, float]) -> FloatArray:
+    """Return the 2x2 bilinear interpolation kernel ``h`` for sub-pixel fractions ``(fx, fy)``.
+
+    Returns
+    -------
+    ndarray of shape (2, 2)
+        ``[[(1-fx)(1-fy), fx(1-fy)], [(1-fx)fy, fx fy]]`` (rows = y).
+    """
+    fx, fy = fraction_xy
+    return np.outer([1.0 - fy, fy], [1.0 - fx, fx])
+
+
+def interpolation_factor(weights: FloatArray, fraction_xy: tuple[float, float]) -> float:
+    """Variance factor of bilinearly resampled white noise seen through the filter ``weights``.
+
+    Parameters
+    ----------
+    weights : ndarray of shape (K, L)
+        Flaw model (matched filter) ``w``.
+    fraction_xy : tuple of float
+        Sub-pixel fractions ``(fx, fy)`` of the resampling, in [0, 1).
+
+    Returns
+    -------
+    float
+        ``||w * h||^2 / ||w||^2`` with ``h`` the bilinear kernel: white noise of variance ``v`` becomes, after
+        resampling, noise whose ``w``-filtered variance equals that of white noise of variance ``v`` times
+        this factor. For one pixel it is ``((1-fx)^2 + fx^2)((1-fy)^2 + fy^2)``.
+    """
+    smeared = signal.convolve2d(weights, bilinear_weights(fraction_xy), mode="full")
+    return float(np.sum(smeared**2) / np.sum(weights**2))
+
+
+def mean_interpolation_factor(weights: FloatArray) -> float:
+    """:func:`interpolation_factor` averaged over uniformly distributed sub-pixel fractions.
+
+    Used for warps other than a translation, whose fractions sweep [0, 1) across the image.
+    """
+    fractions = (np.arange(_FRACTION_GRID) + 0.5) / _FRACTION_GRID
+    return float(np.mean([interpolation_factor(weights, (fx, fy)) for fx in fractions for fy in fractions]))
+
+
+def misregistration_variance(predicted: Float32Array, shift_std_px: tuple[float, float]) -> Float32Array:
+    """Variance added to ``d`` by a residual translation of std ``(sx, sy)`` pixels.
+
+    Parameters
+    ----------
+    predicted : ndarray of shape (M, N), float32
+        ``gain * warped_reference + bias``.
+    shift_std_px : tuple of float
+        ``(sx, sy)``, e.g. :attr:`Registration.shift_std_px`.
+
+    Returns
+    -------
+    ndarray of shape (M, N), float32
+        ``sx^2 gx^2 + sy^2 gy^2`` (seed §2.3-2.4: first-order Taylor expansion of the shifted image).
+    """
+    sx, sy = shift_std_px
+    # Sobel / 8 is a central difference smoothed across the edge, which keeps sensor noise out of g.
+    gx = cv2.Sobel(predicted, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(predicted, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+    result: Float32Array = np.float32(sx * sx) * gx * gx + np.float32(sy * sy) * gy * gy
+    return result
+
+
+def _median(values: NDArray[Any]) -> float:
+    """Median by selection, O(n), instead of a full sort."""
+    middle = values.size // 2
+    return float(np.partition(values, middle)[middle])
+
+
+def _subsample(values: NDArray[Any], valid: NDArray[np.bool_], samples: int) -> NDArray[Any]:
+    stride = max(1, int(np.sqrt(values.size / samples)))
+    picked: NDArray[Any] = values[::stride, ::stride][valid[::stride, ::stride]]
+    return picked
+
+
+def robust_scale(values: NDArray[Any], valid: NDArray[np.bool_]) -> float:
+    """Return ``1.4826 * MAD`` of the valid values, from a regular subsample of about 50 000 pixels.
+
+    Returns 0 when fewer than two valid pixels are sampled.
+    """
+    sample = _subsample(values, valid, _ROBUST_SAMPLES)
+    if sample.size < 2:
+        return 0.0
+    return MAD_TO_SIGMA * _median(np.abs(sample - _median(sample)))
+
+
+def fit_sensor_variance(
+    difference: Float32Array,
+    predicted: Float32Array,
+    valid: NDArray[np.bool_],
+    *,
+    gain: float,
+    bias: float,
+    factor: float,
+) -> tuple[float, float]:
+    """Fit the per-image sensor variance ``v(I) = a + b I`` from the difference image.
+
+    Parameters
+    ----------
+    difference, predicted : ndarray of shape (M, N), float32
+        ``d`` and ``gain * warped_reference + bias``.
+    valid : ndarray of shape (M, N), bool
+        Pixels where ``d`` is defined.
+    gain, bias : float
+        Photometric map ``inspection ~ gain * reference + bias``.
+    factor : float
+        Single-pixel interpolation factor of the reference noise.
+
+    Returns
+    -------
+    tuple of float
+        ``(a, b)``, both >= 0: read noise (intensity units squared) and shot-noise slope.
+
+    Notes
+    -----
+    Both images come from the same camera, so ``var(d) = v(I_insp) + gain^2 F v(I_ref)`` with
+    ``I_insp = predicted`` and ``I_ref = (predicted - bias) / gain``. On quantile bins of ``predicted``
+    the robust variance ``(1.4826 MAD)^2`` of ``d`` (insensitive to flaws and edges) is regressed by
+    non-negative least squares on ``a (1 + gain^2 F) + b (I_insp + gain^2 F I_ref)``.
+    """
+    order_key = _subsample(predicted, valid, _FIT_SAMPLES)
+    values = _subsample(difference, valid, _FIT_SAMPLES)
+    order = np.argsort(order_key)
+    rows = []
+    targets = []
+    for chunk in np.array_split(order, _FIT_BINS):
+        if chunk.size < 8:
+            continue
+        residual = values[chunk]
+        intensity = _median(order_key[chunk])
+        reference_intensity = (intensity - bias) / gain
+        rows.append([1.0 + gain * gain * factor, intensity + gain * gain * factor * reference_intensity])
+        targets.append((MAD_TO_SIGMA * _median(np.abs(residual - _median(residual)))) ** 2)
+    if not rows:
+        return 0.0, 0.0
+    coefficients, _ = optimize.nnls(np.asarray(rows), np.asarray(targets))
+    return float(coefficients[0]), float(coefficients[1])
+
+
+def affine_variance(intensity: Float32Array, coefficients: tuple[float, float]) -> Float32Array:
+    """Evaluate ``v(I) = a + b I`` (floored at 0 for intensities below zero)."""
+    a, b = coefficients
+    result: Float32Array = np.maximum(np.float32(a) + np.float32(b) * intensity, np.float32(0.0))
+    return result

@@ -1,0 +1,166 @@
+"""Image pyramids, the global first estimate and the coarse-to-fine driver of registration (seed §2.3)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi.imaging._warps import Image, Matrix, rescale
+
+# The coarsest level keeps at least this many pixels per side: phase correlation there must still see the
+# texture, and a shift of up to half this side (times 2**level) is captured.
+_COARSEST_SIDE_PX = 128
+_SMOOTHING_SIZE_PX = 5
+_MIN_PHASE_SIDE_PX = 16
+
+
+@dataclass(frozen=True)
+class Level:
+    """One pyramid level, pixels ``2**index`` times larger than the input's.
+
+    Attributes
+    ----------
+    index : int
+        0 is the full resolution.
+    reference, inspection : ndarray of shape (M, N) and (P, Q), float32
+        Lightly smoothed images (bilinear interpolation is then accurate to a few thousandths of a pixel).
+    mask : ndarray of shape (M, N), bool, or None
+        Reference pixels the user allows, shrunk by the smoothing footprint.
+    """
+
+    index: int
+    reference: Image
+    inspection: Image
+    mask: NDArray[np.bool_] | None
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The registration as it stands after some level.
+
+    Attributes
+    ----------
+    matrix : ndarray of shape (3, 3)
+        Reference to inspection warp in pixels of level `level`.
+    gain, bias : float
+        Photometric model, inspection ~= gain * reference + bias.
+    iterations : int
+        Gauss-Newton iterations so far, all levels together.
+    reason : str
+        "converged", "max_iterations", "deadline" or "diverged" (the last two stop the descent).
+    residual_rms : float
+        RMS of the inspection minus the fitted reference over the pixels used, inspection units.
+    shift_std_px : tuple of float
+        Standard deviation of the translation (x, y) in full-resolution pixels.
+    level : int
+        Pyramid level of `matrix`.
+    """
+
+    matrix: Matrix
+    gain: float = 1.0
+    bias: float = 0.0
+    iterations: int = 0
+    reason: str = "converged"
+    residual_rms: float = float("nan")
+    shift_std_px: tuple[float, float] = (float("nan"), float("nan"))
+    level: int = 0
+
+
+Solver = Callable[[Level, Estimate], Estimate]
+_STOPPING = ("deadline", "diverged")
+
+
+def level_count(*shapes: tuple[int, int]) -> int:
+    """Number of levels so that the coarsest keeps at least ``_COARSEST_SIDE_PX`` pixels per side."""
+    side = min(min(shape) for shape in shapes)
+    count = 1
+    while side // 2 >= _COARSEST_SIDE_PX:
+        side //= 2
+        count += 1
+    return count
+
+
+def smooth(image: Image) -> Image:
+    """5x5 Gaussian, as ECC's gaussFiltSize: it makes bilinear resampling sub-pixel accurate."""
+    size = (_SMOOTHING_SIZE_PX, _SMOOTHING_SIZE_PX)
+    return np.asarray(cv2.GaussianBlur(image, size, 0.0), dtype=np.float32)
+
+
+def _shrink_mask(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    kernel = np.ones((_SMOOTHING_SIZE_PX, _SMOOTHING_SIZE_PX), np.uint8)
+    return np.asarray(cv2.erode(mask.astype(np.uint8), kernel), dtype=bool)
+
+
+def build_levels(
+    reference: Image, inspection: Image, mask: NDArray[np.bool_] | None, count: int
+) -> list[Level]:
+    """Return `count` smoothed levels, finest first (cv2.pyrDown halves each side)."""
+    levels = []
+    level_mask = mask
+    for index in range(count):
+        if index:
+            reference, inspection = cv2.pyrDown(reference), cv2.pyrDown(inspection)
+            if level_mask is not None:
+                # A coarse pixel is usable only if every fine pixel under it is.
+                level_mask = np.asarray(cv2.pyrDown(level_mask.astype(np.float32)) > 0.999)
+        shrunk = None if level_mask is None else _shrink_mask(level_mask)
+        levels.append(Level(index, smooth(reference), smooth(inspection), shrunk))
+    return levels
+
+
+def _windowed(image: Image, shape: tuple[int, int]) -> Image:
+    window = cv2.createHanningWindow(image.shape[::-1], cv2.CV_32F)
+    padded = np.zeros(shape, dtype=np.float32)
+    padded[: image.shape[0], : image.shape[1]] = (image - image.mean()) * window
+    return padded
+
+
+def phase_shift_xy(reference: Image, inspection: Image) -> tuple[float, float]:
+    """Global shift (dx, dy) of `inspection` against `reference` by phase correlation.
+
+    Images of different shapes are windowed separately and zero-padded to a common shape. Any shift up to
+    half the image side is found, which is what lets shifts far beyond the Gauss-Newton basin converge.
+    """
+    if min(*reference.shape, *inspection.shape) < _MIN_PHASE_SIDE_PX:
+        return 0.0, 0.0
+    shape = (max(reference.shape[0], inspection.shape[0]), max(reference.shape[1], inspection.shape[1]))
+    # Fresh arrays: OpenCV 5 phaseCorrelate may overwrite its inputs.
+    (dx, dy), _ = cv2.phaseCorrelate(_windowed(reference, shape), _windowed(inspection, shape))
+    return float(dx), float(dy)
+
+
+def coarse_to_fine(levels: Sequence[Level], solver: Solver, start: Estimate | None) -> Estimate:
+    """Run `solver` from the coarsest level to the finest, carrying the estimate down.
+
+    Parameters
+    ----------
+    levels : sequence of Level
+        Finest first.
+    solver : callable
+        ``solver(level, estimate) -> estimate`` refines an estimate given in the level's pixels.
+    start : Estimate or None
+        Start in full-resolution pixels (level 0); None starts from phase correlation at the coarsest level,
+        gain 1 and bias 0.
+
+    Returns
+    -------
+    Estimate
+        In full-resolution pixels (level 0), from the finest level reached: a deadline or a divergence stops
+        the descent early.
+    """
+    top = levels[-1]
+    if start is None:
+        dx, dy = phase_shift_xy(top.reference, top.inspection)
+        estimate = Estimate(np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]]), level=top.index)
+    else:
+        estimate = start
+    for level in reversed(levels):
+        factor = 2.0 ** (estimate.level - level.index)
+        estimate = solver(level, replace(estimate, matrix=rescale(estimate.matrix, factor), level=level.index))
+        if estimate.reason in _STOPPING:
+            break
+    return replace(estimate, matrix=rescale(estimate.matrix, 2.0**estimate.level), level=0)

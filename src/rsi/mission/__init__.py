@@ -1,0 +1,28 @@
+"""Application layer: one inspection pass over a pair, scoring against ground truth, the synthetic demo.
+
+Importing this package stays cheap; the algorithms load when a function runs.
+"""
+
+from __future__ import annotations
+
+from rsi.mission.pair import (
+    DemoResult,
+    DemoRun,
+    PairResult,
+    Score,
+    inspect_pair,
+    run_synthetic_demo,
+    score_flaws,
+    simulate_demo,
+)
+
+__all__ = [
+    "DemoResult",
+    "DemoRun",
+    "PairResult",
+    "Score",
+    "inspect_pair",
+    "run_synthetic_demo",
+    "score_flaws",
+    "simulate_demo",
+]

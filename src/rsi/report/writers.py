@@ -1,0 +1,319 @@
+"""Write result records to a results folder: PNG pictures, ROC plot and table, flaws.json/csv, summary.json.
+
+A view only: every number written here was computed by the algorithms and sits in the record. Each file is
+written atomically (temporary file in the same folder, then ``os.replace``), so a crash or a concurrent
+reader never sees half a file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rsi.report import figures
+
+if TYPE_CHECKING:
+    from rsi.detection.detect import Detection, Flaw
+    from rsi.detection.roc import RocCurve
+    from rsi.imaging.registration import Registration
+    from rsi.mission.pair import DemoResult, PairResult
+
+FLAW_COLUMNS = ("number", "row", "col", "row0", "col0", "row1", "col1", "area_px", "score", "polarity")
+"""Columns of flaws.csv (and keys of each flaw in flaws.json); ``number`` matches the overlay labels."""
+ROC_COLUMNS = ("label", "threshold", "p_false_alarm", "p_detection")
+_FILE_MODE = 0o644  # mkstemp makes 0600 files; results are meant to be read by others
+
+
+def atomic_write_bytes(path: Path | str, data: bytes) -> Path:
+    """Write `data` to `path` atomically: a temporary file in the same folder, then ``os.replace``.
+
+    Parameters
+    ----------
+    path : path
+        Destination; its folder is created if missing.
+    data : bytes
+        File contents.
+
+    Returns
+    -------
+    Path
+        The destination.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(data)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.chmod(temporary, _FILE_MODE)
+        os.replace(temporary, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(temporary)
+        raise
+    return target
+
+
+def atomic_write_text(path: Path | str, text: str) -> Path:
+    """Write UTF-8 `text` to `path` atomically (see :func:`atomic_write_bytes`)."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def json_ready(value: Any) -> Any:
+    """Convert numpy scalars/arrays and tuples to JSON types; NaN and inf become null (strict JSON)."""
+    if isinstance(value, Mapping):
+        return {str(key): json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [json_ready(item) for item in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        number = float(value)
+        return number if math.isfinite(number) else None
+    return value
+
+
+def to_json(record: Mapping[str, Any]) -> str:
+    """Serialise a record to strict JSON (no NaN/inf), indented, with a trailing newline."""
+    return json.dumps(json_ready(record), indent=2, allow_nan=False) + "\n"
+
+
+def flaw_records(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None) -> list[dict[str, Any]]:
+    """One plain dict per flaw with the :data:`FLAW_COLUMNS` (plus ``true_flaw`` when `is_true` is given).
+
+    Parameters
+    ----------
+    flaws : sequence of Flaw
+        Flaws, strongest first; ``number`` is the 1-based position.
+    is_true : sequence of bool, optional
+        Ground-truth verdict per flaw (the demo knows it).
+
+    Returns
+    -------
+    list of dict
+    """
+    records = []
+    for number, flaw in enumerate(flaws, start=1):
+        row0, col0, row1, col1 = flaw.bbox
+        record: dict[str, Any] = {
+            "number": number,
+            "row": float(flaw.row),
+            "col": float(flaw.col),
+            "row0": int(row0),
+            "col0": int(col0),
+            "row1": int(row1),
+            "col1": int(col1),
+            "area_px": int(flaw.area_px),
+            "score": float(flaw.score),
+            "polarity": flaw.polarity,
+        }
+        if is_true is not None:
+            record["true_flaw"] = bool(is_true[number - 1])
+        records.append(record)
+    return records
+
+
+def flaws_document(detection: Detection, *, is_true: Sequence[bool] | None = None) -> dict[str, Any]:
+    """flaws.json content: the test's settings and threshold, then the flaws (strongest first)."""
+    return {
+        "count": len(detection.flaws),
+        "flaw_model": detection.flaw_model,
+        "method": detection.method,
+        "polarity": detection.polarity,
+        "p_false_alarm": detection.p_false_alarm,
+        "threshold": detection.threshold,
+        "flaws": flaw_records(detection.flaws, is_true=is_true),
+    }
+
+
+def _csv_text(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> str:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return buffer.getvalue()
+
+
+def flaws_csv(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None) -> str:
+    """flaws.csv content: a header of :data:`FLAW_COLUMNS` (+ ``true_flaw``) and one row per flaw."""
+    columns = (*FLAW_COLUMNS, "true_flaw") if is_true is not None else FLAW_COLUMNS
+    return _csv_text(columns, flaw_records(flaws, is_true=is_true))
+
+
+def roc_csv(curves: Sequence[RocCurve]) -> str:
+    """ROC table in long form: one row per (curve, operating point) with :data:`ROC_COLUMNS`."""
+    rows = [
+        {
+            "label": curve.label,
+            "threshold": threshold,
+            "p_false_alarm": p_false_alarm,
+            "p_detection": p_detection,
+        }
+        for curve in curves
+        for threshold, p_false_alarm, p_detection in zip(
+            np.ravel(curve.threshold), np.ravel(curve.p_false_alarm), np.ravel(curve.p_detection), strict=True
+        )
+    ]
+    return _csv_text(ROC_COLUMNS, rows)
+
+
+def registration_record(registration: Registration | None) -> dict[str, Any] | None:
+    """Plain dict of a registration result (None stays None), for JSON and tables."""
+    if registration is None:
+        return None
+    return {
+        "model": registration.model,
+        "matrix": np.asarray(registration.matrix).tolist(),
+        "translation_xy": tuple(registration.translation_xy),
+        "gain": registration.gain,
+        "bias": registration.bias,
+        "converged": registration.converged,
+        "reason": registration.reason,
+        "iterations": registration.iterations,
+        "residual_rms": registration.residual_rms,
+        "shift_std_px": tuple(registration.shift_std_px),
+        "elapsed_s": registration.elapsed_s,
+    }
+
+
+def pair_summary(result: PairResult) -> dict[str, Any]:
+    """summary.json content for one inspected pair: settings, threshold, registration, flaw count, timing."""
+    detection = result.detection
+    return {
+        "shape": result.inspection.shape,
+        "flaw_model": detection.flaw_model,
+        "method": detection.method,
+        "polarity": detection.polarity,
+        "p_false_alarm": detection.p_false_alarm,
+        "threshold": detection.threshold,
+        "flaws": len(detection.flaws),
+        "valid_fraction": float(np.mean(detection.valid)),
+        "registration": registration_record(result.registration),
+        "elapsed_s": result.elapsed_s,
+    }
+
+
+def demo_summary(demo: DemoResult) -> dict[str, Any]:
+    """summary.json content for the demo: the pair summary plus the truth and the score against it."""
+    score = demo.score
+    return {
+        "seed": demo.seed,
+        **pair_summary(demo.pair),
+        "true_shift_xy": demo.shift_xy,
+        "seeded_flaws": score.truth_count,
+        "found_flaws": score.found_count,
+        "recall": score.recall,
+        "precision": score.precision,
+        "false_alarms": score.false_alarms,
+        "single_pixel_flaws": len(demo.single_pixel.flaws),
+        "simulation_s": demo.elapsed_s,
+    }
+
+
+def _pair_files(result: PairResult, *, is_true: Sequence[bool] | None = None) -> dict[str, bytes]:
+    detection = result.detection
+    return {
+        "flaws.json": to_json(flaws_document(detection, is_true=is_true)).encode(),
+        "flaws.csv": flaws_csv(detection.flaws, is_true=is_true).encode(),
+        "overlay.png": figures.overlay_png(result.inspection, detection.flaws, valid=detection.valid),
+        "difference.png": figures.colour_png(
+            detection.difference, cmap="RdBu_r", symmetric=True, valid=detection.valid
+        ),
+        "score.png": figures.colour_png(detection.score, cmap="magma", valid=detection.valid),
+        "summary.json": to_json(pair_summary(result)).encode(),
+    }
+
+
+def _write_all(out_dir: Path | str, contents: Mapping[str, bytes]) -> dict[str, Path]:
+    folder = Path(out_dir)
+    return {name: atomic_write_bytes(folder / name, data) for name, data in contents.items()}
+
+
+def write_pair_report(out_dir: Path | str, result: PairResult) -> dict[str, Path]:
+    """Write flaws.json, flaws.csv, overlay.png, difference.png, score.png and summary.json for one pair.
+
+    Parameters
+    ----------
+    out_dir : path
+        Results folder (created if missing).
+    result : PairResult
+        The inspected pair.
+
+    Returns
+    -------
+    dict of str to Path
+        File name -> written path.
+    """
+    return _write_all(out_dir, _pair_files(result))
+
+
+def write_roc_report(
+    out_dir: Path | str, curves: Sequence[RocCurve], *, title: str = "ROC"
+) -> dict[str, Path]:
+    """Write roc.png (P_D against P_F, seed §2.4) and roc.csv for the given curves.
+
+    Parameters
+    ----------
+    out_dir : path
+        Results folder (created if missing).
+    curves : sequence of RocCurve
+        Curves to plot and tabulate, each with its `label`.
+    title : str
+        Plot title.
+
+    Returns
+    -------
+    dict of str to Path
+        File name -> written path.
+    """
+    contents = {"roc.png": figures.roc_png(curves, title=title), "roc.csv": roc_csv(curves).encode()}
+    return _write_all(out_dir, contents)
+
+
+def write_demo_report(out_dir: Path | str, demo: DemoResult) -> dict[str, Path]:
+    """Write the demo's results folder.
+
+    Files: reference.png and inspection.png (raw interlaced frames), reference_compensated.png and
+    inspection_compensated.png (strobe-only estimates, seed §2.2), difference.png, score.png, overlay.png
+    (numbered flaw boxes), roc.png and roc.csv (theory against measurement, seed §2.4), flaws.json and
+    flaws.csv (with each flaw's ground-truth verdict) and summary.json (recall, false alarms, registration).
+
+    Parameters
+    ----------
+    out_dir : path
+        Results folder (created if missing).
+    demo : DemoResult
+        The simulated run.
+
+    Returns
+    -------
+    dict of str to Path
+        File name -> written path.
+    """
+    reference, inspection = demo.reference_compensated, demo.inspection_compensated
+    contents = {
+        "reference.png": figures.grey_png(demo.reference_frame.raw),
+        "inspection.png": figures.grey_png(demo.inspection_frame.raw),
+        "reference_compensated.png": figures.grey_png(reference.image, valid=reference.valid),
+        "inspection_compensated.png": figures.grey_png(inspection.image, valid=inspection.valid),
+        **_pair_files(demo.pair, is_true=demo.score.is_true),
+        "summary.json": to_json(demo_summary(demo)).encode(),
+    }
+    files = _write_all(out_dir, contents)
+    title = f"Demo ROC: {demo.pair.detection.flaw_model} and single-pixel flaw models (seed {demo.seed})"
+    files.update(write_roc_report(out_dir, demo.curves, title=title))
+    return files
