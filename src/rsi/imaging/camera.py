@@ -3,7 +3,7 @@
 The camera turns an illuminance image into digital numbers (DN)::
 
     electrons = Poisson(k * (E_ambient * t_exposure + H_strobe * lit_rows)) + dark
-    DN        = clip(round(black + min(electrons, full_well) / gain + read), 0, max_DN)
+    DN        = clip(round(black + (min(electrons, full_well) + read) / gain), 0, max_DN)  (max_DN at full well)
 
 with `k` = ``electrons_per_lux_s``, `gain` = ``full_well_e / (max_DN - black)`` so that a full well reads
 exactly ``max_DN``, and read noise Gaussian. The response is linear (unity gamma, seed §2.1), which is what
@@ -331,6 +331,7 @@ def expose(
     if camera.read_noise_e > 0:
         collected = collected + generator.normal(0.0, camera.read_noise_e, size=collected.shape)
     dn = np.clip(np.rint(camera.black_level_dn + collected / camera.gain_e_per_dn), 0, camera.max_dn)
+    dn[well_full] = camera.max_dn  # the ADC range ends at the full well, so a full well reads max DN
     if bad_pixels is not None:
         dn, well_full = _imprint_fixed_defects(dn, well_full, bad_pixels, camera)
     raw = dn.astype(camera.raw_dtype)
