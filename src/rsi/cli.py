@@ -45,7 +45,8 @@ DEFAULT_OUT = Path("rsi-results")
 """Where ``rsi demo`` writes unless told otherwise."""
 _MAX_TABLE_ROWS = 20
 _ROC_TABLE_P_FALSE_ALARM = (1e-6, 1e-5, 1e-4, 1e-3)
-_DEEPPCB_KEYS = (
+#: Keys of the ``rsi eval deeppcb --json`` object, in order (the benchmark scripts parse them).
+DEEPPCB_KEYS = (
     "pairs",
     "defects",
     "recall",
@@ -361,7 +362,7 @@ def eval_deeppcb(
 
         with _progress_bar(f"DeepPCB {split.value}") as update:
             evaluation = evaluate_deeppcb(root, split=split.value, progress=update)
-        record = {key: getattr(evaluation, key) for key in _DEEPPCB_KEYS}
+        record = {key: getattr(evaluation, key) for key in DEEPPCB_KEYS}
         if as_json:
             _print_json(record)
             return

@@ -76,7 +76,11 @@ def test_seed_exposure_strobe_comparable_to_sun_and_mid_grey_does_not_saturate()
     assert ambient_lux_s == pytest.approx(13.0)
     assert strobe_lux_s == pytest.approx(13.0)
     frame = expose(
-        _flat(reflectance * SUN_LUX), _flat(reflectance * strobe_lux_s), exposure_s=1e-4, lit_field="odd", rng=0
+        _flat(reflectance * SUN_LUX),
+        _flat(reflectance * strobe_lux_s),
+        exposure_s=1e-4,
+        lit_field="odd",
+        rng=0,
     )
     black = frame.camera.black_level_dn
     lit = frame.raw[1::2].mean() - black
@@ -88,7 +92,8 @@ def test_seed_exposure_strobe_comparable_to_sun_and_mid_grey_does_not_saturate()
 
 def test_field_rate_exposure_without_shutter_saturates() -> None:
     """Seed §2.1: over a whole 1/60 s field the sun gives ~215 lm s on 0.1 m^2, far beyond the strobe."""
-    assert SUN_LUX * SCENE_AREA_M2 / 60.0 == pytest.approx(215.0, rel=0.01)
+    field_lm_s = SUN_LUX * SCENE_AREA_M2 / 60.0
+    assert field_lm_s == pytest.approx(215.0, rel=0.01)
     frame = expose(_flat(0.5 * SUN_LUX), _flat(0.0), exposure_s=1.0 / 60.0, lit_field="none", rng=0)
     assert frame.saturated.all()
     assert (frame.raw == 255).all()
@@ -161,8 +166,14 @@ def test_random_bad_pixel_maps_are_disjoint_seeded_and_have_the_asked_fraction()
     ("arguments", "name"),
     [
         ({"hot": [[True]], "dead": np.zeros((2, 2), bool), "stuck": np.zeros((2, 2), bool)}, "hot"),
-        ({"hot": np.zeros((2, 2), bool), "dead": np.zeros((3, 2), bool), "stuck": np.zeros((2, 2), bool)}, "dead"),
-        ({"hot": np.zeros((2, 2), bool), "dead": np.zeros((2, 2), bool), "stuck": np.zeros((2, 2), "U1")}, "stuck"),
+        (
+            {"hot": np.zeros((2, 2), bool), "dead": np.zeros((3, 2), bool), "stuck": np.zeros((2, 2), bool)},
+            "dead",
+        ),
+        (
+            {"hot": np.zeros((2, 2), bool), "dead": np.zeros((2, 2), bool), "stuck": np.zeros((2, 2), "U1")},
+            "stuck",
+        ),
         (
             {
                 "hot": np.zeros((2, 2), bool),
@@ -183,7 +194,9 @@ def test_bad_pixel_map_rejects_bad_fields_by_name(arguments: dict[str, object], 
     ("shape", "fraction", "name"),
     [((4, 4), 1.5, "fraction"), ((4,), 0.1, "shape"), ((4, 0), 0.1, r"shape\[1\]")],
 )
-def test_random_bad_pixel_map_rejects_bad_arguments(shape: tuple[int, int], fraction: float, name: str) -> None:
+def test_random_bad_pixel_map_rejects_bad_arguments(
+    shape: tuple[int, int], fraction: float, name: str
+) -> None:
     with pytest.raises(InputError, match=name):
         BadPixelMap.random(shape, fraction=fraction, rng=0)
 

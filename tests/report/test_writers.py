@@ -1,4 +1,4 @@
-"""The report layer: atomic files, flaw tables that match the overlay numbering, valid pictures, no algorithms."""
+"""The report layer: atomic files, flaw tables matching the overlay numbers, valid pictures, no algorithms."""
 
 from __future__ import annotations
 
@@ -120,7 +120,14 @@ def test_roc_csv_has_one_row_per_operating_point() -> None:
 
 def test_pair_report_writes_every_file_and_valid_pictures(tmp_path: Path) -> None:
     files = writers.write_pair_report(tmp_path, make_pair())
-    assert set(files) == {"flaws.json", "flaws.csv", "overlay.png", "difference.png", "score.png", "summary.json"}
+    assert set(files) == {
+        "flaws.json",
+        "flaws.csv",
+        "overlay.png",
+        "difference.png",
+        "score.png",
+        "summary.json",
+    }
     for name, path in files.items():
         assert path == tmp_path / name
         if name.endswith(".png"):
@@ -159,7 +166,7 @@ def test_constant_image_renders() -> None:
 
 
 def test_unknown_colour_map_names_the_fix() -> None:
-    with pytest.raises(InputError, match="cmap='nope'.*Try"):
+    with pytest.raises(InputError, match=r"cmap='nope'.*Try"):
         figures.colour_png(np.zeros(SHAPE), cmap="nope")
 
 

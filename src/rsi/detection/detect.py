@@ -20,8 +20,6 @@ from typing import Any
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
-
 from rsi._validate import as_image, as_mask, choice, in_range, positive_int, same_shape
 from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
@@ -206,11 +204,14 @@ def _sensor_variances(
     """Sensor variance of the inspection and of the warped reference; fitted to ``d`` when unknown."""
     if inspection.variance is not None and aligned.variance is not None:
         return inspection.variance, aligned.variance
+    # The variance is read at a local mean of both images: a noisy intensity would couple the variance to
+    # the noise in d (a pixel whose reference noise is low also gets a low variance) and fatten the tails.
+    intensity = cv2.blur(np.float32(0.5) * (inspection.image + aligned.predicted), (3, 3))
     single = _factor(np.ones((1, 1)), aligned.fraction_xy)
-    coefficients = noise.fit_sensor_variance(difference, aligned.predicted, valid, gain=aligned.gain,
+    coefficients = noise.fit_sensor_variance(difference, intensity, valid, gain=aligned.gain,
                                              bias=aligned.bias, factor=single)
-    reference_intensity = (aligned.predicted - np.float32(aligned.bias)) * np.float32(1.0 / aligned.gain)
-    return (noise.affine_variance(aligned.predicted, coefficients),
+    reference_intensity = (intensity - np.float32(aligned.bias)) * np.float32(1.0 / aligned.gain)
+    return (noise.affine_variance(intensity, coefficients),
             noise.affine_variance(reference_intensity, coefficients))
 
 
@@ -264,18 +265,26 @@ _POLARITY_SCORE: dict[str, Callable[[Float32Array, Float32Array], Float32Array]]
 }
 
 
+def _peaks(labels: NDArray[np.int32], mask: BoolArray, score: Float32Array) -> dict[int, int]:
+    """Flat index of the highest-scoring pixel of each component, from the mask pixels only (few)."""
+    pixels = np.flatnonzero(mask)
+    order = pixels[np.argsort(-score.ravel()[pixels], kind="stable")]
+    found, first = np.unique(labels.ravel()[order], return_index=True)
+    return dict(zip(found.tolist(), order[first].tolist(), strict=True))
+
+
 def _flaws(mask: BoolArray, score: Float32Array, statistic: Float32Array, min_area_px: int) -> tuple[Flaw, ...]:
     count, labels, stats, centroids = cv2.connectedComponentsWithStats(mask.view(np.uint8), connectivity=8)
-    keep = [label for label in range(1, count) if stats[label, cv2.CC_STAT_AREA] >= min_area_px]
-    if not keep:
-        return ()
-    peaks = ndimage.maximum_position(score, labels, keep)
+    peaks = _peaks(labels, mask, score)
     found = []
-    for label, (row, col) in zip(keep, peaks, strict=True):
+    for label in range(1, count):
         x, y, width, height, area = (int(value) for value in stats[label])
+        if area < min_area_px:
+            continue
+        peak = peaks[label]
         found.append(Flaw(row=float(centroids[label, 1]), col=float(centroids[label, 0]),
-                          bbox=(y, x, y + height, x + width), area_px=area, score=float(score[row, col]),
-                          polarity="bright" if statistic[row, col] > 0 else "dark"))
+                          bbox=(y, x, y + height, x + width), area_px=area, score=float(score.flat[peak]),
+                          polarity="bright" if statistic.flat[peak] > 0 else "dark"))
     return tuple(sorted(found, key=lambda flaw: -flaw.score))
 
 

@@ -125,7 +125,7 @@ def map_points(matrix: Matrix, points_xy: NDArray[np.float64]) -> NDArray[np.flo
     return np.asarray(mapped / denominator[:, None], dtype=np.float64)
 
 
-def sample(image: Image, matrix: Matrix, region: Region) -> Image:
+def sample(image: Image, matrix: Matrix, region: Region, out: Image | None = None) -> Image:
     """Resample `image` bilinearly at ``matrix @ (x, y, 1)`` for every reference pixel of `region`.
 
     Parameters
@@ -136,6 +136,8 @@ def sample(image: Image, matrix: Matrix, region: Region) -> Image:
         Reference pixel to `image` pixel map.
     region : tuple of int
         (row0, row1, col0, col1) of the reference pixels to produce.
+    out : ndarray of shape (row1 - row0, col1 - col0), float32, optional
+        Buffer to write into (saves a page-faulting 4 MB allocation per call at 1024^2).
 
     Returns
     -------
@@ -146,14 +148,14 @@ def sample(image: Image, matrix: Matrix, region: Region) -> Image:
     if is_translation(matrix):
         # A shift is a sub-pixel crop: getRectSubPix is ~9x cheaper than warpAffine at 1024^2.
         centre = (col0 + matrix[0, 2] + (size_wh[0] - 1) / 2.0, row0 + matrix[1, 2] + (size_wh[1] - 1) / 2.0)
-        return np.asarray(cv2.getRectSubPix(image, size_wh, centre), dtype=np.float32)
+        return np.asarray(cv2.getRectSubPix(image, size_wh, centre, patch=out), dtype=np.float32)
     shifted = matrix @ np.array([[1.0, 0.0, col0], [0.0, 1.0, row0], [0.0, 0.0, 1.0]])
     flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
     if np.array_equal(shifted[2], [0.0, 0.0, 1.0]):
-        out = cv2.warpAffine(image, shifted[:2], size_wh, flags=flags, borderMode=cv2.BORDER_REPLICATE)
+        warped = cv2.warpAffine(image, shifted[:2], size_wh, dst=out, flags=flags, borderMode=cv2.BORDER_REPLICATE)
     else:
-        out = cv2.warpPerspective(image, shifted, size_wh, flags=flags, borderMode=cv2.BORDER_REPLICATE)
-    return np.asarray(out, dtype=np.float32)
+        warped = cv2.warpPerspective(image, shifted, size_wh, dst=out, flags=flags, borderMode=cv2.BORDER_REPLICATE)
+    return np.asarray(warped, dtype=np.float32)
 
 
 def valid_region(

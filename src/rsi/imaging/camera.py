@@ -3,10 +3,11 @@
 The camera turns an illuminance image into digital numbers (DN)::
 
     electrons = Poisson(k * (E_ambient * t_exposure + H_strobe * lit_rows)) + dark
-    DN        = clip(round(black + (min(electrons, full_well) + read) / gain), 0, max_DN)  (max_DN at full well)
+    DN        = clip(round(black + (min(electrons, full_well) + read) / gain), 0, max_DN)
 
 with `k` = ``electrons_per_lux_s``, `gain` = ``full_well_e / (max_DN - black)`` so that a full well reads
-exactly ``max_DN``, and read noise Gaussian. The response is linear (unity gamma, seed §2.1), which is what
+exactly ``max_DN`` (a full well always reads ``max_DN``: the digitiser range ends there), and read noise
+Gaussian. The response is linear (unity gamma, seed §2.1), which is what
 lets ambient-light subtraction (seed §2.2) be computed on DN directly.
 """
 
@@ -115,10 +116,12 @@ class CameraModel:
         Shot noise is Poisson in electrons, so its variance in DN^2 is ``signal_e / gain^2 =
         (DN - black) / gain``; read noise adds ``(read_noise_e / gain)^2`` and rounding ``1/12``.
         """
-        gain = np.float32(self.gain_e_per_dn)
-        signal_dn = np.maximum(np.asarray(image_dn, dtype=np.float32) - np.float32(self.black_level_dn), 0)
         floor = np.float32((self.read_noise_e / self.gain_e_per_dn) ** 2 + _QUANTISATION_VARIANCE_DN2)
-        variance: NDArray[np.float32] = signal_dn / gain + floor
+        # in place on one float32 buffer: this runs on every frame of the pipeline
+        variance: NDArray[np.float32] = np.subtract(image_dn, self.black_level_dn, dtype=np.float32)
+        np.maximum(variance, 0, out=variance)
+        variance *= np.float32(1.0 / self.gain_e_per_dn)
+        variance += floor
         return variance
 
 

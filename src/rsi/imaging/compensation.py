@@ -255,7 +255,9 @@ def _ambient_variance(var_above: F32, var_below: F32, edges: tuple[bool, bool]) 
 
 def _excess_square(value: F32, variance: F32) -> F32:
     """value^2 less its expected noise part (three sigmas), floored at 0: a de-noised squared error."""
-    excess: F32 = np.maximum(value * value - _NOISE_SIGMAS_SQUARED * variance, np.float32(0))
+    excess: F32 = value * value
+    excess -= _NOISE_SIGMAS_SQUARED * variance
+    np.maximum(excess, 0, out=excess)
     return excess
 
 

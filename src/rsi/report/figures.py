@@ -32,6 +32,7 @@ _LABEL_BGR = (0, 255, 255)
 # reaches this many pixels, which keeps the flaw numbers legible.
 _OVERLAY_MIN_SIDE_PX = 768
 _STRETCH_PERCENTILES = (0.5, 99.5)
+_P_FALSE_ALARM_FLOOR = 1e-7  # left end of the ROC plot's P_F axis
 
 
 def encode_png(image: UInt8Array) -> bytes:
@@ -239,6 +240,7 @@ def roc_png(curves: Sequence[RocCurve], *, title: str = "ROC") -> bytes:
             _plot_curve(axes, curve)
         axes.set(xscale="log", xlabel="P_F (false alarms per pixel)", ylabel="P_D", title=title)
         axes.set_ylim(-0.02, 1.02)
+        axes.set_xlim(left=_P_FALSE_ALARM_FLOOR / 2.0)
         axes.grid(True, which="both", alpha=0.3)
         axes.legend(loc="lower right", fontsize="small")
         buffer = io.BytesIO()
@@ -251,8 +253,13 @@ def roc_png(curves: Sequence[RocCurve], *, title: str = "ROC") -> bytes:
 def _plot_curve(axes: Any, curve: RocCurve) -> None:
     p_false_alarm = np.asarray(curve.p_false_alarm, dtype=np.float64)
     p_detection = np.asarray(curve.p_detection, dtype=np.float64)
-    keep = p_false_alarm > 0.0  # a log axis cannot show P_F = 0
-    if "measured" in curve.label:
-        axes.plot(p_false_alarm[keep], p_detection[keep], "o", markersize=3, label=curve.label)
-    else:
-        axes.plot(p_false_alarm[keep], p_detection[keep], "-", label=curve.label)
+    seen = p_false_alarm > 0.0
+    if "measured" not in curve.label:
+        axes.plot(p_false_alarm[seen], p_detection[seen], "-", label=curve.label)
+        return
+    (line,) = axes.plot(p_false_alarm[seen], p_detection[seen], "o", markersize=3, label=curve.label)
+    if not seen.all():
+        # A log axis cannot show P_F = 0 (no background pixel reached the threshold): such points are drawn
+        # as left-pointing triangles on the axis floor, i.e. "P_F below anything this image can measure".
+        floor = np.full(np.count_nonzero(~seen), _P_FALSE_ALARM_FLOOR)
+        axes.plot(floor, p_detection[~seen], "<", color=line.get_color(), label=f"{curve.label}, P_F = 0")

@@ -1,0 +1,235 @@
+"""Ambient-light compensation (seed §2.2): cancellation truths, interpolation errors, noise, validity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rsi.errors import InputError
+from rsi.imaging.camera import BadPixelMap, CameraModel, Frame, expose
+from rsi.imaging.compensation import compensate_interlaced, compensate_two_frames
+
+STROBE_DN = 30.0
+SUN_LUX = 130000.0
+
+
+def _interlaced_dn(ambient_dn: np.ndarray, lit_field: str = "odd") -> np.ndarray:
+    """A noise-free raw frame in DN: ambient everywhere plus a flat strobe on the lit field."""
+    raw = 4.0 + ambient_dn.astype(np.float64)
+    raw[1 if lit_field == "odd" else 0 :: 2] += STROBE_DN
+    return raw
+
+
+def _ambient_rows(profile: np.ndarray, cols: int = 8) -> np.ndarray:
+    return np.repeat(profile[:, None], cols, axis=1).astype(np.float64)
+
+
+@pytest.mark.parametrize("lit_field", ["odd", "even"])
+def test_constant_ambient_cancels_exactly(lit_field: str) -> None:
+    raw = _interlaced_dn(np.full((40, 8), 120.0), lit_field)
+    result = compensate_interlaced(raw, lit_field=lit_field)
+    np.testing.assert_array_equal(result.image, STROBE_DN)
+    np.testing.assert_array_equal(result.interpolation_variance, 0.0)
+    assert result.valid.all()
+
+
+@pytest.mark.parametrize("lit_field", ["odd", "even"])
+def test_linear_vertical_ambient_cancels_except_the_one_neighbour_edge_row(lit_field: str) -> None:
+    slope_dn = 0.5
+    raw = _interlaced_dn(_ambient_rows(10.0 + slope_dn * np.arange(200)), lit_field)
+    result = compensate_interlaced(raw, lit_field=lit_field)
+    # the row on the frame edge has one unlit neighbour, one row inwards: off by one row of slope
+    edge = 0 if lit_field == "even" else -1
+    interior = np.delete(result.image, edge, axis=0)
+    np.testing.assert_array_equal(interior, STROBE_DN)
+    np.testing.assert_allclose(result.image[edge], STROBE_DN + slope_dn * (-1 if edge == 0 else 1))
+    np.testing.assert_array_equal(np.delete(result.interpolation_variance, edge, axis=0), 0.0)
+
+
+def test_sharp_shadow_edge_gives_interpolation_variance_only_at_the_edge_rows() -> None:
+    lit_row, step_dn = 51, 180.0  # rows >= 51 are in shadow; lit row 51 is field row 25
+    profile = np.where(np.arange(100) < lit_row, 200.0, 20.0)
+    raw = _interlaced_dn(_ambient_rows(profile), "odd")
+    result = compensate_interlaced(raw, lit_field="odd")
+    error = result.image - STROBE_DN
+    flagged = np.flatnonzero(result.interpolation_variance[:, 0] > 0)
+    np.testing.assert_array_equal(flagged, [24, 25, 26])
+    # the row straddling the edge is off by half the step, and its variance says so (seed §2.2)
+    assert abs(error[25, 0]) == pytest.approx(step_dn / 2)
+    assert result.interpolation_variance[25, 0] == pytest.approx(error[25, 0] ** 2, rel=0.05)
+    np.testing.assert_array_equal(np.delete(error, 25, axis=0), 0.0)
+
+
+def test_penumbra_wider_than_two_pixels_interpolates_well() -> None:
+    """Seed §2.2: a transition over more than a couple of pixels is estimated accurately."""
+    rows = np.arange(100)
+    sharp = np.where(rows < 51, 200.0, 20.0)
+    soft = np.interp(rows, [47, 55], [200.0, 20.0])
+    errors = [
+        np.abs(
+            compensate_interlaced(_interlaced_dn(_ambient_rows(p)), lit_field="odd").image - STROBE_DN
+        ).max()
+        for p in (sharp, soft)
+    ]
+    assert errors[1] < 0.15 * errors[0]
+
+
+def test_compensated_image_matches_the_strobe_only_image_within_its_noise() -> None:
+    rng = np.random.default_rng(7)
+    shape = (480, 640)
+    ambient = SUN_LUX * (0.3 + 0.2 * np.linspace(0, 1, shape[0]))[:, None] * np.ones(shape)
+    strobe = 13.0 * rng.uniform(0.2, 0.6, size=shape)
+    frame = expose(ambient, strobe, lit_field="odd", rng=rng)
+    result = compensate_interlaced(frame)
+    camera = frame.camera
+    truth = strobe[1::2] * camera.electrons_per_lux_s / camera.gain_e_per_dn
+    z = (result.image - truth) / np.sqrt(result.variance)
+    assert result.valid.all()
+    assert abs(z.mean()) < 0.02
+    assert z.std() == pytest.approx(1.0, abs=0.1)
+
+
+@pytest.mark.parametrize(("method", "power_ratio"), [("interlaced", 1.5), ("two_frames", 2.0)])
+def test_noise_power_grows_as_predicted_and_the_variance_map_matches(method: str, power_ratio: float) -> None:
+    """Seed §2.2: subtraction nearly doubles the noise power (two frames: x2; mean of two rows: x1.5)."""
+    ambient, strobe = np.full((480, 640), 0.4 * SUN_LUX), np.zeros((480, 640))
+    if method == "interlaced":
+        frame = expose(ambient, strobe, lit_field="odd", rng=11)
+        single = frame.raw
+        result = compensate_interlaced(frame)
+    else:
+        lit = expose(ambient, strobe, lit_field="both", rng=11)
+        single = lit.raw
+        result = compensate_two_frames(lit, expose(ambient, strobe, lit_field="none", rng=12))
+    measured = float(result.image.astype(np.float64).var())
+    assert measured / float(single.astype(np.float64).var()) == pytest.approx(power_ratio, rel=0.1)
+    assert measured == pytest.approx(float(result.variance.mean()), rel=0.1)
+
+
+def test_two_frame_compensation_recovers_the_strobe_at_full_resolution() -> None:
+    ambient, strobe = np.full((200, 300), 0.4 * SUN_LUX), np.full((200, 300), 5.0)
+    lit = expose(ambient, strobe, lit_field="both", rng=1)
+    result = compensate_two_frames(lit, expose(ambient, strobe, lit_field="none", rng=2))
+    camera = lit.camera
+    assert result.image.shape == (200, 300)
+    assert result.row_step == 1
+    assert result.image.mean() == pytest.approx(
+        5.0 * camera.electrons_per_lux_s / camera.gain_e_per_dn, abs=0.02
+    )
+    np.testing.assert_array_equal(result.interpolation_variance, 0.0)
+
+
+@pytest.mark.parametrize(("rows", "lit_field"), [(40, "odd"), (40, "even"), (41, "odd"), (41, "even")])
+def test_outputs_are_float32_at_field_resolution(rows: int, lit_field: str) -> None:
+    raw = np.full((rows, 9), 50, dtype=np.uint8)
+    result = compensate_interlaced(raw, lit_field=lit_field)
+    assert result.row_step == 2
+    for array in (result.image, result.variance, result.interpolation_variance):
+        assert array.shape == (rows // 2, 9)
+        assert array.dtype == np.float32
+    assert result.valid.dtype == np.bool_
+
+
+def test_saturated_lit_and_neighbour_pixels_are_flagged_invalid() -> None:
+    raw = _interlaced_dn(np.full((40, 8), 100.0))
+    raw[10, 3] = 255.0  # unlit row 10 feeds lit rows 9 and 11 (field rows 4 and 5)
+    raw[21, 5] = 255.0  # lit row 21 is field row 10
+    result = compensate_interlaced(raw, lit_field="odd")
+    invalid = np.argwhere(~result.valid).tolist()
+    assert invalid == [[4, 3], [5, 3], [10, 5]]
+    lowered = compensate_interlaced(raw, lit_field="odd", saturation_dn=130.0)
+    assert not lowered.valid.any()  # every lit row reads 134 DN
+
+
+def test_frame_saturation_mask_and_bad_pixels_are_honoured() -> None:
+    raw = np.full((20, 6), 90, dtype=np.uint8)
+    saturated = np.zeros_like(raw, dtype=bool)
+    saturated[3, 2] = True
+    dead = np.zeros_like(saturated)
+    dead[8, 4] = True
+    defects = BadPixelMap(hot=np.zeros_like(dead), dead=dead, stuck=np.zeros_like(dead))
+    frame = Frame(raw=raw, saturated=saturated, lit_field="odd", exposure_s=1e-4, bad_pixels=defects)
+    result = compensate_interlaced(frame)
+    assert np.argwhere(~result.valid).tolist() == [[1, 2], [3, 4], [4, 4]]
+    clean = compensate_interlaced(frame, bad_pixels=BadPixelMap.random((20, 6), fraction=0.0, rng=0))
+    assert np.argwhere(~clean.valid).tolist() == [[1, 2]]
+
+
+def test_two_frame_validity_uses_both_inputs() -> None:
+    lit, ambient = np.full((10, 10), 150.0), np.full((10, 10), 60.0)
+    lit[2, 2] = 255.0
+    ambient[7, 1] = 255.0
+    stuck = np.zeros((10, 10), dtype=bool)
+    stuck[5, 5] = True
+    defects = BadPixelMap(hot=np.zeros_like(stuck), dead=np.zeros_like(stuck), stuck=stuck)
+    result = compensate_two_frames(lit, ambient, bad_pixels=defects)
+    assert np.argwhere(~result.valid).tolist() == [[2, 2], [5, 5], [7, 1]]
+
+
+def test_camera_model_sets_the_noise_level() -> None:
+    raw = _interlaced_dn(np.full((20, 4), 100.0))
+    quiet = CameraModel(read_noise_e=0.0, full_well_e=1e6)
+    noisy = CameraModel(read_noise_e=200.0, full_well_e=1e6)
+    quiet_var = compensate_interlaced(raw, lit_field="odd", camera=quiet).variance
+    noisy_var = compensate_interlaced(raw, lit_field="odd", camera=noisy).variance
+    assert (noisy_var > quiet_var).all()
+
+
+@pytest.mark.parametrize(
+    ("frame", "kwargs", "name"),
+    [
+        (np.zeros((20, 4)), {}, "lit_field"),
+        (np.zeros((20, 4)), {"lit_field": "both"}, "lit_field"),
+        ([[0.0] * 4] * 20, {"lit_field": "odd"}, "frame"),
+        (np.zeros((5, 4)), {"lit_field": "odd"}, "frame"),
+        (np.zeros((20, 4)), {"lit_field": "odd", "saturation_dn": float("nan")}, "saturation_dn"),
+        (np.zeros((20, 4)), {"lit_field": "odd", "camera": "sony"}, "camera"),
+        (
+            np.zeros((20, 4)),
+            {"lit_field": "odd", "bad_pixels": BadPixelMap.random((2, 2), rng=0)},
+            "bad_pixels",
+        ),
+    ],
+)
+def test_interlaced_rejects_bad_input_naming_the_argument(
+    frame: object, kwargs: dict[str, object], name: str
+) -> None:
+    with pytest.raises(InputError, match=name):
+        compensate_interlaced(frame, **kwargs)  # type: ignore[arg-type]
+
+
+def test_interlaced_rejects_whole_frame_flashes() -> None:
+    flash = expose(np.zeros((8, 4)), np.zeros((8, 4)), lit_field="both", rng=0)
+    with pytest.raises(InputError, match=r"lit_field='both'.*compensate_two_frames"):
+        compensate_interlaced(flash)
+
+
+@pytest.mark.parametrize(
+    ("lit_field", "ambient_field", "name"),
+    [("odd", "none", "lit"), ("both", "both", "ambient")],
+)
+def test_two_frames_rejects_frames_lit_the_wrong_way(lit_field: str, ambient_field: str, name: str) -> None:
+    zeros = np.zeros((8, 4))
+    lit = expose(zeros, zeros, lit_field=lit_field, rng=0)
+    ambient = expose(zeros, zeros, lit_field=ambient_field, rng=1)
+    with pytest.raises(InputError, match=f"{name} must be a frame with lit_field"):
+        compensate_two_frames(lit, ambient)
+
+
+def test_two_frames_rejects_mismatched_shapes() -> None:
+    with pytest.raises(InputError, match="lit and ambient must have the same shape"):
+        compensate_two_frames(np.zeros((8, 4)), np.zeros((8, 5)))
+
+
+@pytest.mark.parametrize(("lit_field", "edge"), [("even", 0), ("odd", -1)])
+def test_variance_map_counts_every_subtracted_term(lit_field: str, edge: int) -> None:
+    camera = CameraModel()
+    raw = _interlaced_dn(np.full((20, 3), 100.0), lit_field)
+    result = compensate_interlaced(raw, lit_field=lit_field, camera=camera)
+    lit_var, unlit_var = camera.noise_variance_dn(np.array([134.0, 104.0]))
+    # mean of two unlit rows: a quarter of each; on the frame edge the one neighbour counts whole
+    expected = np.full((10, 3), lit_var + 0.5 * unlit_var, dtype=np.float32)
+    expected[edge] = lit_var + unlit_var
+    np.testing.assert_allclose(result.variance, expected, rtol=1e-6)
+    two = compensate_two_frames(raw, raw, camera=camera)
+    np.testing.assert_allclose(two.variance, 2 * camera.noise_variance_dn(raw), rtol=1e-6)

@@ -1,0 +1,274 @@
+"""The ``rsi`` command: each command end to end, the JSON last-line contract and the documented exit codes."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import types
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import Result
+from typer.testing import CliRunner
+
+from rsi import cli
+from rsi.cli import app
+from rsi.datasets.synthetic import synthetic_pair
+from rsi.detection.flaw_models import FLAW_MODELS
+from rsi.errors import DatasetError
+from rsi.imaging.io import write_image
+from rsi.imaging.registration import MODELS
+from rsi.mission.pair import score_flaws
+
+runner = CliRunner()
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+DEMO_PICTURES = (
+    "reference.png",
+    "inspection.png",
+    "reference_compensated.png",
+    "inspection_compensated.png",
+    "difference.png",
+    "score.png",
+    "overlay.png",
+    "roc.png",
+)
+
+
+def invoke(*args: str | Path) -> Result:
+    return runner.invoke(app, [str(arg) for arg in args])
+
+
+def last_json_line(result: Result) -> dict[str, object]:
+    document = json.loads(result.stdout.strip().splitlines()[-1])
+    assert isinstance(document, dict)
+    return document
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Result, Path]:
+    out = tmp_path_factory.mktemp("demo") / "results"
+    return invoke("demo", "--out", out), out
+
+
+@dataclass(frozen=True)
+class PngPair:
+    reference: Path
+    inspection: Path
+    centres_rc: np.ndarray
+    shift_xy: tuple[float, float]
+
+
+@pytest.fixture(scope="module")
+def png_pair(tmp_path_factory: pytest.TempPathFactory) -> PngPair:
+    folder = tmp_path_factory.mktemp("pair")
+    pair = synthetic_pair((160, 192), rng=7)
+    paths = (folder / "reference.png", folder / "inspection.png")
+    for path, image in zip(paths, (pair.reference, pair.inspection), strict=True):
+        write_image(path, np.clip(np.rint(image * 200.0), 0, 255).astype(np.uint8))
+    return PngPair(paths[0], paths[1], pair.centres_rc, pair.shift_xy)
+
+
+def test_demo_writes_every_picture_as_a_valid_png(demo_run: tuple[Result, Path]) -> None:
+    result, out = demo_run
+    assert result.exit_code == 0, result.output
+    for name in DEMO_PICTURES:
+        assert (out / name).read_bytes().startswith(PNG_SIGNATURE), name
+    flaws = json.loads((out / "flaws.json").read_text())
+    assert flaws["count"] == len(flaws["flaws"]) > 0
+    assert (out / "roc.csv").read_text().startswith("label,threshold,p_false_alarm,p_detection")
+
+
+def test_demo_reports_honest_recall_and_where_the_results_are(demo_run: tuple[Result, Path]) -> None:
+    result, out = demo_run
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["recall"] >= 0.9
+    assert summary["false_alarms"] <= 2
+    stdout = " ".join(result.stdout.split())
+    found, seeded = summary["found_flaws"], summary["seeded_flaws"]
+    assert f"Recall: {found}/{seeded} seeded flaws found" in stdout
+    assert f"false alarms: {summary['false_alarms']}" in stdout
+    assert str(out) in stdout.replace(" ", "") or str(out) in stdout
+    assert "Flaws found" in stdout
+
+
+def test_inspect_finds_the_seeded_flaws_in_a_png_pair(png_pair: PngPair, tmp_path: Path) -> None:
+    result = invoke(
+        "inspect",
+        png_pair.reference,
+        png_pair.inspection,
+        "--out",
+        tmp_path,
+        "--flaw-model",
+        "uniform",
+        "--json",
+    )
+    assert result.exit_code == 0, result.output
+    document = last_json_line(result)
+    flaws = document["flaws"]
+    assert isinstance(flaws, list)
+    boxes = [types.SimpleNamespace(bbox=(f["row0"], f["col0"], f["row1"], f["col1"])) for f in flaws]
+    score = score_flaws(tuple(boxes), png_pair.centres_rc)  # type: ignore[arg-type]
+    assert score.recall >= 0.9
+    assert score.false_alarms <= 1
+    for name in ("flaws.json", "flaws.csv", "overlay.png", "difference.png", "score.png"):
+        assert (tmp_path / name).exists()
+    assert json.loads((tmp_path / "flaws.json").read_text())["count"] == len(flaws)
+
+
+def test_inspect_prints_a_table_by_default(png_pair: PngPair, tmp_path: Path) -> None:
+    result = invoke(
+        "inspect", png_pair.reference, png_pair.inspection, "--out", tmp_path, "--method", "erosion"
+    )
+    assert result.exit_code == 0, result.output
+    assert "Flaws found" in result.stdout
+    assert "flaw(s) at P_F = 1e-05" in " ".join(result.stdout.split())
+
+
+def test_register_reports_the_shift(png_pair: PngPair) -> None:
+    result = invoke("register", png_pair.reference, png_pair.inspection, "--json")
+    assert result.exit_code == 0, result.output
+    document = last_json_line(result)
+    assert set(document) >= {"matrix", "translation_xy", "gain", "bias", "converged", "reason", "iterations"}
+    assert document["converged"] is True
+    np.testing.assert_allclose(document["translation_xy"], png_pair.shift_xy, atol=0.1)
+    table = invoke("register", png_pair.reference, png_pair.inspection, "--model", "affine")
+    assert table.exit_code == 0, table.output
+    assert "residual_rms" in table.stdout
+
+
+@pytest.mark.parametrize(("extra", "curves"), [((), 3), (("--flaw-model", "peak"), 1)])
+def test_roc_writes_theoretical_curves(tmp_path: Path, extra: tuple[str, ...], curves: int) -> None:
+    result = invoke("roc", "--strength", "3", "--out", tmp_path, *extra)
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "roc.png").read_bytes().startswith(PNG_SIGNATURE)
+    labels = {line.split(",")[0] for line in (tmp_path / "roc.csv").read_text().splitlines()[1:]}
+    assert len(labels) == curves
+    assert "P_F=1e-05" in result.stdout
+
+
+def fake_evaluate_module(seen: dict[str, object]) -> types.ModuleType:
+    def evaluate_deeppcb(root: Path, *, split: str, progress: object = None) -> object:
+        if not Path(root).is_dir():
+            raise DatasetError(f"root={str(root)!r} is not a DeepPCB folder.")
+        seen.update(root=root, split=split)
+        if callable(progress):
+            progress("pairs", 2, 2)
+        return types.SimpleNamespace(
+            pairs=2, defects=10, recall=0.9, precision=0.8, f1=0.847, false_alarms_per_image=1.0,
+            iou_recall=0.85, iou_precision=0.75, seconds_per_pair=0.05,
+        )  # fmt: skip
+
+    module = types.ModuleType("rsi.datasets.evaluate")
+    module.evaluate_deeppcb = evaluate_deeppcb  # type: ignore[attr-defined]
+    return module
+
+
+def test_eval_deeppcb_json_is_the_last_stdout_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: dict[str, object] = {}
+    monkeypatch.setitem(sys.modules, "rsi.datasets.evaluate", fake_evaluate_module(seen))
+    result = invoke("eval", "deeppcb", tmp_path, "--split", "trainval", "--json")
+    assert result.exit_code == 0, result.output
+    assert list(last_json_line(result)) == list(cli.DEEPPCB_KEYS)
+    assert seen == {"root": tmp_path, "split": "trainval"}
+    table = invoke("eval", "deeppcb", tmp_path)
+    assert table.exit_code == 0 and "recall" in table.stdout
+
+
+@pytest.fixture
+def not_an_image(tmp_path: Path) -> Path:
+    path = tmp_path / "notes.png"
+    path.write_text("not a picture")
+    return path
+
+
+def error_cases(
+    pair: PngPair, out: Path, not_an_image: Path
+) -> dict[str, tuple[tuple[str | Path, ...], int]]:
+    images = (pair.reference, pair.inspection, "--out", out)
+    return {
+        "unknown command": (("frobnicate",), cli.EXIT_USAGE),
+        "bad choice": (("inspect", *images, "--flaw-model", "blob"), cli.EXIT_USAGE),
+        "not a number": (("roc", "--strength", "strong", "--out", out), cli.EXIT_USAGE),
+        "missing option": (("inspect", pair.reference, pair.inspection), cli.EXIT_USAGE),
+        "p_false_alarm out of range": (
+            ("inspect", *images, "--p-false-alarm", "0.7"),
+            cli.EXIT_INVALID_VALUE,
+        ),
+        "even flaw size": (
+            ("inspect", *images, "--flaw-model", "uniform", "--size", "4"),
+            cli.EXIT_INVALID_VALUE,
+        ),
+        "negative strength": (("roc", "--strength", "-1", "--out", out), cli.EXIT_INVALID_VALUE),
+        "missing image": (("register", out / "missing.png", pair.inspection), cli.EXIT_FILE),
+        "unreadable image": (("inspect", not_an_image, pair.inspection, "--out", out), cli.EXIT_FILE),
+        "out is a file": (("inspect", pair.reference, pair.inspection, "--out", not_an_image), cli.EXIT_FILE),
+        "missing dataset": (("eval", "deeppcb", out / "no-such-folder"), cli.EXIT_FILE),
+    }
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "unknown command",
+        "bad choice",
+        "not a number",
+        "missing option",
+        "p_false_alarm out of range",
+        "even flaw size",
+        "negative strength",
+        "missing image",
+        "unreadable image",
+        "out is a file",
+        "missing dataset",
+    ],
+)
+def test_bad_input_exits_with_its_documented_code(
+    case: str, png_pair: PngPair, tmp_path: Path, not_an_image: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "rsi.datasets.evaluate", fake_evaluate_module({}))
+    args, code = error_cases(png_pair, tmp_path, not_an_image)[case]
+    result = invoke(*args)
+    assert result.exit_code == code, result.output
+    assert "Traceback" not in result.output
+    if code != cli.EXIT_USAGE:  # typer formats its own usage errors
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("rsi: error: ")
+
+
+def test_a_bug_exits_internal_with_one_line(
+    png_pair: PngPair, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rsi.mission.pair
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr(rsi.mission.pair, "inspect_pair", broken)
+    result = invoke("inspect", png_pair.reference, png_pair.inspection, "--out", tmp_path)
+    assert result.exit_code == cli.EXIT_INTERNAL
+    assert result.stderr.strip() == "rsi: error: internal error (ZeroDivisionError): division by zero"
+
+
+def test_help_documents_every_exit_code() -> None:
+    assert set(cli.EXIT_CODES) == {0, 2, 3, 4, 5}
+    for args in ((), ("inspect",), ("eval", "deeppcb")):
+        result = invoke(*args, "--help")
+        assert result.exit_code == 0
+        text = " ".join(result.stdout.split())
+        for code in cli.EXIT_CODES:
+            assert f"{code} " in text.split("Exit codes:")[1]
+
+
+def test_choices_match_the_library() -> None:
+    assert tuple(model.value for model in cli.RegistrationModel) == MODELS
+    assert {model.value for model in cli.FlawModel} <= set(FLAW_MODELS)
+
+
+def test_import_and_help_stay_light() -> None:
+    # ARCHITECTURE.md: `import rsi` and `rsi --help` must stay fast, so no numpy/OpenCV/matplotlib at import.
+    code = "import sys, rsi.cli; print(sorted({'numpy', 'cv2', 'matplotlib', 'scipy'} & set(sys.modules)))"
+    completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert completed.stdout.strip() == "[]"
