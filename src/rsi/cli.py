@@ -182,7 +182,7 @@ def _flaw_table(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None,
     return table
 
 
-@app.command()
+@app.command(epilog=_EPILOG)
 def demo(
     *,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the scene, flaw positions and sensor noise.")] = 0,
@@ -215,7 +215,7 @@ def _print_demo(run: DemoRun, out: Path) -> None:
     console.print(f"Simulated in {result.elapsed_s:.1f} s. Results in {out}/: {', '.join(sorted(run.files))}")
 
 
-@app.command("inspect")
+@app.command("inspect", epilog=_EPILOG)
 def inspect_command(
     *,
     reference: Annotated[Path, typer.Argument(help="Reference image (PNG, TIFF or JPEG; 8 or 16 bit).")],
@@ -252,10 +252,10 @@ def inspect_command(
             method=method.value,
         )
         files = write_pair_report(out, result)
-        _print_inspection(result, files, as_json=as_json)
+        _print_inspection(result, out, files, as_json=as_json)
 
 
-def _print_inspection(result: PairResult, files: Mapping[str, Path], *, as_json: bool) -> None:
+def _print_inspection(result: PairResult, out: Path, files: Mapping[str, Path], *, as_json: bool) -> None:
     from rsi.report.writers import flaw_records, pair_summary
 
     if as_json:
@@ -266,11 +266,11 @@ def _print_inspection(result: PairResult, files: Mapping[str, Path], *, as_json:
     detection = result.detection
     console.print(
         f"{len(result.flaws)} flaw(s) at P_F = {detection.p_false_alarm:g} per pixel "
-        f"(threshold {detection.threshold:.2f}); results in {Path(next(iter(files.values()))).parent}/"
+        f"(threshold {detection.threshold:.2f}); results in {out}/"
     )
 
 
-@app.command()
+@app.command(epilog=_EPILOG)
 def register(
     *,
     reference: Annotated[Path, typer.Argument(help="Reference image.")],
@@ -303,11 +303,20 @@ def _print_record(record: Mapping[str, Any], *, title: str) -> None:
     table.add_column("field")
     table.add_column("value")
     for key, value in json_ready(record).items():
-        table.add_row(key, json.dumps(value) if isinstance(value, list) else str(value))
+        table.add_row(key, _readable(value))
     _stdout().print(table)
 
 
-@app.command()
+def _readable(value: Any) -> str:
+    """Four significant digits for floats (the JSON output keeps full precision), lists in brackets."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_readable(item) for item in value) + "]"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+@app.command(epilog=_EPILOG)
 def roc(
     *,
     strength: Annotated[float, typer.Option(help="Flaw strength in noise sigmas (strongest pixel).")],
@@ -347,7 +356,7 @@ def _print_roc(points: Sequence[RocCurve], files: Mapping[str, Path]) -> None:
     console.print(f"Wrote {', '.join(str(path) for path in files.values())}")
 
 
-@eval_app.command("deeppcb")
+@eval_app.command("deeppcb", epilog=_EPILOG)
 def eval_deeppcb(
     *,
     root: Annotated[Path, typer.Argument(help="DeepPCB checkout (the folder holding PCBData/).")],

@@ -79,7 +79,7 @@ def test_atomic_write_failure_keeps_old_file_and_removes_temporary(
     def broken_replace(source: str, destination: object) -> None:
         raise OSError("disk full")
 
-    monkeypatch.setattr(writers.os, "replace", broken_replace)
+    monkeypatch.setattr(os, "replace", broken_replace)
     with pytest.raises(OSError, match="disk full"):
         writers.atomic_write_text(target, "new")
     assert target.read_text() == "old"
@@ -178,12 +178,18 @@ def test_roc_report_writes_png_and_csv(tmp_path: Path) -> None:
     assert files["roc.csv"].read_text().count("\n") == 13
 
 
-def test_report_imports_no_algorithm() -> None:
-    # ARCHITECTURE.md: report -> result records only. Importing it must not load a registration or detector.
+def test_report_imports_no_algorithm_and_plots_without_pyplot(tmp_path: Path) -> None:
+    # ARCHITECTURE.md: report -> result records only. Drawing a ROC must not load a registration, a detector
+    # or pyplot (a bare Agg Figure keeps no global state).
     code = (
-        "import sys, rsi.report, rsi.report.figures, rsi.report.writers;"
+        "import sys, numpy as np, rsi.report;"
+        "from rsi.report.writers import write_roc_report;"
+        "from types import SimpleNamespace as C;"
+        f"write_roc_report({str(tmp_path)!r}, [C(p_false_alarm=np.array([1e-5]), p_detection=np.array([0.5]),"
+        " threshold=np.array([4.0]), label='a')]);"
         "bad = [m for m in ('rsi.imaging.registration', 'rsi.detection.detect', 'matplotlib.pyplot') "
         "if m in sys.modules]; print(bad)"
     )
     completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert completed.stdout.strip() == "[]"
+    assert (tmp_path / "roc.png").exists()

@@ -364,8 +364,11 @@ def detect(
     variance_inspection, variance_reference = _sensor_variances(inspection_in, aligned, difference, valid)
     factor = _factor(_NOISE_FILTER[chosen_method](weights), aligned.fraction_xy)
     variance = variance_inspection + np.float32(aligned.gain**2 * factor) * variance_reference
-    if used_registration is not None and any(used_registration.shift_std_px):
-        variance = variance + noise.misregistration_variance(aligned.predicted, used_registration.shift_std_px)
+    if used_registration is not None:
+        variance = variance + noise.resampling_variance(aligned.predicted, aligned.fraction_xy)
+        if any(used_registration.shift_std_px):
+            variance = variance + noise.misregistration_variance(aligned.predicted,
+                                                                 used_registration.shift_std_px)
     variance = np.maximum(np.broadcast_to(variance, difference.shape), _VARIANCE_FLOOR)
     inverse_variance = (np.float32(1.0) / variance).astype(np.float32, copy=False)
     inverse_variance[~valid] = 0.0

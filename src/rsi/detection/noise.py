@@ -170,3 +170,29 @@ def affine_variance(intensity: Float32Array, coefficients: tuple[float, float]) 
     a, b = coefficients
     result: Float32Array = np.maximum(np.float32(a) + np.float32(b) * intensity, np.float32(0.0))
     return result
+
+
+def resampling_variance(predicted: Float32Array, fraction_xy: tuple[float, float] | None) -> Float32Array:
+    """Squared error of bilinear resampling of the reference's signal, treated as extra variance.
+
+    Parameters
+    ----------
+    predicted : ndarray of shape (M, N), float32
+        ``gain * warped_reference + bias``.
+    fraction_xy : tuple of float or None
+        Sub-pixel fractions ``(fx, fy)`` of a translation; None for warps whose fractions vary (their mean
+        ``f (1 - f) = 1/6`` is used).
+
+    Returns
+    -------
+    ndarray of shape (M, N), float32
+        ``(fx (1 - fx) / 2 * Ixx + fy (1 - fy) / 2 * Iyy)^2``: linear interpolation between samples
+        misses the curvature of the image (leading term of its error), largest at edges.
+    """
+    cx, cy = (1.0 / 6.0, 1.0 / 6.0) if fraction_xy is None else (f * (1.0 - f) for f in fraction_xy)
+    # Sobel's second derivative is [1, -2, 1] smoothed by [1, 2, 1] / 4 across, which damps sensor noise.
+    ixx = cv2.Sobel(predicted, cv2.CV_32F, 2, 0, ksize=3, scale=0.25 * 0.5 * cx)
+    iyy = cv2.Sobel(predicted, cv2.CV_32F, 0, 2, ksize=3, scale=0.25 * 0.5 * cy)
+    error = ixx + iyy
+    result: Float32Array = error * error
+    return result

@@ -73,7 +73,8 @@ class _Problem:
     ``jacobian`` has shape (K, M * N) over every reference pixel of the level, with zero columns where a
     pixel is not used (outside the valid region or the mask, or trimmed), so ``jacobian @ residual`` sums
     over used pixels only; ``weights`` of shape (M * N,) is 1 where used and 0 elsewhere. Keeping the full
-    frame lets OpenCV write the gradients straight into the Jacobian, with no copies.
+    frame lets OpenCV write the gradients straight into the Jacobian, with no copies. ``buffer`` of shape
+    (M, N) receives each residual.
     """
 
     region: Region
@@ -85,13 +86,7 @@ class _Problem:
     chosen_at: Matrix
     to_pixels: Matrix
     from_pixels: Matrix
-
-
-def _weights(level: Level, region: Region, inside: NDArray[np.bool_] | None) -> NDArray[np.float32]:
-    row0, row1, col0, col1 = region
-    weights = np.zeros(level.reference.shape, dtype=np.float32)
-    weights[row0:row1, col0:col1] = 1.0 if inside is None else inside
-    return weights
+    buffer: Image
 
 
 def _jacobian(
@@ -102,8 +97,8 @@ def _jacobian(
     jacobian = np.empty((n_params + 2 * settings.photometric, *reference.shape), dtype=np.float32)
     scale = 0.5 / from_pixels[0, 0]
     # Central differences in normalised units; the used region keeps off the 1-pixel image border.
-    gu = cv2.Sobel(reference, cv2.CV_32F, 1, 0, dst=jacobian[0], ksize=1, scale=scale)
-    gv = cv2.Sobel(reference, cv2.CV_32F, 0, 1, dst=jacobian[1], ksize=1, scale=scale)
+    gu = np.asarray(cv2.Sobel(reference, cv2.CV_32F, 1, 0, dst=jacobian[0], ksize=1, scale=scale), np.float32)
+    gv = np.asarray(cv2.Sobel(reference, cv2.CV_32F, 0, 1, dst=jacobian[1], ksize=1, scale=scale), np.float32)
     if n_params > 2:
         u = (np.arange(reference.shape[1]) * from_pixels[0, 0] + from_pixels[0, 2]).astype(np.float32)
         v = (np.arange(reference.shape[0]) * from_pixels[1, 1] + from_pixels[1, 2]).astype(np.float32)
@@ -111,12 +106,11 @@ def _jacobian(
     if settings.photometric:
         jacobian[n_params] = reference
         jacobian[n_params + 1] = 1.0
-    if inside is None:
-        # A rectangle: clearing the four strips around it is far cheaper than a full multiply.
-        row0, row1, col0, col1 = region
-        jacobian[:, :row0] = jacobian[:, row1:] = jacobian[:, :, :col0] = jacobian[:, :, col1:] = 0.0
-    else:
-        jacobian *= _weights(level, region, inside)
+    row0, row1, col0, col1 = region
+    # Clearing the strips around the region is far cheaper than a full multiply by the weights.
+    jacobian[:, :row0] = jacobian[:, row1:] = jacobian[:, :, :col0] = jacobian[:, :, col1:] = 0.0
+    if inside is not None:
+        jacobian[:, row0:row1, col0:col1] *= inside
     return jacobian.reshape(jacobian.shape[0], -1)
 
 
@@ -131,6 +125,7 @@ def _gram(jacobian: NDArray[np.float32]) -> NDArray[np.float64]:
 
 
 def _inverse(hessian: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """Inverse by Jacobi-balanced inversion; None when singular (a flat image, too few pixels)."""
     diagonal = np.diag(hessian)
     if not np.all(diagonal > 0):
         return None
@@ -144,15 +139,17 @@ def _inverse(hessian: NDArray[np.float64]) -> NDArray[np.float64] | None:
 def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
     """Choose the used pixels for this level and precompute the Jacobian and Hessian; None if degenerate."""
     region, inside = valid_region(matrix, level.reference.shape, level.inspection.shape, _MARGIN_PX)
-    if region[1] <= region[0] or region[3] <= region[2]:
+    row0, row1, col0, col1 = region
+    if row1 <= row0 or col1 <= col0:
         return None
     if level.mask is not None:
-        user = level.mask[region[0] : region[1], region[2] : region[3]]
+        user = level.mask[row0:row1, col0:col1]
         inside = user if inside is None else inside & user
-    weights = _weights(level, region, inside)
+    weights = np.zeros(level.reference.shape, dtype=np.float32)
+    weights[row0:row1, col0:col1] = 1.0 if inside is None else inside
+    n_used = (row1 - row0) * (col1 - col0) if inside is None else int(np.count_nonzero(inside))
     from_pixels = normaliser(level.reference.shape)
     jacobian = _jacobian(level, region, inside, settings, from_pixels)
-    n_used = int(np.count_nonzero(weights))
     hessian = _gram(jacobian)
     inverse = _inverse(hessian)
     if inverse is None or n_used < _MIN_PIXELS_PER_UNKNOWN * jacobian.shape[0]:
@@ -165,15 +162,16 @@ def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
         weights=weights.ravel(),
         n_used=n_used,
         chosen_at=matrix,
-        to_pixels=np.linalg.inv(from_pixels),
+        to_pixels=np.asarray(np.linalg.inv(from_pixels), dtype=np.float64),
         from_pixels=from_pixels,
+        buffer=np.empty_like(level.reference),
     )
 
 
 def _residual(level: Level, problem: _Problem, estimate: Estimate, photometric: bool) -> Image:
     """Normalised residual ``(I(W(x)) - bias) / gain - T(x)`` over the level, shape (M * N,)."""
     rows, cols = level.reference.shape
-    warped = sample(level.inspection, estimate.matrix, (0, rows, 0, cols))
+    warped = sample(level.inspection, estimate.matrix, (0, rows, 0, cols), out=problem.buffer)
     if photometric:
         gain = estimate.gain
         cv2.addWeighted(warped, 1.0 / gain, level.reference, -1.0, -estimate.bias / gain, dst=warped)
@@ -182,11 +180,12 @@ def _residual(level: Level, problem: _Problem, estimate: Estimate, photometric: 
     return warped.ravel()
 
 
-def _update(estimate: Estimate, problem: _Problem, delta: NDArray[np.float64], settings: Settings) -> Estimate:
+def _update(
+    estimate: Estimate, problem: _Problem, delta: NDArray[np.float64], settings: Settings
+) -> Estimate:
     """Compose the inverse of the increment into the warp, and the photometric step into gain and bias."""
     n_params = settings.model.n_params
-    step = problem.to_pixels @ settings.model.step(delta[:n_params]) @ problem.from_pixels
-    matrix = estimate.matrix @ np.linalg.inv(step)
+    matrix = estimate.matrix @ np.linalg.inv(_step_matrix(problem, delta, settings))
     matrix /= matrix[2, 2]
     gain, bias = estimate.gain, estimate.bias
     if settings.photometric:
@@ -195,56 +194,29 @@ def _update(estimate: Estimate, problem: _Problem, delta: NDArray[np.float64], s
     return replace(estimate, matrix=matrix, gain=gain, bias=bias, iterations=estimate.iterations + 1)
 
 
+def _step_matrix(problem: _Problem, delta: NDArray[np.float64], settings: Settings) -> Matrix:
+    """The increment warp W(dp) in the level's pixels."""
+    return problem.to_pixels @ settings.model.step(delta[: settings.model.n_params]) @ problem.from_pixels
+
+
 def _is_sane(estimate: Estimate) -> bool:
     return bool(np.isfinite(estimate.matrix).all() and np.isfinite(estimate.bias) and estimate.gain > 0)
-
-
-def _iterate(level: Level, problem: _Problem, estimate: Estimate, settings: Settings) -> tuple[Estimate, _Problem, Image]:
-    """Gauss-Newton steps on one level; returns the estimate, the final problem and the last residual.
-
-    Once a step falls below the tolerance, the next residual is used to trim flaws (seed §2.4: a new flaw
-    must not pull the registration) and one more step is taken on the trimmed sums; the level ends when a
-    step after trimming is below the tolerance too.
-    """
-    identity, settled, trimmed = np.eye(3), False, False
-    residual = _residual(level, problem, estimate, settings.photometric)
-    for count in range(settings.max_iterations):
-        if settings.deadline is not None and time.perf_counter() > settings.deadline:
-            return replace(estimate, reason="deadline"), problem, residual
-        if count:
-            residual = _residual(level, problem, estimate, settings.photometric)
-        if settled and not trimmed:
-            trimmed = True
-            cleaned = _trim(problem, residual)
-            if cleaned is None:
-                return replace(estimate, reason="converged"), problem, residual
-            problem = cleaned
-        delta = problem.inverse_hessian @ (problem.jacobian @ residual).astype(np.float64)
-        previous, estimate = estimate, _update(estimate, problem, delta, settings)
-        if not _is_sane(estimate):
-            return replace(previous, iterations=estimate.iterations, reason="diverged"), problem, residual
-        if corner_motion_px(problem.chosen_at, estimate.matrix, problem.region) > _MARGIN_PX / 2:
-            # Moved out of the margin the region was chosen with: choose it again before sampling outside.
-            rebuilt = _build(level, estimate.matrix, settings)
-            if rebuilt is None:
-                return replace(estimate, reason="diverged"), problem, residual
-            problem, trimmed = rebuilt, False
-        step = problem.to_pixels @ settings.model.step(delta[: settings.model.n_params]) @ problem.from_pixels
-        settled = corner_motion_px(identity, step, problem.region) < settings.tolerance_px
-        if settled and trimmed:
-            return replace(estimate, reason="converged"), problem, residual
-    return replace(estimate, reason="converged" if settled else "max_iterations"), problem, residual
 
 
 def _trim(problem: _Problem, residual: Image) -> _Problem | None:
     """Drop pixels whose residual is an outlier (a flaw, seed §2.4) and downdate the Hessian; None if none."""
     stride = max(1, residual.size // _SIGMA_SAMPLES)
     probe = residual[::stride][problem.weights[::stride] > 0]
+    if probe.size == 0:
+        return None
     centre = float(np.median(probe))
     sigma = _MAD_TO_SIGMA * float(np.median(np.abs(probe - centre)))
-    index = np.flatnonzero(np.abs(residual - centre) > _TRIM_SIGMAS * sigma)
+    if sigma <= 0:
+        return None
+    spread = _TRIM_SIGMAS * sigma
+    index = np.flatnonzero(cv2.inRange(residual, centre - spread, centre + spread) == 0)
     index = index[problem.weights[index] > 0]
-    if sigma <= 0 or index.size == 0:
+    if index.size == 0:
         return None
     dropped = problem.jacobian[:, index]
     hessian = problem.hessian - np.asarray(dropped @ dropped.T, dtype=np.float64)
@@ -257,19 +229,59 @@ def _trim(problem: _Problem, residual: Image) -> _Problem | None:
     return replace(problem, hessian=hessian, inverse_hessian=inverse, n_used=problem.n_used - index.size)
 
 
+def _iterate(
+    level: Level, problem: _Problem, estimate: Estimate, settings: Settings
+) -> tuple[Estimate, _Problem, Image]:
+    """Gauss-Newton steps on one level; returns the estimate, the final problem and the last residual.
+
+    When a step falls below the tolerance, its residual is used to trim flaws (seed §2.4: a new flaw must
+    not pull the registration) and the step is recomputed from the trimmed sums, with no new resampling;
+    the level ends when a step after trimming is below the tolerance too.
+    """
+    identity, trimmed = np.eye(3), False
+    residual = _residual(level, problem, estimate, settings.photometric)
+    for count in range(settings.max_iterations):
+        if settings.deadline is not None and time.perf_counter() > settings.deadline:
+            return replace(estimate, reason="deadline"), problem, residual
+        if count:
+            residual = _residual(level, problem, estimate, settings.photometric)
+        delta = problem.inverse_hessian @ (problem.jacobian @ residual).astype(np.float64)
+        settled = corner_motion_px(identity, _step_matrix(problem, delta, settings), problem.region)
+        if settled < settings.tolerance_px and not trimmed:
+            trimmed = True
+            cleaned = _trim(problem, residual)
+            if cleaned is not None:
+                problem = cleaned
+                delta = problem.inverse_hessian @ (problem.jacobian @ residual).astype(np.float64)
+                settled = corner_motion_px(identity, _step_matrix(problem, delta, settings), problem.region)
+        previous, estimate = estimate, _update(estimate, problem, delta, settings)
+        if not _is_sane(estimate):
+            return replace(previous, iterations=estimate.iterations, reason="diverged"), problem, residual
+        if settled < settings.tolerance_px and trimmed:
+            return replace(estimate, reason="converged"), problem, residual
+        if corner_motion_px(problem.chosen_at, estimate.matrix, problem.region) > _MARGIN_PX / 2:
+            # Moved out of the margin the region was chosen with: choose it again before sampling outside.
+            rebuilt = _build(level, estimate.matrix, settings)
+            if rebuilt is None:
+                return replace(estimate, reason="diverged"), problem, residual
+            problem, trimmed = rebuilt, False
+    return replace(estimate, reason="max_iterations"), problem, residual
+
+
 def _with_statistics(estimate: Estimate, problem: _Problem, residual: Image, level: Level) -> Estimate:
     """Residual RMS and the translation's std from sigma^2 H^-1 (the detector's registration noise, §2.4)."""
-    rss = float(np.dot(residual * problem.weights, residual))
+    residual *= problem.weights
+    rss = float(np.dot(residual, residual))
     dof = max(problem.n_used - problem.hessian.shape[0], 1)
     variance = rss / dof * np.diag(problem.inverse_hessian)[:2]
     # Translation parameters are in units of half a side: back to full-resolution pixels.
     std_px = np.sqrt(variance) * problem.to_pixels[0, 0] * 2.0**level.index
-    rms = np.sqrt(rss / max(problem.n_used, 1)) * (estimate.gain if np.isfinite(estimate.gain) else 1.0)
+    rms = np.sqrt(rss / max(problem.n_used, 1)) * estimate.gain
     return replace(estimate, residual_rms=float(rms), shift_std_px=(float(std_px[0]), float(std_px[1])))
 
 
 def solve_level(level: Level, estimate: Estimate, settings: Settings) -> Estimate:
-    """Refine `estimate` (in the level's pixels) on one level; trim flaws after convergence and refit.
+    """Refine `estimate` (in the level's pixels) on one level, trimming flaws once it has settled.
 
     Parameters
     ----------

@@ -95,6 +95,10 @@ def _shrink_mask(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     return np.asarray(cv2.erode(mask.astype(np.uint8), kernel), dtype=bool)
 
 
+def _half(image: Image) -> Image:
+    return np.asarray(cv2.pyrDown(image), dtype=np.float32)
+
+
 def build_levels(
     reference: Image, inspection: Image, mask: NDArray[np.bool_] | None, count: int
 ) -> list[Level]:
@@ -103,7 +107,7 @@ def build_levels(
     level_mask = mask
     for index in range(count):
         if index:
-            reference, inspection = cv2.pyrDown(reference), cv2.pyrDown(inspection)
+            reference, inspection = _half(reference), _half(inspection)
             if level_mask is not None:
                 # A coarse pixel is usable only if every fine pixel under it is.
                 level_mask = np.asarray(cv2.pyrDown(level_mask.astype(np.float32)) > 0.999)
@@ -160,7 +164,9 @@ def coarse_to_fine(levels: Sequence[Level], solver: Solver, start: Estimate | No
         estimate = start
     for level in reversed(levels):
         factor = 2.0 ** (estimate.level - level.index)
-        estimate = solver(level, replace(estimate, matrix=rescale(estimate.matrix, factor), level=level.index))
+        estimate = solver(
+            level, replace(estimate, matrix=rescale(estimate.matrix, factor), level=level.index)
+        )
         if estimate.reason in _STOPPING:
             break
     return replace(estimate, matrix=rescale(estimate.matrix, 2.0**estimate.level), level=0)

@@ -99,11 +99,15 @@ WARP_MODELS: dict[str, WarpModel] = {
 
 
 def normaliser(shape: tuple[int, int]) -> Matrix:
-    """Return the 3x3 map from pixel (x, y, 1) of an image of `shape` (M, N) to centred units of half a side."""
+    """Map pixel (x, y, 1) of an image of `shape` (M, N) to centred coordinates in units of half a side."""
     rows, cols = shape
     scale = max(rows, cols) / 2.0
     return np.array(
-        [[1.0 / scale, 0.0, -(cols - 1) / (2.0 * scale)], [0.0, 1.0 / scale, -(rows - 1) / (2.0 * scale)], [0, 0, 1]]
+        [
+            [1.0 / scale, 0.0, -(cols - 1) / (2.0 * scale)],
+            [0.0, 1.0 / scale, -(rows - 1) / (2.0 * scale)],
+            [0, 0, 1],
+        ]
     )
 
 
@@ -152,9 +156,13 @@ def sample(image: Image, matrix: Matrix, region: Region, out: Image | None = Non
     shifted = matrix @ np.array([[1.0, 0.0, col0], [0.0, 1.0, row0], [0.0, 0.0, 1.0]])
     flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
     if np.array_equal(shifted[2], [0.0, 0.0, 1.0]):
-        warped = cv2.warpAffine(image, shifted[:2], size_wh, dst=out, flags=flags, borderMode=cv2.BORDER_REPLICATE)
+        warped = cv2.warpAffine(
+            image, shifted[:2], size_wh, dst=out, flags=flags, borderMode=cv2.BORDER_REPLICATE
+        )
     else:
-        warped = cv2.warpPerspective(image, shifted, size_wh, dst=out, flags=flags, borderMode=cv2.BORDER_REPLICATE)
+        warped = cv2.warpPerspective(
+            image, shifted, size_wh, dst=out, flags=flags, borderMode=cv2.BORDER_REPLICATE
+        )
     return np.asarray(warped, dtype=np.float32)
 
 
@@ -184,12 +192,12 @@ def valid_region(
         )
         return box, None
     corners = np.array([[low, low], [high_x, low], [high_x, high_y], [low, high_y]])
-    polygon = map_points(np.linalg.inv(matrix), corners)
+    polygon = map_points(np.asarray(np.linalg.inv(matrix), dtype=np.float64), corners)
     canvas = np.zeros(reference_shape, dtype=np.uint8)
     scale = float(1 << _POLY_SHIFT_BITS)
     # The rasterised edge may be off by a pixel: shrink by one more pixel than asked.
     cv2.fillPoly(canvas, [np.round(polygon * scale).astype(np.int32)], (1,), cv2.LINE_8, _POLY_SHIFT_BITS)
-    canvas = cv2.erode(canvas, np.ones((3, 3), np.uint8))
+    canvas = np.asarray(cv2.erode(canvas, np.ones((3, 3), np.uint8)), dtype=np.uint8)
     canvas[: ref_box[0]] = 0
     canvas[ref_box[1] :] = 0
     canvas[:, : ref_box[2]] = 0
@@ -202,6 +210,8 @@ def valid_region(
 def corner_motion_px(before: Matrix, after: Matrix, region: Region) -> float:
     """Largest distance, in pixels, that a corner of `region` moves between two warps."""
     row0, row1, col0, col1 = region
-    corners = np.array([[col0, row0], [col1 - 1, row0], [col1 - 1, row1 - 1], [col0, row1 - 1]], dtype=np.float64)
+    corners = np.array(
+        [[col0, row0], [col1 - 1, row0], [col1 - 1, row1 - 1], [col0, row1 - 1]], dtype=np.float64
+    )
     moved = map_points(after, corners) - map_points(before, corners)
     return float(np.sqrt((moved**2).sum(axis=1)).max())

@@ -85,7 +85,11 @@ class Registration:
         return float(self.matrix[0, 2] / self.matrix[2, 2]), float(self.matrix[1, 2] / self.matrix[2, 2])
 
     def warp(
-        self, reference: NDArray[np.generic], *, output_shape: tuple[int, int] | None = None, photometric: bool = True
+        self,
+        reference: NDArray[np.generic],
+        *,
+        output_shape: tuple[int, int] | None = None,
+        photometric: bool = True,
     ) -> tuple[Image, NDArray[np.bool_]]:
         """Resample `reference` into the inspection frame (bilinear).
 
@@ -107,7 +111,7 @@ class Registration:
         """
         image = _as_float32(reference, "reference")
         shape = image.shape if output_shape is None else _output_shape(output_shape)
-        inverse = np.linalg.inv(self.matrix)
+        inverse = np.asarray(np.linalg.inv(self.matrix), dtype=np.float64)
         warped = sample(image, inverse, (0, shape[0], 0, shape[1]))
         rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
         source = map_points(inverse, np.column_stack([cols.ravel(), rows.ravel()]).astype(np.float64))
@@ -146,7 +150,9 @@ def _start(initial: object, photometric: bool) -> Estimate | None:
                 f"got shape {matrix.shape}. For a shift (dx, dy) pass [[1, 0, dx], [0, 1, dy], [0, 0, 1]]."
             )
     if not np.isfinite(matrix).all() or abs(np.linalg.det(matrix)) < 1e-12 or matrix[2, 2] == 0:
-        raise InputError(f"initial must be a finite, invertible 3x3 matrix with initial[2, 2] != 0; got {matrix}.")
+        raise InputError(
+            f"initial must be a finite, invertible 3x3 matrix with initial[2, 2] != 0; got {matrix}."
+        )
     return Estimate(matrix / matrix[2, 2], gain=gain, bias=bias)
 
 
@@ -235,7 +241,10 @@ def register(
     user_mask = None if mask is None else as_mask(mask, "mask", reference_image.shape)
     start = _start(initial, settings.photometric)
     levels = build_levels(
-        reference_image, inspection_image, user_mask, level_count(reference_image.shape, inspection_image.shape)
+        reference_image,
+        inspection_image,
+        user_mask,
+        level_count(reference_image.shape, inspection_image.shape),
     )
     estimate = coarse_to_fine(levels, partial(solve_level, settings=settings), start)
     return Registration(

@@ -49,7 +49,9 @@ PENUMBRA_PX = 4.0  # seed §2.2: a penumbra wider than 2 px is interpolated accu
 REFLECTANCE_RANGE = (0.1, 0.6)  # keeps sun + strobe under the full well (camera.py: saturates above ~0.77)
 FLAW_SIZE_PX = 3  # seed §2: ~1 mm micro-meteoroid impacts span a few pixels
 FLAW_SPACING_PX = 40
-FLAW_DEPTH = 0.05  # reflectance lost at a flaw: a dark impact pit, seed §2.4 "peak/adjacent" morphology aside
+# Reflectance lost at a flaw (dark, like the mock-up's tape impact sites, seed §4): ~4 noise sigmas a pixel,
+# so at P_F = 1e-5 the single-pixel test finds about half, the 3x3 uniform model all (seed §2.4).
+FLAW_DEPTH = 0.05
 DEMO_FLAW_MODEL = "uniform"
 DEMO_P_FALSE_ALARM = 1e-5
 MATCH_TOLERANCE_PX = 2
@@ -316,7 +318,7 @@ def _build_scene(rng: np.random.Generator) -> _Scene:
         polarity="dark",
         rng=rng,
     )
-    # A flaw one field pixel tall covers the two frame rows that field row's scan line and its neighbour see.
+    # One field row stands for two frame rows (2:1 interlace): field-resolution flaws are doubled in rows.
     inspected = np.clip(moved + np.repeat(pattern.signal, 2, axis=0), 0.0, 1.0)
     return _Scene(
         reference_reflectance=surface,

@@ -2,7 +2,7 @@
 
 This module is a view: it renders arrays and records that the algorithms already produced and computes
 nothing about the inspection itself. Images are encoded with OpenCV (fast, no figure machinery); only the ROC
-plot uses matplotlib, with the non-interactive Agg backend chosen before pyplot is imported.
+plot uses matplotlib, through a bare ``Figure`` on the non-interactive Agg canvas (pyplot is never imported).
 """
 
 from __future__ import annotations
@@ -229,24 +229,21 @@ def roc_png(curves: Sequence[RocCurve], *, title: str = "ROC") -> bytes:
     """
     import io
 
-    import matplotlib
+    # A bare Figure renders through the Agg canvas: no pyplot, so no GUI backend and no global figure state
+    # (safe in the web console's threads too).
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    figure, axes = plt.subplots(figsize=(6.0, 4.5), dpi=100)
-    try:
-        for curve in curves:
-            _plot_curve(axes, curve)
-        axes.set(xscale="log", xlabel="P_F (false alarms per pixel)", ylabel="P_D", title=title)
-        axes.set_ylim(-0.02, 1.02)
-        axes.set_xlim(left=_P_FALSE_ALARM_FLOOR / 2.0)
-        axes.grid(True, which="both", alpha=0.3)
-        axes.legend(loc="lower right", fontsize="small")
-        buffer = io.BytesIO()
-        figure.savefig(buffer, format="png", bbox_inches="tight")
-    finally:
-        plt.close(figure)
+    figure = Figure(figsize=(6.0, 4.5), dpi=100)
+    axes = figure.subplots()
+    for curve in curves:
+        _plot_curve(axes, curve)
+    axes.set(xscale="log", xlabel="P_F (false alarms per pixel)", ylabel="P_D", title=title)
+    axes.set_ylim(-0.02, 1.02)
+    axes.set_xlim(left=_P_FALSE_ALARM_FLOOR / 2.0)
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(loc="lower right", fontsize="small")
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", bbox_inches="tight")
     return buffer.getvalue()
 
 

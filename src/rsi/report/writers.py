@@ -72,7 +72,9 @@ def atomic_write_text(path: Path | str, text: str) -> Path:
 
 
 def json_ready(value: Any) -> Any:
-    """Convert numpy scalars/arrays and tuples to JSON types; NaN and inf become null (strict JSON)."""
+    """Convert numpy scalars/arrays, tuples and paths to JSON types; NaN and inf become null (strict JSON)."""
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
     if isinstance(value, Mapping):
         return {str(key): json_ready(item) for key, item in value.items()}
     if isinstance(value, (list, tuple, np.ndarray)):

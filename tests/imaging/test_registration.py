@@ -1,0 +1,295 @@
+"""Tests of rsi.imaging.registration (seed §2.3): known answers, invariants, robustness, bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.ndimage as ndi
+from numpy.typing import NDArray
+
+from rsi.errors import InputError
+from rsi.imaging import _gauss_newton
+from rsi.imaging._warps import map_points
+from rsi.imaging.registration import MODELS, Registration, register
+
+SIDE_PX = 256
+SUBPIXEL_PX = 0.02  # stated accuracy on clean synthetic pairs, seed §2.3 residual mis-registration
+PAD_PX = 64
+
+
+def texture(side_px: int = SIDE_PX, seed: int = 1, sigma_px: float = 3.0) -> NDArray[np.float32]:
+    """Band-limited random texture in [0, 1]."""
+    noise = np.random.default_rng(seed).random((side_px, side_px))
+    smooth = ndi.gaussian_filter(noise, sigma_px)
+    return ((smooth - smooth.min()) / (smooth.max() - smooth.min())).astype(np.float32)
+
+
+def warped(reference: NDArray[np.float32], matrix: NDArray[np.float64]) -> NDArray[np.float32]:
+    """Inspection whose pixel ``matrix @ x`` shows reference pixel ``x`` (cubic spline, reflect padding)."""
+    rows, cols = np.mgrid[0 : reference.shape[0], 0 : reference.shape[1]]
+    target = np.column_stack([cols.ravel(), rows.ravel()]).astype(np.float64)
+    source = map_points(np.linalg.inv(matrix), target) + PAD_PX
+    padded = np.pad(reference.astype(np.float64), PAD_PX, mode="reflect")
+    values = ndi.map_coordinates(padded, [source[:, 1], source[:, 0]], order=3)
+    return values.reshape(reference.shape).astype(np.float32)
+
+
+def shifted(reference: NDArray[np.float32], shift_xy: tuple[float, float]) -> NDArray[np.float32]:
+    """``scipy.ndimage.shift(reference, (dy, dx))`` on a reflect-padded copy, cropped: no border junk."""
+    padded = np.pad(reference.astype(np.float64), PAD_PX, mode="reflect")
+    moved = ndi.shift(padded, (shift_xy[1], shift_xy[0]), order=3)
+    return moved[PAD_PX:-PAD_PX, PAD_PX:-PAD_PX].astype(np.float32)
+
+
+def about_centre(angle_rad: float, scale: float, shift_xy: tuple[float, float]) -> NDArray[np.float64]:
+    centre = (SIDE_PX - 1) / 2.0
+    cos, sin = scale * np.cos(angle_rad), scale * np.sin(angle_rad)
+    to_centre = np.array([[1.0, 0.0, -centre], [0.0, 1.0, -centre], [0.0, 0.0, 1.0]])
+    back = np.array([[1.0, 0.0, centre + shift_xy[0]], [0.0, 1.0, centre + shift_xy[1]], [0.0, 0.0, 1.0]])
+    return back @ np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]]) @ to_centre
+
+
+TRUTHS = {
+    "translation": np.array([[1.0, 0.0, 3.3], [0.0, 1.0, -2.6], [0.0, 0.0, 1.0]]),
+    "euclidean": about_centre(0.03, 1.0, (2.2, -1.4)),
+    "similarity": about_centre(0.02, 1.03, (-1.7, 2.4)),
+    "affine": np.array([[1.02, 0.015, 2.1], [-0.01, 0.985, -1.3], [0.0, 0.0, 1.0]]),
+    "homography": np.array([[1.01, 0.01, 1.5], [-0.008, 0.995, -2.1], [4e-5, -3e-5, 1.0]]),
+}
+PROBES_XY = np.array([[24.0, 24.0], [231.0, 24.0], [231.0, 231.0], [24.0, 231.0], [127.5, 127.5]])
+
+
+def corner_error_px(matrix: NDArray[np.float64], truth: NDArray[np.float64]) -> float:
+    return float(np.abs(map_points(matrix, PROBES_XY) - map_points(truth, PROBES_XY)).max())
+
+
+def test_models_listed_in_the_contract() -> None:
+    assert MODELS == ("translation", "euclidean", "similarity", "affine", "homography")
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_recovers_known_warp_of_every_model(model: str) -> None:
+    reference = texture()
+    inspection = 1.2 * warped(reference, TRUTHS[model]) + 0.05
+    result = register(reference, inspection, model=model)
+    assert result.converged and result.reason == "converged"
+    assert corner_error_px(result.matrix, TRUTHS[model]) < SUBPIXEL_PX
+
+
+@pytest.mark.parametrize("shift_xy", [(3.7, -2.2), (-0.4, 0.9), (12.5, 7.25)])
+def test_sign_convention_follows_scipy_shift(shift_xy: tuple[float, float]) -> None:
+    reference = texture()
+    result = register(reference, shifted(reference, shift_xy))
+    np.testing.assert_allclose(result.translation_xy, shift_xy, atol=SUBPIXEL_PX)
+
+
+def test_gain_and_bias_recovered() -> None:
+    reference = texture(sigma_px=4.0)
+    result = register(reference, 0.7 * shifted(reference, (2.5, 1.5)) + 0.2)
+    # Bilinear resampling lowers the contrast of a fractional shift by about 1%: the tolerance says so.
+    assert result.gain == pytest.approx(0.7, abs=0.015)
+    assert result.bias == pytest.approx(0.2, abs=0.01)
+    np.testing.assert_allclose(result.translation_xy, (2.5, 1.5), atol=SUBPIXEL_PX)
+
+
+def test_without_photometric_gain_is_one_and_offset_is_tolerated() -> None:
+    reference = texture()
+    result = register(reference, shifted(reference, (1.3, -0.7)) + 0.02, photometric=False)
+    assert (result.gain, result.bias) == (1.0, 0.0)
+    np.testing.assert_allclose(result.translation_xy, (1.3, -0.7), atol=SUBPIXEL_PX)
+
+
+def test_large_shift_converges_from_phase_correlation() -> None:
+    reference = texture(side_px=SIDE_PX, sigma_px=2.0)
+    result = register(reference, shifted(reference, (43.4, -41.7)))
+    assert result.converged
+    np.testing.assert_allclose(result.translation_xy, (43.4, -41.7), atol=SUBPIXEL_PX)
+
+
+def test_bright_flaw_does_not_pull_the_estimate(monkeypatch: pytest.MonkeyPatch) -> None:
+    reference = texture()
+    rng = np.random.default_rng(7)
+    inspection = shifted(reference, (3.7, -2.2)) + rng.normal(0.0, 2.0 / 255.0, reference.shape).astype(
+        np.float32
+    )
+    inspection[100:120, 140:160] += 0.5
+    robust = register(reference, inspection)
+    np.testing.assert_allclose(robust.translation_xy, (3.7, -2.2), atol=SUBPIXEL_PX)
+    # The flaw is strong enough to matter: without trimming it pulls the estimate past the tolerance.
+    monkeypatch.setattr(_gauss_newton, "_TRIM_SIGMAS", np.inf)
+    pulled = register(reference, inspection)
+    assert np.hypot(*(np.subtract(pulled.translation_xy, (3.7, -2.2)))) > SUBPIXEL_PX
+
+
+def test_mask_excludes_a_flaw() -> None:
+    reference = texture()
+    inspection = shifted(reference, (2.0, 1.0))
+    inspection[60:110, 60:110] = 1.0
+    mask = np.ones(reference.shape, dtype=bool)
+    mask[50:115, 50:115] = False
+    result = register(reference, inspection, mask=mask)
+    np.testing.assert_allclose(result.translation_xy, (2.0, 1.0), atol=SUBPIXEL_PX)
+
+
+def test_identity_gives_zero_motion() -> None:
+    reference = texture()
+    result = register(reference, reference)
+    np.testing.assert_allclose(result.matrix, np.eye(3), atol=1e-4)
+    assert result.gain == pytest.approx(1.0, abs=1e-4)
+    assert result.bias == pytest.approx(0.0, abs=1e-4)
+    assert result.residual_rms < 1e-4
+
+
+def test_shift_std_grows_with_noise() -> None:
+    reference = texture()
+    rng = np.random.default_rng(3)
+    clean = shifted(reference, (1.5, 0.5))
+    stds = []
+    for sigma in (0.005, 0.02):
+        noisy = clean + rng.normal(0.0, sigma, clean.shape).astype(np.float32)
+        stds.append(register(reference, noisy).shift_std_px)
+    assert all(np.isfinite(stds[0])) and stds[0][0] > 0
+    assert stds[1][0] > 2.5 * stds[0][0] and stds[1][1] > 2.5 * stds[0][1]
+
+
+def test_tiny_deadline_is_reported_not_raised() -> None:
+    reference = texture()
+    result = register(reference, shifted(reference, (3.0, 1.0)), deadline_s=1e-9)
+    assert result.reason == "deadline"
+    assert not result.converged
+    assert np.isfinite(result.residual_rms)
+
+
+def test_noise_only_pair_is_reported_not_raised() -> None:
+    rng = np.random.default_rng(11)
+    reference = rng.random((128, 128)).astype(np.float32)
+    inspection = rng.random((128, 128)).astype(np.float32)
+    for photometric in (True, False):
+        result = register(reference, inspection, photometric=photometric, max_iterations=10)
+        assert not result.converged
+        assert result.reason in ("diverged", "max_iterations")
+
+
+def test_flat_image_diverges() -> None:
+    result = register(np.full((64, 64), 0.5), np.full((64, 64), 0.5))
+    assert result.reason == "diverged" and not result.converged
+
+
+def test_image_too_small_for_the_margins_reports_divergence() -> None:
+    result = register(np.eye(3), np.eye(3))
+    assert result.reason == "diverged"
+
+
+def test_max_iterations_reported() -> None:
+    reference = texture()
+    result = register(reference, shifted(reference, (3.3, -2.6)), max_iterations=1)
+    assert result.reason == "max_iterations" and not result.converged
+
+
+def test_shapes_may_differ() -> None:
+    reference = texture()
+    inspection = shifted(reference, (3.5, 2.5))[10:200, 20:230]
+    result = register(reference, inspection)
+    # Cropping at (row 10, col 20) moves every inspection pixel by (-20, -10).
+    np.testing.assert_allclose(result.translation_xy, (3.5 - 20.0, 2.5 - 10.0), atol=SUBPIXEL_PX)
+
+
+def test_integer_images_are_accepted() -> None:
+    reference = (texture() * 255).astype(np.uint8)
+    inspection = np.clip(shifted(reference.astype(np.float32), (2.0, -1.0)), 0, 255).astype(np.uint8)
+    result = register(reference, inspection)
+    np.testing.assert_allclose(result.translation_xy, (2.0, -1.0), atol=0.05)
+
+
+@pytest.mark.parametrize("as_registration", [False, True])
+def test_initial_matrix_or_registration_is_used(as_registration: bool) -> None:
+    reference = texture()
+    truth = TRUTHS["similarity"]
+    inspection = warped(reference, truth)
+    start: NDArray[np.float64] | Registration = truth + np.array([[0, 0, 0.4], [0, 0, -0.3], [0, 0, 0]])
+    if as_registration:
+        start = register(reference, inspection, model="similarity", max_iterations=2)
+    result = register(reference, inspection, model="similarity", initial=start)
+    assert result.converged
+    assert corner_error_px(result.matrix, truth) < SUBPIXEL_PX
+
+
+def test_result_is_frozen_and_matrix_read_only() -> None:
+    reference = texture()
+    result = register(reference, reference)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        result.gain = 2.0  # type: ignore[misc]
+    with pytest.raises(ValueError, match="read-only"):
+        result.matrix[0, 2] = 5.0
+    assert result.model == "translation" and result.elapsed_s > 0 and result.iterations >= 1
+
+
+def test_deterministic() -> None:
+    reference = texture()
+    inspection = shifted(reference, (1.25, 0.75))
+    first, second = register(reference, inspection), register(reference, inspection)
+    assert np.array_equal(first.matrix, second.matrix)
+    fields = ("gain", "bias", "reason", "iterations", "residual_rms", "shift_std_px")
+    assert [getattr(first, name) for name in fields] == [getattr(second, name) for name in fields]
+
+
+def test_warp_valid_mask_is_the_preimage_inside_the_reference() -> None:
+    reference = texture()
+    shift = np.array([[1.0, 0.0, 3.5], [0.0, 1.0, -2.0], [0.0, 0.0, 1.0]])
+    result = Registration("translation", shift, 1.0, 0.0, True, "converged", 1, 0.0, (0.0, 0.0), 0.0)
+    warped_reference, valid = result.warp(reference)
+    assert warped_reference.dtype == np.float32 and valid.dtype == np.bool_
+    # Preimage x - 3.5 must lie in [0, 255]: columns 4..255; y + 2 in [0, 255]: rows 0..253.
+    expected = np.zeros_like(valid)
+    expected[0:254, 4:256] = True
+    assert np.array_equal(valid, expected)
+    assert np.all(warped_reference[~valid] == 0.0)
+
+
+def test_warp_maps_reference_onto_inspection() -> None:
+    reference = texture()
+    inspection = 1.1 * shifted(reference, (3.5, -2.0)) + 0.03
+    warped_reference, valid = register(reference, inspection).warp(reference)
+    inner = np.s_[8:-8, 8:-8]
+    assert valid[inner].all()
+    assert np.abs(warped_reference[inner] - inspection[inner]).max() < 0.01
+
+
+def test_warp_output_shape_and_no_photometric() -> None:
+    reference = texture()
+    result = Registration("translation", np.eye(3), 2.0, 1.0, True, "converged", 1, 0.0, (0.0, 0.0), 0.0)
+    plain, valid = result.warp(reference, output_shape=(100, 120), photometric=False)
+    assert plain.shape == valid.shape == (100, 120) and valid.all()
+    np.testing.assert_allclose(plain, reference[:100, :120], atol=1e-6)
+    with pytest.raises(InputError, match="output_shape"):
+        result.warp(reference, output_shape=(0, 5))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "argument"),
+    [
+        ({"reference": np.zeros((8, 8, 3))}, "reference"),
+        ({"reference": np.zeros((1, 8))}, "reference"),
+        ({"inspection": np.full((8, 8), np.nan)}, "inspection"),
+        ({"inspection": np.zeros((8, 8), dtype=np.complex64)}, "inspection"),
+        ({"inspection": [[0.0, 1.0], [1.0, 0.0]]}, "inspection"),
+        ({"model": "projective"}, "model"),
+        ({"photometric": "yes"}, "photometric"),
+        ({"max_iterations": 0}, "max_iterations"),
+        ({"max_iterations": 2.5}, "max_iterations"),
+        ({"tolerance": 0.0}, "tolerance"),
+        ({"tolerance": float("nan")}, "tolerance"),
+        ({"deadline_s": -1.0}, "deadline_s"),
+        ({"deadline_s": 0.0}, "deadline_s"),
+        ({"mask": np.ones((7, 8), dtype=bool)}, "mask"),
+        ({"initial": np.eye(2)}, "initial"),
+        ({"initial": np.zeros((3, 3))}, "initial"),
+        ({"initial": "identity"}, "initial"),
+    ],
+)
+def test_bad_input_names_the_argument(kwargs: dict[str, object], argument: str) -> None:
+    arguments: dict[str, object] = {"reference": np.zeros((8, 8)), "inspection": np.zeros((8, 8)), **kwargs}
+    with pytest.raises(InputError, match=argument):
+        register(**arguments)  # type: ignore[arg-type]
