@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
     from rsi.detection.detect import Flaw
     from rsi.detection.roc import RocCurve
-    from rsi.mission.pair import DemoRun, PairResult
+    from rsi.mission.pair import DemoResult, PairResult
 
 EXIT_OK = 0
 EXIT_USAGE = 2
@@ -190,15 +190,17 @@ def demo(
 ) -> None:
     """Simulate an inspection with seeded ~1 mm flaws, find them, and write pictures and scores."""
     with _errors():
-        from rsi.mission.pair import run_synthetic_demo
+        from rsi.mission.pair import simulate_demo
+        from rsi.report.writers import write_demo_report
 
         with _progress_bar("demo") as update:
-            run = run_synthetic_demo(out, seed=seed, progress=update)
-        _print_demo(run, out)
+            result = simulate_demo(seed=seed, progress=update)
+            files = write_demo_report(out, result)
+        _print_demo(result, files, out)
 
 
-def _print_demo(run: DemoRun, out: Path) -> None:
-    result, console = run.result, _stdout()
+def _print_demo(result: DemoResult, files: Mapping[str, Path], out: Path) -> None:
+    console = _stdout()
     score, detection = result.score, result.pair.detection
     console.print(_flaw_table(detection.flaws, is_true=score.is_true, title="Flaws found (strongest first)"))
     console.print(
@@ -212,7 +214,7 @@ def _print_demo(run: DemoRun, out: Path) -> None:
         console.print(
             f"Registration: shift ({found_x:.2f}, {found_y:.2f}) px; true ({true_x:.2f}, {true_y:.2f}) px."
         )
-    console.print(f"Simulated in {result.elapsed_s:.1f} s. Results in {out}/: {', '.join(sorted(run.files))}")
+    console.print(f"Simulated in {result.elapsed_s:.1f} s. Results in {out}/: {', '.join(sorted(files))}")
 
 
 @app.command("inspect", epilog=_EPILOG)

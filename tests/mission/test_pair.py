@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -123,13 +120,3 @@ def test_demo_is_deterministic_and_reports_progress_in_order() -> None:
 def test_demo_rejects_a_negative_seed() -> None:
     with pytest.raises(InputError, match="seed"):
         simulate_demo(seed=-1)
-
-
-def test_run_synthetic_demo_writes_the_results_folder(tmp_path: Path, demo: DemoResult) -> None:
-    stages: list[str] = []
-    run = mission.run_synthetic_demo(tmp_path, seed=0, progress=lambda stage, *_: stages.append(stage))
-    assert stages[-1] == "write"
-    assert set(run.files) >= {"overlay.png", "roc.png", "flaws.json", "summary.json", "reference.png"}
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["recall"] == pytest.approx(demo.score.recall)
-    assert summary["false_alarms"] == demo.score.false_alarms

@@ -215,15 +215,28 @@ def _sensor_variances(
             noise.affine_variance(reference_intensity, coefficients))
 
 
-def _lrt(difference: Float32Array, inverse_variance: Float32Array, weights: NDArray[np.float64]) -> Float32Array:
-    # seed §2.4: for Gaussian noise the log-likelihood ratio of "flaw s*w here" is linear in d: a weighted
-    # sum over the window, normalised to unit variance under H0.
+def _correlate(image: Float32Array, weights: NDArray[np.float64]) -> Float32Array:
     if weights.shape == (1, 1):
-        single: Float32Array = difference * np.sqrt(inverse_variance)
-        return single
-    kernel = weights.astype(np.float32)
-    numerator = cv2.filter2D(difference * inverse_variance, -1, kernel, borderType=cv2.BORDER_CONSTANT)
-    denominator = cv2.filter2D(inverse_variance, -1, kernel * kernel, borderType=cv2.BORDER_CONSTANT)
+        scaled: Float32Array = image * np.float32(weights[0, 0])
+        return scaled
+    result: Float32Array = cv2.filter2D(image, -1, weights.astype(np.float32), borderType=cv2.BORDER_CONSTANT)
+    return result
+
+
+def _lrt(
+    difference: Float32Array,
+    inverse_variance: Float32Array,
+    weights: NDArray[np.float64],
+    errors: tuple[Float32Array, ...],
+) -> Float32Array:
+    # seed §2.4: for Gaussian noise the log-likelihood ratio of "flaw s*w here" is linear in d: a weighted
+    # sum over the window, normalised to unit variance under H0. Coherent prediction errors add the square
+    # of their own weighted sum to that variance.
+    numerator = _correlate(difference * inverse_variance, weights)
+    denominator = _correlate(inverse_variance, weights * weights)
+    for error in errors:
+        coherent = _correlate(error * inverse_variance, weights)
+        denominator += coherent * coherent
     statistic: Float32Array = numerator / np.sqrt(np.maximum(denominator, _VARIANCE_FLOOR))
     return statistic
 
@@ -364,17 +377,14 @@ def detect(
     variance_inspection, variance_reference = _sensor_variances(inspection_in, aligned, difference, valid)
     factor = _factor(_NOISE_FILTER[chosen_method](weights), aligned.fraction_xy)
     variance = variance_inspection + np.float32(aligned.gain**2 * factor) * variance_reference
-    if used_registration is not None:
-        variance = variance + noise.resampling_variance(aligned.predicted, aligned.fraction_xy)
-        if any(used_registration.shift_std_px):
-            variance = variance + noise.misregistration_variance(aligned.predicted,
-                                                                 used_registration.shift_std_px)
     variance = np.maximum(np.broadcast_to(variance, difference.shape), _VARIANCE_FLOOR)
     inverse_variance = (np.float32(1.0) / variance).astype(np.float32, copy=False)
     inverse_variance[~valid] = 0.0
+    errors = () if used_registration is None else noise.systematic_errors(
+        aligned.predicted, aligned.fraction_xy, used_registration.shift_std_px)
 
     per_pixel = chosen_method == "erosion"
-    statistic = _lrt(difference, inverse_variance, np.ones((1, 1)) if per_pixel else weights)
+    statistic = _lrt(difference, inverse_variance, np.ones((1, 1)) if per_pixel else weights, errors)
     if sigma_known is None:
         # Self-calibration: under H0 the statistic is N(0, 1); its robust scale absorbs noise-model error.
         scale = noise.robust_scale(statistic, valid)
@@ -386,7 +396,8 @@ def detect(
     threshold = float(thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method,
                                  weights=weights)[0])
     mask = (score > threshold) & valid
-    sigma = np.where(valid, np.sqrt(variance), np.float32(0.0)).astype(np.float32, copy=False)
+    total = variance + sum(error * error for error in errors)
+    sigma = np.where(valid, np.sqrt(total), np.float32(0.0)).astype(np.float32, copy=False)
     return Detection(score=score, statistic=signed, mask=mask, threshold=threshold,
                      flaws=_flaws(mask, score, signed, min_area), difference=difference, sigma=sigma,
                      valid=valid, registration=used_registration, flaw_model=chosen_model,

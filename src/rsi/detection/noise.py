@@ -66,29 +66,6 @@ def mean_interpolation_factor(weights: FloatArray) -> float:
     return float(np.mean([interpolation_factor(weights, (fx, fy)) for fx in fractions for fy in fractions]))
 
 
-def misregistration_variance(predicted: Float32Array, shift_std_px: tuple[float, float]) -> Float32Array:
-    """Variance added to ``d`` by a residual translation of std ``(sx, sy)`` pixels.
-
-    Parameters
-    ----------
-    predicted : ndarray of shape (M, N), float32
-        ``gain * warped_reference + bias``.
-    shift_std_px : tuple of float
-        ``(sx, sy)``, e.g. :attr:`Registration.shift_std_px`.
-
-    Returns
-    -------
-    ndarray of shape (M, N), float32
-        ``sx^2 gx^2 + sy^2 gy^2`` (seed §2.3-2.4: first-order Taylor expansion of the shifted image).
-    """
-    sx, sy = shift_std_px
-    # Sobel / 8 is a central difference smoothed across the edge, which keeps sensor noise out of g.
-    gx = cv2.Sobel(predicted, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
-    gy = cv2.Sobel(predicted, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
-    result: Float32Array = np.float32(sx * sx) * gx * gx + np.float32(sy * sy) * gy * gy
-    return result
-
-
 def _median(values: NDArray[Any]) -> float:
     """Median by selection, O(n), instead of a full sort."""
     middle = values.size // 2
@@ -172,8 +149,10 @@ def affine_variance(intensity: Float32Array, coefficients: tuple[float, float]) 
     return result
 
 
-def resampling_variance(predicted: Float32Array, fraction_xy: tuple[float, float] | None) -> Float32Array:
-    """Squared error of bilinear resampling of the reference's signal, treated as extra variance.
+def systematic_errors(
+    predicted: Float32Array, fraction_xy: tuple[float, float] | None, shift_std_px: tuple[float, float]
+) -> tuple[Float32Array, Float32Array, Float32Array]:
+    """Signed one-sigma error maps of the prediction that are coherent over a flaw window.
 
     Parameters
     ----------
@@ -182,17 +161,29 @@ def resampling_variance(predicted: Float32Array, fraction_xy: tuple[float, float
     fraction_xy : tuple of float or None
         Sub-pixel fractions ``(fx, fy)`` of a translation; None for warps whose fractions vary (their mean
         ``f (1 - f) = 1/6`` is used).
+    shift_std_px : tuple of float
+        ``(sx, sy)``, the registration's residual translation std (:attr:`Registration.shift_std_px`).
 
     Returns
     -------
-    ndarray of shape (M, N), float32
-        ``(fx (1 - fx) / 2 * Ixx + fy (1 - fy) / 2 * Iyy)^2``: linear interpolation between samples
-        misses the curvature of the image (leading term of its error), largest at edges.
+    tuple of three ndarrays of shape (M, N), float32
+        ``sx gx`` and ``sy gy``: the change of ``d`` per one-sigma residual shift along x and y (seed §2.3-2.4,
+        first-order Taylor expansion; per pixel they add ``sx^2 gx^2 + sy^2 gy^2`` to the variance), and
+        ``fx (1 - fx) / 2 Ixx + fy (1 - fy) / 2 Iyy``, the leading error of bilinear resampling, which
+        misses the image's curvature (largest at edges).
+
+    Notes
+    -----
+    All three are the same for every pixel of a small window (one shift, one sub-pixel phase), so a window
+    sum sees them coherently: the detector adds ``(sum_k w_k e_k / v_k)^2`` to its variance, not
+    ``sum_k w_k^2 e_k^2 / v_k^2``.
     """
+    sx, sy = shift_std_px
     cx, cy = (1.0 / 6.0, 1.0 / 6.0) if fraction_xy is None else (f * (1.0 - f) for f in fraction_xy)
-    # Sobel's second derivative is [1, -2, 1] smoothed by [1, 2, 1] / 4 across, which damps sensor noise.
-    ixx = cv2.Sobel(predicted, cv2.CV_32F, 2, 0, ksize=3, scale=0.25 * 0.5 * cx)
-    iyy = cv2.Sobel(predicted, cv2.CV_32F, 0, 2, ksize=3, scale=0.25 * 0.5 * cy)
-    error = ixx + iyy
-    result: Float32Array = error * error
-    return result
+    # Sobel / 8 is a central difference smoothed across the edge, which keeps sensor noise out of g; the
+    # second-derivative Sobel is [1, -2, 1] smoothed by [1, 2, 1] (hence / 4).
+    shift_x = cv2.Sobel(predicted, cv2.CV_32F, 1, 0, ksize=3, scale=0.125 * sx)
+    shift_y = cv2.Sobel(predicted, cv2.CV_32F, 0, 1, ksize=3, scale=0.125 * sy)
+    curvature = cv2.Sobel(predicted, cv2.CV_32F, 2, 0, ksize=3, scale=0.125 * cx)
+    curvature += cv2.Sobel(predicted, cv2.CV_32F, 0, 2, ksize=3, scale=0.125 * cy)
+    return shift_x, shift_y, curvature

@@ -7,22 +7,18 @@ from __future__ import annotations
 
 from rsi.mission.pair import (
     DemoResult,
-    DemoRun,
     PairResult,
     Score,
     inspect_pair,
-    run_synthetic_demo,
     score_flaws,
     simulate_demo,
 )
 
 __all__ = [
     "DemoResult",
-    "DemoRun",
     "PairResult",
     "Score",
     "inspect_pair",
-    "run_synthetic_demo",
     "score_flaws",
     "simulate_demo",
 ]

@@ -4,15 +4,14 @@
 (§2.3), then difference and test every pixel against the flaw model at a chosen false-alarm probability
 (§2.4). :func:`simulate_demo` builds a scene whose truth is known and runs the whole chain through the camera
 model: interlaced strobe/ambient frames (§2.1), intra-frame ambient compensation (§2.2), registration and
-detection; :func:`run_synthetic_demo` also writes the results folder.
+detection; the results folder is written by :mod:`rsi.report` (the CLI joins the two).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -279,13 +278,6 @@ class DemoResult:
     elapsed_s: float
 
 
-@dataclass(frozen=True)
-class DemoRun:
-    """A finished demo: its result record and the files written for it (name -> path)."""
-
-    result: DemoResult
-    files: Mapping[str, Path]
-
 
 @dataclass(frozen=True)
 class _Scene:
@@ -464,35 +456,3 @@ def _roc_curves(
         curves.append(replace(theory, label=f"{model}: theory"))
         curves.append(replace(measured, label=f"{model}: measured"))
     return tuple(curves)
-
-
-def run_synthetic_demo(out_dir: Path | str, *, seed: int = 0, progress: ProgressFn | None = None) -> DemoRun:
-    """Run :func:`simulate_demo` and write its results folder (pictures, ROC, flaws, summary).
-
-    Parameters
-    ----------
-    out_dir : path
-        Folder to write into (created if missing; existing files of the same names are replaced).
-    seed : int
-        Seed of every random draw.
-    progress : callable, optional
-        Called as ``progress(stage, completed, total)`` after each stage, writing included.
-
-    Returns
-    -------
-    DemoRun
-        The result record and the written files.
-    """
-    from rsi.report.writers import write_demo_report
-
-    stages = (*_STAGES, "write")
-
-    def simulate_progress(stage: str, completed: int, _total: int) -> None:
-        if progress is not None:
-            progress(stage, completed, len(stages))
-
-    result = simulate_demo(seed=seed, progress=simulate_progress)
-    files = write_demo_report(out_dir, result)
-    if progress is not None:
-        progress(stages[-1], len(stages), len(stages))
-    return DemoRun(result=result, files=files)

@@ -106,7 +106,7 @@ class LampController:
     """
 
     setpoint_lux: float = 1500.0
-    proportional_gain: float = 0.5
+    proportional_gain: float = 4.0
     integral_time_s: float = 0.05
     sample_rate_hz: float = 1000.0
     sensor_noise_relative: float = 0.002
@@ -137,8 +137,8 @@ class LampDisturbance:
         Relative efficacy lost per second of run (bulb life compressed into the run), >= 0.
     """
 
-    supply_noise_relative: float = 0.03
-    supply_correlation_s: float = 0.3
+    supply_noise_relative: float = 0.02
+    supply_correlation_s: float = 0.5
     supply_sag_per_s: float = 0.02
     ageing_per_s: float = 0.05
 
