@@ -265,6 +265,8 @@ def test_warp_output_shape_and_no_photometric() -> None:
     np.testing.assert_allclose(plain, reference[:100, :120], atol=1e-6)
     with pytest.raises(InputError, match="output_shape"):
         result.warp(reference, output_shape=(0, 5))
+    with pytest.raises(InputError, match="reference"):
+        result.warp(np.zeros((4, 4, 3)))
 
 
 @pytest.mark.parametrize(

@@ -95,7 +95,8 @@ def _edges(shape: tuple[int, int], rng: np.random.Generator) -> FloatArray:
         angle = rng.uniform(0.0, 2.0 * np.pi)
         row0, col0 = rng.uniform(0.0, shape[0]), rng.uniform(0.0, shape[1])
         steps += rng.normal(0.0, 1.0) * ((rows - row0) * np.sin(angle) + (cols - col0) * np.cos(angle) > 0)
-    return cv2.GaussianBlur(steps, (0, 0), _EDGE_BLUR_PX, borderType=cv2.BORDER_REFLECT)
+    blurred = cv2.GaussianBlur(steps, (0, 0), _EDGE_BLUR_PX, borderType=cv2.BORDER_REFLECT)
+    return np.asarray(blurred, dtype=np.float64)
 
 
 def textured_surface(shape: tuple[int, int], *, rng: np.random.Generator | int | None = None) -> FloatArray:
@@ -118,12 +119,14 @@ def textured_surface(shape: tuple[int, int], *, rng: np.random.Generator | int |
     generator = as_rng(rng)
     texture = np.zeros(size)
     for scale in _SCALES_PX:
-        octave = cv2.GaussianBlur(generator.standard_normal(size), (0, 0), scale, borderType=cv2.BORDER_REFLECT)
+        octave = cv2.GaussianBlur(
+            generator.standard_normal(size), (0, 0), scale, borderType=cv2.BORDER_REFLECT
+        )
         texture += octave / octave.std()
     edges = _edges(size, generator)
     texture += 1.5 * edges / max(float(edges.std()), 1e-12)
     low, high = float(texture.min()), float(texture.max())
-    result: FloatArray = (texture - low) / (high - low)
+    result: FloatArray = np.asarray((texture - low) / (high - low), dtype=np.float64)
     return result
 
 
@@ -135,7 +138,8 @@ def _jittered_centres(
     low = half + 1
     high = spacing_px - 2 - half  # inclusive
     cells_r, cells_c = shape[0] // spacing_px, shape[1] // spacing_px
-    origins = np.stack(np.mgrid[0:cells_r, 0:cells_c], axis=-1).reshape(-1, 2) * spacing_px
+    grid_r, grid_c = np.mgrid[0:cells_r, 0:cells_c]
+    origins = np.column_stack([grid_r.ravel(), grid_c.ravel()]) * spacing_px
     centres: NDArray[np.intp] = origins + rng.integers(low, high + 1, size=origins.shape)
     return centres
 
@@ -182,7 +186,9 @@ def flaw_pattern(
         raise InputError(f"size_px must be odd so each flaw has a centre pixel; got {side}. Try {side + 1}.")
     spacing = positive_int(spacing_px, "spacing_px")
     if spacing < side + 3:
-        raise InputError(f"spacing_px must be >= size_px + 3 = {side + 3} so flaws never touch; got {spacing}.")
+        raise InputError(
+            f"spacing_px must be >= size_px + 3 = {side + 3} so flaws never touch; got {spacing}."
+        )
     amplitude = in_range(strength, "strength", low=0.0)
     chosen = choice(profile, "profile", PROFILES)
     sign = {"dark": -1.0, "bright": 1.0}[choice(polarity, "polarity", ("dark", "bright"))]
@@ -244,9 +250,16 @@ def synthetic_pair(
     canvas = textured_surface((size[0] + 2 * pad, size[1] + 2 * pad), rng=generator)
     window = (slice(pad, pad + size[0]), slice(pad, pad + size[1]))
     shifted = ndimage.shift(canvas, (dy, dx), mode="reflect")[window]
-    flaws = flaw_pattern(size, size_px=flaw_size_px, spacing_px=flaw_spacing_px, strength=flaw_strength,
-                         profile=profile, rng=generator)
+    flaws = flaw_pattern(
+        size,
+        size_px=flaw_size_px,
+        spacing_px=flaw_spacing_px,
+        strength=flaw_strength,
+        profile=profile,
+        rng=generator,
+    )
     reference = canvas[window] + sigma * generator.standard_normal(size)
     inspection = gain_value * shifted + bias_value + flaws.signal + sigma * generator.standard_normal(size)
-    return SyntheticPair(reference, inspection, flaws.truth_mask, flaws.centres_rc, (dx, dy), gain_value,
-                         bias_value, sigma)
+    return SyntheticPair(
+        reference, inspection, flaws.truth_mask, flaws.centres_rc, (dx, dy), gain_value, bias_value, sigma
+    )

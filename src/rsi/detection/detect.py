@@ -20,6 +20,7 @@ from typing import Any
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+
 from rsi._validate import as_image, as_mask, choice, in_range, positive_int, same_shape
 from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
@@ -180,16 +181,22 @@ def _align(reference: _Input, inspection: _Input, registration: Registration | N
     predicted, valid = registration.warp(reference.image, output_shape=shape, photometric=True)
     valid = np.asarray(valid, dtype=bool)
     if reference.valid is not None:
-        warped_valid, _ = registration.warp(reference.valid.astype(np.float32), output_shape=shape,
-                                            photometric=False)
+        warped_valid, _ = registration.warp(
+            reference.valid.astype(np.float32), output_shape=shape, photometric=False
+        )
         valid = valid & (warped_valid > _VALID_WEIGHT)
     fraction = None
     if registration.model == "translation":
         tx, ty = registration.translation_xy
         fraction = (tx % 1.0, ty % 1.0)
-    return _Aligned(np.asarray(predicted, dtype=np.float32), valid,
-                    _warp_optional(registration, reference.variance, shape),
-                    float(registration.gain), float(registration.bias), fraction)
+    return _Aligned(
+        np.asarray(predicted, dtype=np.float32),
+        valid,
+        _warp_optional(registration, reference.variance, shape),
+        float(registration.gain),
+        float(registration.bias),
+        fraction,
+    )
 
 
 def _factor(weights: NDArray[np.float64], fraction_xy: tuple[float, float] | None) -> float:
@@ -206,21 +213,25 @@ def _sensor_variances(
         return inspection.variance, aligned.variance
     # The variance is read at a local mean of both images: a noisy intensity would couple the variance to
     # the noise in d (a pixel whose reference noise is low also gets a low variance) and fatten the tails.
-    intensity = cv2.blur(np.float32(0.5) * (inspection.image + aligned.predicted), (3, 3))
+    mean = np.float32(0.5) * (inspection.image + aligned.predicted)
+    intensity = np.asarray(cv2.blur(mean, (3, 3)), dtype=np.float32)
     single = _factor(np.ones((1, 1)), aligned.fraction_xy)
-    coefficients = noise.fit_sensor_variance(difference, intensity, valid, gain=aligned.gain,
-                                             bias=aligned.bias, factor=single)
+    coefficients = noise.fit_sensor_variance(
+        difference, intensity, valid, gain=aligned.gain, bias=aligned.bias, factor=single
+    )
     reference_intensity = (intensity - np.float32(aligned.bias)) * np.float32(1.0 / aligned.gain)
-    return (noise.affine_variance(intensity, coefficients),
-            noise.affine_variance(reference_intensity, coefficients))
+    return (
+        noise.affine_variance(intensity, coefficients),
+        noise.affine_variance(reference_intensity, coefficients),
+    )
 
 
 def _correlate(image: Float32Array, weights: NDArray[np.float64]) -> Float32Array:
     if weights.shape == (1, 1):
         scaled: Float32Array = image * np.float32(weights[0, 0])
         return scaled
-    result: Float32Array = cv2.filter2D(image, -1, weights.astype(np.float32), borderType=cv2.BORDER_CONSTANT)
-    return result
+    result = cv2.filter2D(image, -1, weights.astype(np.float32), borderType=cv2.BORDER_CONSTANT)
+    return np.asarray(result, dtype=np.float32)
 
 
 def _lrt(
@@ -237,36 +248,38 @@ def _lrt(
     for error in errors:
         coherent = _correlate(error * inverse_variance, weights)
         denominator += coherent * coherent
-    statistic: Float32Array = numerator / np.sqrt(np.maximum(denominator, _VARIANCE_FLOOR))
-    return statistic
+    statistic = numerator / np.sqrt(np.maximum(denominator, _VARIANCE_FLOOR))
+    return np.asarray(statistic, dtype=np.float32)
 
 
-def _lrt_scores(statistic: Float32Array, valid: BoolArray, weights: NDArray[np.float64]) -> tuple[
-    Float32Array, Float32Array, BoolArray
-]:
+def _lrt_scores(
+    statistic: Float32Array, valid: BoolArray, weights: NDArray[np.float64]
+) -> tuple[Float32Array, Float32Array, BoolArray]:
     return statistic, -statistic, valid
 
 
-def _erosion_scores(statistic: Float32Array, valid: BoolArray, weights: NDArray[np.float64]) -> tuple[
-    Float32Array, Float32Array, BoolArray
-]:
+def _erosion_scores(
+    statistic: Float32Array, valid: BoolArray, weights: NDArray[np.float64]
+) -> tuple[Float32Array, Float32Array, BoolArray]:
     # seed §2.4 sub-optimal test: a flaw needs every footprint pixel beyond t_e, i.e. the grey erosion
     # (minimum over the footprint) of z beyond t_e. Pixels whose footprint leaves the valid area are invalid.
     footprint = (weights != 0).astype(np.uint8)
-    bright = cv2.erode(statistic, footprint)
-    dark = cv2.erode(-statistic, footprint)
+    bright = np.asarray(cv2.erode(statistic, footprint), dtype=np.float32)
+    dark = np.asarray(cv2.erode(-statistic, footprint), dtype=np.float32)
     eroded_valid = cv2.erode(valid.astype(np.uint8), footprint, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    return bright, dark, eroded_valid.astype(bool)
+    return bright, dark, np.asarray(eroded_valid, dtype=bool)
 
 
-_METHOD_SCORES: dict[str, Callable[[Float32Array, BoolArray, NDArray[np.float64]],
-                                   tuple[Float32Array, Float32Array, BoolArray]]] = {
+_METHOD_SCORES: dict[
+    str,
+    Callable[[Float32Array, BoolArray, NDArray[np.float64]], tuple[Float32Array, Float32Array, BoolArray]],
+] = {
     "lrt": _lrt_scores,
     "erosion": _erosion_scores,
 }
 
-# Which filter the noise model serves: the LRT sees d through w, the erosion test pixel by pixel.
-_NOISE_FILTER: dict[str, Callable[[NDArray[np.float64]], NDArray[np.float64]]] = {
+# The filter the statistic (and its noise model) uses: the LRT sees d through w, erosion pixel by pixel.
+_TEST_WEIGHTS: dict[str, Callable[[NDArray[np.float64]], NDArray[np.float64]]] = {
     "lrt": lambda weights: weights,
     "erosion": lambda weights: np.ones((1, 1)),
 }
@@ -286,18 +299,27 @@ def _peaks(labels: NDArray[np.int32], mask: BoolArray, score: Float32Array) -> d
     return dict(zip(found.tolist(), order[first].tolist(), strict=True))
 
 
-def _flaws(mask: BoolArray, score: Float32Array, statistic: Float32Array, min_area_px: int) -> tuple[Flaw, ...]:
+def _flaws(
+    mask: BoolArray, score: Float32Array, statistic: Float32Array, min_area_px: int
+) -> tuple[Flaw, ...]:
     count, labels, stats, centroids = cv2.connectedComponentsWithStats(mask.view(np.uint8), connectivity=8)
-    peaks = _peaks(labels, mask, score)
+    peaks = _peaks(np.asarray(labels, dtype=np.int32), mask, score)
     found = []
     for label in range(1, count):
         x, y, width, height, area = (int(value) for value in stats[label])
         if area < min_area_px:
             continue
         peak = peaks[label]
-        found.append(Flaw(row=float(centroids[label, 1]), col=float(centroids[label, 0]),
-                          bbox=(y, x, y + height, x + width), area_px=area, score=float(score.flat[peak]),
-                          polarity="bright" if statistic.flat[peak] > 0 else "dark"))
+        found.append(
+            Flaw(
+                row=float(centroids[label, 1]),
+                col=float(centroids[label, 0]),
+                bbox=(y, x, y + height, x + width),
+                area_px=area,
+                score=float(score.flat[peak]),
+                polarity="bright" if statistic.flat[peak] > 0 else "dark",
+            )
+        )
     return tuple(sorted(found, key=lambda flaw: -flaw.score))
 
 
@@ -358,10 +380,12 @@ def detect(
     chosen_model = choice(flaw_model, "flaw_model", FLAW_MODELS)
     chosen_method = choice(method, "method", METHODS)
     chosen_polarity = choice(polarity, "polarity", POLARITIES)
-    probability = in_range(p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False,
-                           high_inclusive=False)
-    sigma_known = None if noise_sigma is None else in_range(noise_sigma, "noise_sigma", low=0.0,
-                                                            low_inclusive=False)
+    probability = in_range(
+        p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False, high_inclusive=False
+    )
+    sigma_known = (
+        None if noise_sigma is None else in_range(noise_sigma, "noise_sigma", low=0.0, low_inclusive=False)
+    )
     choice(registration_model, "registration_model", MODELS)
     min_area = positive_int(min_area_px, "min_area_px")
     weights = flaw_kernel(chosen_model, size=size, peak_ratio=peak_ratio, kernel=kernel)
@@ -375,30 +399,47 @@ def detect(
     difference = inspection_in.image - aligned.predicted
     difference[~valid] = 0.0
     variance_inspection, variance_reference = _sensor_variances(inspection_in, aligned, difference, valid)
-    factor = _factor(_NOISE_FILTER[chosen_method](weights), aligned.fraction_xy)
+    test_weights = _TEST_WEIGHTS[chosen_method](weights)
+    factor = _factor(test_weights, aligned.fraction_xy)
     variance = variance_inspection + np.float32(aligned.gain**2 * factor) * variance_reference
-    variance = np.maximum(np.broadcast_to(variance, difference.shape), _VARIANCE_FLOOR)
+    variance = np.maximum(np.broadcast_to(variance, difference.shape), _VARIANCE_FLOOR).astype(np.float32)
     inverse_variance = (np.float32(1.0) / variance).astype(np.float32, copy=False)
     inverse_variance[~valid] = 0.0
-    errors = () if used_registration is None else noise.systematic_errors(
-        aligned.predicted, aligned.fraction_xy, used_registration.shift_std_px)
+    errors = (
+        ()
+        if used_registration is None
+        else noise.systematic_errors(aligned.predicted, aligned.fraction_xy, used_registration.shift_std_px)
+    )
 
-    per_pixel = chosen_method == "erosion"
-    statistic = _lrt(difference, inverse_variance, np.ones((1, 1)) if per_pixel else weights, errors)
+    statistic = _lrt(difference, inverse_variance, test_weights, errors)
     if sigma_known is None:
         # Self-calibration: under H0 the statistic is N(0, 1); its robust scale absorbs noise-model error.
         scale = noise.robust_scale(statistic, valid)
         if scale > 0.0:
-            statistic = statistic * np.float32(1.0 / scale)
+            statistic = (statistic * np.float32(1.0 / scale)).astype(np.float32, copy=False)
     bright, dark, valid = _METHOD_SCORES[chosen_method](statistic, valid, weights)
     score = np.where(valid, _POLARITY_SCORE[chosen_polarity](bright, dark), np.float32(0.0))
     signed = np.where(valid, np.where(bright >= dark, bright, -dark), np.float32(0.0))
-    threshold = float(thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method,
-                                 weights=weights)[0])
+    threshold = float(
+        thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method, weights=weights)[
+            0
+        ]
+    )
     mask = (score > threshold) & valid
     total = variance + sum(error * error for error in errors)
     sigma = np.where(valid, np.sqrt(total), np.float32(0.0)).astype(np.float32, copy=False)
-    return Detection(score=score, statistic=signed, mask=mask, threshold=threshold,
-                     flaws=_flaws(mask, score, signed, min_area), difference=difference, sigma=sigma,
-                     valid=valid, registration=used_registration, flaw_model=chosen_model,
-                     method=chosen_method, p_false_alarm=probability, polarity=chosen_polarity)
+    return Detection(
+        score=score,
+        statistic=signed,
+        mask=mask,
+        threshold=threshold,
+        flaws=_flaws(mask, score, signed, min_area),
+        difference=difference,
+        sigma=sigma,
+        valid=valid,
+        registration=used_registration,
+        flaw_model=chosen_model,
+        method=chosen_method,
+        p_false_alarm=probability,
+        polarity=chosen_polarity,
+    )

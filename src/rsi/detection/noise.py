@@ -167,8 +167,9 @@ def systematic_errors(
     Returns
     -------
     tuple of three ndarrays of shape (M, N), float32
-        ``sx gx`` and ``sy gy``: the change of ``d`` per one-sigma residual shift along x and y (seed §2.3-2.4,
-        first-order Taylor expansion; per pixel they add ``sx^2 gx^2 + sy^2 gy^2`` to the variance), and
+        ``sx gx`` and ``sy gy``: the change of ``d`` per one-sigma residual shift along x and y
+        (seed §2.3-2.4, first-order Taylor expansion; per pixel they add ``sx^2 gx^2 + sy^2 gy^2`` to the
+        variance), and
         ``fx (1 - fx) / 2 Ixx + fy (1 - fy) / 2 Iyy``, the leading error of bilinear resampling, which
         misses the image's curvature (largest at edges).
 
@@ -182,8 +183,9 @@ def systematic_errors(
     cx, cy = (1.0 / 6.0, 1.0 / 6.0) if fraction_xy is None else (f * (1.0 - f) for f in fraction_xy)
     # Sobel / 8 is a central difference smoothed across the edge, which keeps sensor noise out of g; the
     # second-derivative Sobel is [1, -2, 1] smoothed by [1, 2, 1] (hence / 4).
-    shift_x = cv2.Sobel(predicted, cv2.CV_32F, 1, 0, ksize=3, scale=0.125 * sx)
-    shift_y = cv2.Sobel(predicted, cv2.CV_32F, 0, 1, ksize=3, scale=0.125 * sy)
-    curvature = cv2.Sobel(predicted, cv2.CV_32F, 2, 0, ksize=3, scale=0.125 * cx)
-    curvature += cv2.Sobel(predicted, cv2.CV_32F, 0, 2, ksize=3, scale=0.125 * cy)
-    return shift_x, shift_y, curvature
+
+    def sobel(dx: int, dy: int, scale: float) -> Float32Array:
+        return np.asarray(cv2.Sobel(predicted, cv2.CV_32F, dx, dy, ksize=3, scale=scale), dtype=np.float32)
+
+    curvature = sobel(2, 0, 0.125 * cx) + sobel(0, 2, 0.125 * cy)
+    return sobel(1, 0, 0.125 * sx), sobel(0, 1, 0.125 * sy), curvature

@@ -137,13 +137,17 @@ def threshold_for(
     >>> round(threshold_for(0.05, polarity="both"), 3)
     1.96
     """
-    probability = in_range(p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False,
-                           high_inclusive=False)
+    probability = in_range(
+        p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False, high_inclusive=False
+    )
     chosen_polarity = choice(polarity, "polarity", POLARITIES)
     chosen_method = choice(method, "method", METHODS)
     weights = flaw_kernel(flaw_model, size=size, peak_ratio=peak_ratio, kernel=kernel)
-    return float(thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method,
-                            weights=weights)[0])
+    return float(
+        thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method, weights=weights)[
+            0
+        ]
+    )
 
 
 def _centred_pair(weights: FloatArray, flaw: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -190,7 +194,11 @@ def _true_flaw(true_flaw: object, weights: FloatArray) -> FloatArray:
     if true_flaw is None:
         return weights
     shape = getattr(true_flaw, "shape", type(true_flaw).__name__)
-    if not isinstance(true_flaw, np.ndarray) or true_flaw.ndim != 2 or not np.issubdtype(true_flaw.dtype, np.number):
+    if (
+        not isinstance(true_flaw, np.ndarray)
+        or true_flaw.ndim != 2
+        or not np.issubdtype(true_flaw.dtype, np.number)
+    ):
         raise InputError(f"true_flaw must be a 2-D numeric numpy array with odd sides; got {shape}.")
     if true_flaw.shape[0] % 2 == 0 or true_flaw.shape[1] % 2 == 0 or not np.isfinite(true_flaw).all():
         raise InputError(f"true_flaw must be finite with odd sides (centred on the flaw); got shape {shape}.")
@@ -307,8 +315,7 @@ def empirical_roc(
     count_at_least = background.size - np.searchsorted(background, flaw_scores, side="left")
     ascending = flaw_scores[::-1]
     detected = (ascending.size - np.searchsorted(ascending, flaw_scores, side="left")) / ascending.size
-    return RocCurve(count_at_least / max(background.size, 1), detected, flaw_scores.astype(np.float64),
-                    label)
+    return RocCurve(count_at_least / max(background.size, 1), detected, flaw_scores.astype(np.float64), label)
 
 
 __all__ = [

@@ -34,11 +34,12 @@ from rsi.imaging._warps import (
 
 _MARGIN_PX = 2.0
 # A flaw is an outlier of the registration model: trim |residual| beyond this many robust sigmas.
-_TRIM_SIGMAS = 3.0
+_TRIM_SIGMAS = 4.0
 _MAD_TO_SIGMA = 1.4826
 _SIGMA_SAMPLES = 1 << 14
 _MAX_CONDITION = 1e12
 _MIN_PIXELS_PER_UNKNOWN = 8
+_COARSE_TOLERANCE_GROWTH = 4.0
 
 
 @dataclass(frozen=True)
@@ -229,6 +230,12 @@ def _trim(problem: _Problem, residual: Image) -> _Problem | None:
     return replace(problem, hessian=hessian, inverse_hessian=inverse, n_used=problem.n_used - index.size)
 
 
+def _solve(problem: _Problem, residual: Image, settings: Settings) -> tuple[NDArray[np.float64], float]:
+    """The Gauss-Newton update ``H^-1 J^T r`` and how far, in pixels, it moves the region's corners."""
+    delta = problem.inverse_hessian @ (problem.jacobian @ residual).astype(np.float64)
+    return delta, corner_motion_px(np.eye(3), _step_matrix(problem, delta, settings), problem.region)
+
+
 def _iterate(
     level: Level, problem: _Problem, estimate: Estimate, settings: Settings
 ) -> tuple[Estimate, _Problem, Image]:
@@ -238,26 +245,26 @@ def _iterate(
     not pull the registration) and the step is recomputed from the trimmed sums, with no new resampling;
     the level ends when a step after trimming is below the tolerance too.
     """
-    identity, trimmed = np.eye(3), False
+    # Coarse levels only have to land the next one inside its basin, and aliasing limits their accuracy
+    # anyway: their tolerance grows with the level so that the work goes to full resolution.
+    tolerance_px, trimmed = settings.tolerance_px * _COARSE_TOLERANCE_GROWTH**level.index, False
     residual = _residual(level, problem, estimate, settings.photometric)
     for count in range(settings.max_iterations):
         if settings.deadline is not None and time.perf_counter() > settings.deadline:
             return replace(estimate, reason="deadline"), problem, residual
         if count:
             residual = _residual(level, problem, estimate, settings.photometric)
-        delta = problem.inverse_hessian @ (problem.jacobian @ residual).astype(np.float64)
-        settled = corner_motion_px(identity, _step_matrix(problem, delta, settings), problem.region)
-        if settled < settings.tolerance_px and not trimmed:
+        delta, moved_px = _solve(problem, residual, settings)
+        if moved_px < tolerance_px and not trimmed:
             trimmed = True
             cleaned = _trim(problem, residual)
             if cleaned is not None:
                 problem = cleaned
-                delta = problem.inverse_hessian @ (problem.jacobian @ residual).astype(np.float64)
-                settled = corner_motion_px(identity, _step_matrix(problem, delta, settings), problem.region)
+                delta, moved_px = _solve(problem, residual, settings)
         previous, estimate = estimate, _update(estimate, problem, delta, settings)
         if not _is_sane(estimate):
             return replace(previous, iterations=estimate.iterations, reason="diverged"), problem, residual
-        if settled < settings.tolerance_px and trimmed:
+        if moved_px < tolerance_px and trimmed:
             return replace(estimate, reason="converged"), problem, residual
         if corner_motion_px(problem.chosen_at, estimate.matrix, problem.region) > _MARGIN_PX / 2:
             # Moved out of the margin the region was chosen with: choose it again before sampling outside.

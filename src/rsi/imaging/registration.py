@@ -207,7 +207,7 @@ def register(
     Each level minimises ``sum_x w(x) [(I(W(x; p)) - b) / g - T(x)]^2`` over the warp parameters ``p``,
     gain ``g`` and bias ``b``, where ``T`` and ``I`` are the lightly smoothed reference and inspection and
     ``w`` selects reference pixels that map inside the inspection, lie in `mask` and, after a first
-    convergence, are not outliers beyond 3 robust sigmas (flaws must not pull the warp). The translation's
+    convergence, are not outliers beyond 4 robust sigmas (flaws must not pull the warp). The translation's
     standard deviation comes from ``sigma^2 H^-1``.
 
     References

@@ -79,10 +79,14 @@ class HalogenLamp:
         for name, value in checks.items():
             object.__setattr__(self, name, value)
 
-    def steady_illuminance_lux(self, duty: FloatArray, supply_v: FloatArray, efficacy: FloatArray) -> FloatArray:
+    def steady_illuminance_lux(
+        self, duty: FloatArray, supply_v: FloatArray, efficacy: FloatArray
+    ) -> FloatArray:
         """Illuminance the filament settles to at a duty, a supply voltage and a relative efficacy."""
         return np.asarray(
-            self.rated_illuminance_lux * efficacy * (duty * supply_v / self.rated_voltage_v) ** self.light_exponent,
+            self.rated_illuminance_lux
+            * efficacy
+            * (duty * supply_v / self.rated_voltage_v) ** self.light_exponent,
             dtype=np.float64,
         )
 
@@ -116,7 +120,9 @@ class LampController:
             name: _positive(getattr(self, name), name)
             for name in ("setpoint_lux", "proportional_gain", "integral_time_s", "sample_rate_hz")
         }
-        checks["sensor_noise_relative"] = v.in_range(self.sensor_noise_relative, "sensor_noise_relative", low=0.0)
+        checks["sensor_noise_relative"] = v.in_range(
+            self.sensor_noise_relative, "sensor_noise_relative", low=0.0
+        )
         for name, value in checks.items():
             object.__setattr__(self, name, value)
 
@@ -246,7 +252,7 @@ def simulate_lamp(
             "shorten the run or slow the ageing."
         )
     generator = v.as_rng(rng)
-    time_s = np.arange(int(round(duration * controller.sample_rate_hz))) / controller.sample_rate_hz
+    time_s = np.arange(round(duration * controller.sample_rate_hz)) / controller.sample_rate_hz
     supply_v = _supply_v(lamp, disturbance, time_s, generator)
     efficacy = 1.0 - disturbance.ageing_per_s * time_s
     sensor_noise = controller.sensor_noise_relative * generator.standard_normal(time_s.size)
@@ -265,7 +271,9 @@ def simulate_lamp(
         duty[index], integral = _pi_step(controller, error, integral) if closed_loop else (open_duty, 0.0)
         target = lamp.steady_illuminance_lux(duty[index], supply_v[index], efficacy[index])
         level_lux += lag * (float(target) - level_lux)
-    return LampRun(time_s=time_s, illuminance_lux=illuminance, duty=duty, supply_v=supply_v, efficacy=efficacy)
+    return LampRun(
+        time_s=time_s, illuminance_lux=illuminance, duty=duty, supply_v=supply_v, efficacy=efficacy
+    )
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,8 @@ pulls the filtered reading smoothly out of range instead of turning the filter s
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
@@ -144,7 +145,7 @@ class ProximitySensor:
     @property
     def adc_step_v(self) -> float:
         """One A/D count in volts."""
-        return self.full_scale_v / (2**self.adc_bits - 1)
+        return self.full_scale_v / ((1 << self.adc_bits) - 1)
 
     def voltage_v(self, distance_m: object) -> FloatArray:
         """Noise-free output voltage at `distance_m`, before the A/D (volts; 0 V beyond the maximum).
@@ -237,7 +238,7 @@ class LowPassFilter:
         """Group delay at 0 Hz in seconds: how far a ramp's filtered reading lags the ramp."""
         b, a = signal.sos2tf(self._sos)
         _, delay_samples = signal.group_delay((b, a), w=[0.0])
-        return float(delay_samples[0]) / self._sample_rate_hz
+        return float(delay_samples[0] / self._sample_rate_hz)
 
 
 @dataclass(frozen=True)
@@ -262,7 +263,7 @@ class ProximityReadings:
     raw_v: FloatArray
     raw_m: FloatArray
     filtered_m: FloatArray
-    out_of_range: BoolArray = field(repr=False)
+    out_of_range: BoolArray
 
 
 def read_proximity(
@@ -301,7 +302,7 @@ def read_proximity(
     smoother = LowPassFilter(settings.cutoff_hz, settings.sample_rate_hz, order=settings.filter_order)
     filtered_m = settings.distance_m(smoother.filter(raw_v))
     return ProximityReadings(
-        time_s=np.arange(distance.size) * settings.time_step_s,
+        time_s=np.arange(distance.size, dtype=np.float64) * settings.time_step_s,
         raw_v=raw_v,
         raw_m=settings.distance_m(raw_v),
         filtered_m=filtered_m,

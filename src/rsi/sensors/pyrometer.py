@@ -55,9 +55,7 @@ def _as_temperatures_k(temperature_k: object, name: str) -> FloatArray:
     return values
 
 
-def band_radiance_w_m2_sr(
-    temperature_k: object, *, band_m: tuple[float, float] = BAND_M
-) -> FloatArray:
+def band_radiance_w_m2_sr(temperature_k: object, *, band_m: tuple[float, float] = BAND_M) -> FloatArray:
     """Blackbody radiance integrated over a wavelength band (W m^-2 sr^-1).
 
     Parameters
@@ -102,14 +100,14 @@ def invert_band_radiance_k(
     limits = band_radiance_w_m2_sr(np.array([low_k, high_k]), band_m=band_m)
     target = np.clip(np.asarray(radiance_w_m2_sr, dtype=np.float64), limits[0], limits[1])
     start = np.full(target.shape, high_k)  # L is convex in T: Newton from above never overshoots below
-    root = optimize.newton(
+    root: FloatArray = optimize.newton(
         lambda t: band_radiance_w_m2_sr(t, band_m=band_m) - target,
         start,
         fprime=lambda t: _band_radiance_slope(np.asarray(t), band_m),
         maxiter=_NEWTON_STEPS,
         tol=1e-9,
     )
-    return np.clip(np.asarray(root, dtype=np.float64), low_k, high_k)
+    return np.asarray(np.clip(root, low_k, high_k), dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -191,7 +189,7 @@ class Pyrometer:
         distance = np.asarray(distance_m, dtype=np.float64)
         if not np.isfinite(distance).all() or (distance < 0).any():
             raise InputError(f"distance_m must be finite and >= 0 m; got {distance_m!r}.")
-        return self.aperture_m + 2.0 * distance * np.tan(self.field_of_view_rad / 2.0)
+        return np.asarray(self.aperture_m + 2.0 * distance * np.tan(self.field_of_view_rad / 2.0))
 
 
 @dataclass(frozen=True)
@@ -259,7 +257,9 @@ def read_pyrometer(
     emissivity = np.asarray(surface_emissivity, dtype=np.float64)
     if not np.isfinite(emissivity).all() or (emissivity <= 0).any() or (emissivity > 1).any():
         raise InputError(f"surface_emissivity must lie in (0, 1]; got {surface_emissivity!r}.")
-    background = v.in_range(background_temperature_k, "background_temperature_k", low=0.0, low_inclusive=False)
+    background = v.in_range(
+        background_temperature_k, "background_temperature_k", low=0.0, low_inclusive=False
+    )
     band = settings.band_m
     seen = emissivity * band_radiance_w_m2_sr(temperature, band_m=band) + (1.0 - emissivity) * float(
         band_radiance_w_m2_sr(background, band_m=band)
