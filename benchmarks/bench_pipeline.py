@@ -67,16 +67,26 @@ def _scene(shape: tuple[int, int], rng: np.random.Generator) -> Scene:
 
 
 def _interlaced(scene: Scene, camera: CameraModel, rng: np.random.Generator) -> tuple[Compensated, object]:
-    reference = expose(scene.ambient_ref * scene.reflectance_ref, STROBE_LUX_S * scene.reflectance_ref,
-                       camera=camera, rng=rng)
-    inspection = expose(scene.ambient_insp * scene.reflectance_insp, STROBE_LUX_S * scene.reflectance_insp,
-                        camera=camera, rng=rng)
+    reference = expose(
+        scene.ambient_ref * scene.reflectance_ref,
+        STROBE_LUX_S * scene.reflectance_ref,
+        camera=camera,
+        rng=rng,
+    )
+    inspection = expose(
+        scene.ambient_insp * scene.reflectance_insp,
+        STROBE_LUX_S * scene.reflectance_insp,
+        camera=camera,
+        rng=rng,
+    )
     return compensate_interlaced(reference), inspection
 
 
 def _two_frame(scene: Scene, camera: CameraModel, rng: np.random.Generator) -> tuple[Compensated, tuple]:
     def frames(ambient: np.ndarray, reflectance: np.ndarray) -> tuple:
-        lit = expose(ambient * reflectance, STROBE_LUX_S * reflectance, camera=camera, lit_field="both", rng=rng)
+        lit = expose(
+            ambient * reflectance, STROBE_LUX_S * reflectance, camera=camera, lit_field="both", rng=rng
+        )
         dark = expose(ambient * reflectance, 0.0 * reflectance, camera=camera, lit_field="none", rng=rng)
         return lit, dark
 
@@ -142,7 +152,10 @@ def _case(name: str, shape: tuple[int, int], interlaced: bool, repeats: int) -> 
         return _opencv_pipeline(reference.image, compensate().image)
 
     rows = []
-    for label, run in (("rsi (compensate+register+detect)", rsi_run), ("OpenCV ECC+absdiff+threshold", opencv_run)):
+    for label, run in (
+        ("rsi (compensate+register+detect)", rsi_run),
+        ("OpenCV ECC+absdiff+threshold", opencv_run),
+    ):
         ms = _median_ms(run, repeats)
         recall, false = _score(run(), truth)
         rows.append((name, label, ms, recall, false))
@@ -150,7 +163,9 @@ def _case(name: str, shape: tuple[int, int], interlaced: bool, repeats: int) -> 
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--repeats", type=int, default=15)
     args = parser.parse_args()
     cv2.setNumThreads(1)
@@ -162,7 +177,9 @@ def main() -> None:
         print(f"{case:26} {label:34} {ms:8.2f} {ms / rsi_ms:7.2f} {recall:7.3f} {false:6d}")
     frame_ms = rows[0][2]
     verdict = "meets" if frame_ms <= FIELD_BUDGET_MS else "MISSES"
-    print(f"\n640x480 frame: {frame_ms:.2f} ms per frame, {verdict} the one-field budget of {FIELD_BUDGET_MS:.1f} ms")
+    print(
+        f"\n640x480 frame: {frame_ms:.2f} ms per frame, {verdict} the one-field budget of {FIELD_BUDGET_MS:.1f} ms"
+    )
 
 
 if __name__ == "__main__":

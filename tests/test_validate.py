@@ -80,7 +80,7 @@ def test_positive_int() -> None:
 
 def test_choice_lists_the_options() -> None:
     assert v.choice("a", "mode", ("a", "b")) == "a"
-    with pytest.raises(InputError, match="mode='c' is not known. Choose one of 'a', 'b'"):
+    with pytest.raises(InputError, match=r"mode='c' is not known\. Choose one of 'a', 'b'"):
         v.choice("c", "mode", ("a", "b"))
 
 

@@ -64,7 +64,8 @@ def as_mask(mask: object, name: str, shape: tuple[int, ...]) -> NDArray[np.bool_
     if mask.dtype != np.bool_:
         if not (np.issubdtype(mask.dtype, np.integer) or np.issubdtype(mask.dtype, np.floating)):
             raise InputError(f"{name} has dtype={mask.dtype}; pass a bool array (True = valid pixel).")
-        return mask != 0
+        converted: NDArray[np.bool_] = np.not_equal(mask, 0)
+        return converted
     return mask
 
 
@@ -128,7 +129,7 @@ def choice(value: object, name: str, options: Iterable[str]) -> str:
 
 def as_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
     """Return a Generator from a Generator, a seed or None (fresh entropy)."""
-    if rng is None or isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+    if rng is None or (isinstance(rng, (int, np.integer)) and not isinstance(rng, bool)):
         return np.random.default_rng(rng)
     if isinstance(rng, np.random.Generator):
         return rng
