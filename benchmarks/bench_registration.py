@@ -18,18 +18,18 @@ import os
 for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_variable] = "1"
 
-import argparse  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
+import argparse
+import time
+from collections.abc import Callable
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-import scipy.ndimage as ndi  # noqa: E402
-from numpy.typing import NDArray  # noqa: E402
-from skimage import data  # noqa: E402
-from skimage.registration import phase_cross_correlation  # noqa: E402
+import cv2
+import numpy as np
+import scipy.ndimage as ndi
+from numpy.typing import NDArray
+from skimage import data
+from skimage.registration import phase_cross_correlation
 
-from rsi.imaging.registration import register  # noqa: E402
+from rsi.imaging.registration import register
 
 Image = NDArray[np.float32]
 Method = Callable[[Image, Image], tuple[float, float]]

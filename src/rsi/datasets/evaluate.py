@@ -65,9 +65,10 @@ class DeepPcbSettings:
         Detected components closer than this many pixels are one defect (a defect breaks into pieces).
     min_area_px : int
         Smallest merged component (pixels of the detection mask) reported.
-    box_min_side_px : int
-        Reported boxes are grown, about their centre, to at least this side; the dataset pads its boxes,
-        and only the IoU rule looks at box sizes.
+    box_padding_px : int
+        Margin added on every side of a reported box, DeepPCB's own convention: its boxes exceed the
+        defect's extent by 10 px a side (20 px wider and taller in at least 3/4 of matched boxes). Only
+        the IoU rule looks at boxes.
     """
 
     registration_model: str = "affine"
@@ -79,19 +80,20 @@ class DeepPcbSettings:
     misregistration_std_px: float = 2.0
     merge_gap_px: int = 6
     min_area_px: int = 1
-    box_min_side_px: int = 1
+    box_padding_px: int = 10
 
     def __post_init__(self) -> None:
         choice(self.registration_model, "registration_model", MODELS)
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
-        in_range(self.p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False, high_inclusive=False)
+        in_range(self.p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False,
+                 high_inclusive=False)
         in_range(self.noise_sigma, "noise_sigma", low=0.0, low_inclusive=False)
         in_range(self.misregistration_std_px, "misregistration_std_px", low=0.0)
         positive_int(self.merge_gap_px, "merge_gap_px", minimum=0)
         positive_int(self.min_area_px, "min_area_px")
-        positive_int(self.box_min_side_px, "box_min_side_px")
+        positive_int(self.box_padding_px, "box_padding_px", minimum=0)
 
 
 @dataclass(frozen=True)
@@ -182,7 +184,9 @@ def centre_in_box(centres_xy: object, boxes_xyxy: object) -> tuple[BoolArray, Bo
     boxes = _as_table(boxes_xyxy, "boxes_xyxy", _BOX_COLUMNS)
     x, y = centres[:, :1], centres[:, 1:]
     inside = (x >= boxes[:, 0]) & (x <= boxes[:, 2]) & (y >= boxes[:, 1]) & (y <= boxes[:, 3])
-    return inside.any(axis=0), ~inside.any(axis=1)
+    found: BoolArray = np.asarray(inside.any(axis=0), dtype=bool)
+    false_alarm: BoolArray = ~np.asarray(inside.any(axis=1), dtype=bool)
+    return found, false_alarm
 
 
 def box_iou(first_xyxy: object, second_xyxy: object) -> FloatArray:
@@ -242,24 +246,20 @@ def iou_match(
     return found, correct
 
 
-def _grown_boxes(stats: NDArray[Any], radius_px: int, shape: tuple[int, int], min_side_px: int) -> IntArray:
-    # Bounding boxes of the dilated components minus the dilation radius are those of their pixels.
-    x1 = stats[:, cv2.CC_STAT_LEFT] + radius_px
-    y1 = stats[:, cv2.CC_STAT_TOP] + radius_px
-    x2 = stats[:, cv2.CC_STAT_LEFT] + stats[:, cv2.CC_STAT_WIDTH] - 1 - radius_px
-    y2 = stats[:, cv2.CC_STAT_TOP] + stats[:, cv2.CC_STAT_HEIGHT] - 1 - radius_px
-    boxes = np.column_stack([x1, y1, x2, y2]).astype(np.int64)
-    for low, high, limit in ((0, 2, shape[1]), (1, 3, shape[0])):
-        missing = np.maximum(min_side_px - (boxes[:, high] - boxes[:, low] + 1), 0)
-        boxes[:, low] -= missing // 2
-        boxes[:, high] += missing - missing // 2
-        boxes[:, low : high + 1 : 2] = np.clip(boxes[:, low : high + 1 : 2], 0, limit - 1)
-    return boxes
+def _grown_boxes(stats: NDArray[Any], shrink_px: int, shape: tuple[int, int]) -> IntArray:
+    # Bounding boxes of the dilated groups, shrunk by the dilation radius, are those of their pixels;
+    # a negative shrink grows them. Clipped to the image.
+    left, top = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
+    right = left + stats[:, cv2.CC_STAT_WIDTH] - 1
+    bottom = top + stats[:, cv2.CC_STAT_HEIGHT] - 1
+    boxes = np.column_stack([left + shrink_px, top + shrink_px, right - shrink_px, bottom - shrink_px])
+    boxes[:, 0::2] = np.clip(boxes[:, 0::2], 0, shape[1] - 1)
+    boxes[:, 1::2] = np.clip(boxes[:, 1::2], 0, shape[0] - 1)
+    return boxes.astype(np.int64)
 
 
 def group_defects(
-    mask: NDArray[np.bool_], *, merge_gap_px: int = 0, min_area_px: int = 1, grow_px: int = 0,
-    box_min_side_px: int = 1,
+    mask: NDArray[np.bool_], *, merge_gap_px: int = 0, min_area_px: int = 1, grow_px: int = 0
 ) -> PcbDetections:
     """Group a detection mask into defects: merge pieces closer than a gap, drop small groups.
 
@@ -272,10 +272,8 @@ def group_defects(
     min_area_px : int
         Groups with fewer mask pixels are dropped.
     grow_px : int
-        Each box is grown by this margin first (an erosion test's mask is its defect eroded by
-        ``size // 2``).
-    box_min_side_px : int
-        Boxes are then grown about their centre to at least this side (clipped to the image).
+        Each box is grown by this margin on every side, then clipped to the image (an erosion test's
+        mask is its defect eroded by ``size // 2``; DeepPCB pads its boxes).
 
     Returns
     -------
@@ -283,13 +281,15 @@ def group_defects(
         Centres are the centroids of each group's mask pixels.
     """
     pixels = np.asarray(mask, dtype=np.uint8)
+    if pixels.ndim != 2:
+        raise InputError(f"mask must be 2-D (rows, cols); got shape {pixels.shape}. Pass one image's mask.")
     radius = (positive_int(merge_gap_px, "merge_gap_px", minimum=0) + 1) // 2
     joined = pixels
     if radius:
+        # Dilating by half the gap joins pieces at most the gap apart; the labels are read at mask pixels.
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
         joined = cv2.dilate(pixels, disk)
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
-    labels = labels * pixels  # the group of each detected pixel; 0 elsewhere
     rows, cols = np.nonzero(pixels)
     owner = labels[rows, cols]
     area = np.bincount(owner, minlength=count).astype(np.float64)
@@ -298,7 +298,7 @@ def group_defects(
     centres = np.column_stack([np.bincount(owner, cols, count) / safe_area,
                                np.bincount(owner, rows, count) / safe_area])[keep]
     grow = positive_int(grow_px, "grow_px", minimum=0)
-    boxes = _grown_boxes(stats[keep], radius - grow, pixels.shape, positive_int(box_min_side_px, "box_min_side_px"))
+    boxes = _grown_boxes(stats[keep], radius - grow, (int(pixels.shape[0]), int(pixels.shape[1])))
     return PcbDetections(centres_xy=centres, boxes_xyxy=boxes)
 
 
@@ -334,9 +334,10 @@ def detect_defects(
     detection = detect(reference_image, inspection_image, flaw_model=chosen.flaw_model, size=chosen.size,
                        method=chosen.method, p_false_alarm=chosen.p_false_alarm, polarity="both",
                        noise_sigma=chosen.noise_sigma, registration=fit)
-    grow = chosen.size // 2 if chosen.method == "erosion" else 0
+    # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
+    undo_erosion = chosen.size // 2 if chosen.method == "erosion" else 0
     return group_defects(detection.mask, merge_gap_px=chosen.merge_gap_px, min_area_px=chosen.min_area_px,
-                         grow_px=grow, box_min_side_px=chosen.box_min_side_px)
+                         grow_px=undo_erosion + chosen.box_padding_px)
 
 
 Detector = Callable[[NDArray[np.float32], NDArray[np.float32]], PcbDetections]
@@ -366,14 +367,15 @@ def evaluate_pairs(
     EvaluationResult
     """
     if len(pairs) == 0:
-        raise InputError("pairs is empty. Pass at least one DeepPcbPair (see rsi.datasets.deeppcb.load_split).")
+        raise InputError("pairs is empty. Pass at least one DeepPcbPair (rsi.datasets.deeppcb.load_split).")
     counts = np.zeros(6)  # boxes, found, detections, false alarms, IoU-found, IoU-correct
     start = time.perf_counter()
     for done, pair in enumerate(pairs, start=1):
         found = detector(*read_pair(pair))
         hit, false_alarm = centre_in_box(found.centres_xy, pair.boxes_xyxy)
         iou_found, iou_correct = iou_match(found.boxes_xyxy, pair.boxes_xyxy)
-        counts += (len(hit), hit.sum(), len(false_alarm), false_alarm.sum(), iou_found.sum(), iou_correct.sum())
+        counts += (hit.size, hit.sum(), false_alarm.size, false_alarm.sum(),
+                   iou_found.sum(), iou_correct.sum())
         if progress is not None:
             progress(done, len(pairs))
     elapsed = time.perf_counter() - start

@@ -19,7 +19,7 @@ from rsi._validate import as_image, as_mask, choice, in_range, positive_int
 from rsi.errors import InputError
 from rsi.imaging._gauss_newton import Settings, solve_level
 from rsi.imaging._pyramid import Estimate, build_levels, coarse_to_fine, level_count
-from rsi.imaging._warps import WARP_MODELS, Image, Matrix, map_points, sample
+from rsi.imaging._warps import WARP_MODELS, Image, Matrix, sample
 
 __all__ = ["MODELS", "Registration", "register"]
 
@@ -113,14 +113,26 @@ class Registration:
         shape = image.shape if output_shape is None else _output_shape(output_shape)
         inverse = np.asarray(np.linalg.inv(self.matrix), dtype=np.float64)
         warped = sample(image, inverse, (0, shape[0], 0, shape[1]))
-        rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
-        source = map_points(inverse, np.column_stack([cols.ravel(), rows.ravel()]).astype(np.float64))
-        low, high = -_EDGE_TOLERANCE_PX, np.array(image.shape[::-1]) - 1 + _EDGE_TOLERANCE_PX
-        valid = np.all((source >= low) & (source <= high), axis=1).reshape(shape)
+        valid = _preimage_inside(inverse, shape, image.shape)
         if photometric:
             warped = (warped * np.float32(self.gain) + np.float32(self.bias)).astype(np.float32)
         warped[~valid] = 0.0
         return warped, valid
+
+
+def _preimage_inside(
+    inverse: Matrix, shape: tuple[int, int], source_shape: tuple[int, ...]
+) -> NDArray[np.bool_]:
+    """Pixels of an image of `shape` whose preimage under `inverse` lies inside `source_shape` (M, N)."""
+    cols = np.arange(shape[1], dtype=np.float64)[None, :]
+    rows = np.arange(shape[0], dtype=np.float64)[:, None]
+    denominator = inverse[2, 0] * cols + inverse[2, 1] * rows + inverse[2, 2]
+    valid = np.broadcast_to(denominator > 0, shape).copy()
+    for axis in (0, 1):
+        coordinate = (inverse[axis, 0] * cols + inverse[axis, 1] * rows + inverse[axis, 2]) / denominator
+        high = source_shape[1 - axis] - 1 + _EDGE_TOLERANCE_PX
+        valid &= (coordinate >= -_EDGE_TOLERANCE_PX) & (coordinate <= high)
+    return valid
 
 
 def _output_shape(output_shape: object) -> tuple[int, int]:
