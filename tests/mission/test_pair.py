@@ -10,7 +10,7 @@ from rsi.detection.detect import Flaw
 from rsi.detection.roc import RocCurve
 from rsi.errors import InputError
 from rsi.mission import pair as mission
-from rsi.mission.pair import DemoResult, inspect_pair, score_flaws, simulate_demo
+from rsi.mission.pair import DemoResult, PairResult, inspect_pair, score_flaws, simulate_demo
 
 SHIFT_TOLERANCE_PX = 0.05
 
@@ -86,20 +86,22 @@ def test_demo_images_come_through_the_camera_and_compensation(demo: DemoResult) 
     assert demo.truth_mask[tuple(demo.centres_rc.T)].all()
 
 
-def measured_p_detection(curve: RocCurve, p_false_alarm: float) -> float:
-    """P_D of a measured ROC at the loosest threshold whose P_F does not exceed `p_false_alarm`."""
-    return float(curve.p_detection[curve.p_false_alarm <= p_false_alarm].max(initial=0.0))
+def p_detection_at_threshold(result: PairResult, centres_rc: np.ndarray) -> float:
+    """Share of seeded flaw centres whose score passes the detector's own P_F threshold."""
+    detection = result.detection
+    return float(np.mean(detection.score[tuple(centres_rc.T)] > detection.threshold))
 
 
 def test_multi_pixel_model_beats_single_pixel_as_theory_says(demo: DemoResult) -> None:
     # seed §2.4: averaging over the flaw window raises P_D at the same P_F; theory predicts both curves.
     labels = [curve.label for curve in demo.curves]
     assert labels == ["uniform: theory", "uniform: measured", "single: theory", "single: measured"]
-    uniform_theory, uniform_measured, single_theory, single_measured = demo.curves
+    uniform_theory, _, single_theory, _ = demo.curves
     design = mission.DEMO_P_FALSE_ALARM
-    single = measured_p_detection(single_measured, design)
-    assert measured_p_detection(uniform_measured, design) == 1.0
-    assert single < 0.9
+    single = p_detection_at_threshold(demo.single_pixel, demo.centres_rc)
+    uniform = p_detection_at_threshold(demo.pair, demo.centres_rc)
+    assert uniform >= 0.9
+    assert uniform - single >= 0.3
     predicted = float(
         np.interp(np.log10(design), np.log10(single_theory.p_false_alarm), single_theory.p_detection)
     )

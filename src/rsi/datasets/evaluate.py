@@ -284,7 +284,7 @@ def group_defects(
     if pixels.ndim != 2:
         raise InputError(f"mask must be 2-D (rows, cols); got shape {pixels.shape}. Pass one image's mask.")
     radius = (positive_int(merge_gap_px, "merge_gap_px", minimum=0) + 1) // 2
-    joined = pixels
+    joined: NDArray[Any] = pixels
     if radius:
         # Dilating by half the gap joins pieces at most the gap apart; the labels are read at mask pixels.
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))

@@ -1,0 +1,221 @@
+"""DeepPCB matching rules and metrics: hand-made boxes with known answers, a fake tree, and real data."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from rsi.datasets.deeppcb import load_split
+from rsi.datasets.evaluate import (
+    DeepPcbSettings,
+    EvaluationResult,
+    PcbDetections,
+    box_iou,
+    centre_in_box,
+    detect_defects,
+    evaluate_deeppcb,
+    evaluate_pairs,
+    group_defects,
+    iou_match,
+)
+from rsi.errors import InputError
+
+REAL_ROOT = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "deeppcb"
+
+KEYS = ["pairs", "defects", "recall", "precision", "f1", "false_alarms_per_image", "iou_recall",
+        "iou_precision", "seconds_per_pair"]
+
+
+def write_tree(root: Path, pairs: dict[str, tuple[np.ndarray, np.ndarray, str]]) -> Path:
+    """Write a DeepPCB-layout trainval tree: {pair id: (reference, inspection, annotation text)}."""
+    folder = root / "PCBData"
+    lines = []
+    for pair_id, (reference, inspection, annotation) in pairs.items():
+        group, number = f"group{pair_id[:5]}", pair_id[:5]
+        (folder / group / number).mkdir(parents=True, exist_ok=True)
+        (folder / group / f"{number}_not").mkdir(parents=True, exist_ok=True)
+        for suffix, image in (("_temp", reference), ("_test", inspection)):
+            cv2.imwrite(str(folder / group / number / f"{pair_id}{suffix}.jpg"), image,
+                        [cv2.IMWRITE_JPEG_QUALITY, 95])
+        (folder / group / f"{number}_not" / f"{pair_id}.txt").write_text(annotation)
+        lines.append(f"{group}/{number}/{pair_id}.jpg {group}/{number}_not/{pair_id}.txt")
+    (folder / "trainval.txt").write_text("\n".join(lines))
+    return root
+
+
+def test_centre_in_box_known_answer() -> None:
+    boxes = [[0, 0, 10, 10], [20, 20, 30, 30], [100, 100, 110, 110]]
+    centres = [[10.0, 10.0], [25.0, 21.0], [26.0, 29.0], [50.0, 5.0], [10.5, 5.0]]
+    found, false_alarm = centre_in_box(centres, boxes)
+    assert found.tolist() == [True, True, False]  # corners inclusive; two centres in one box count once
+    assert false_alarm.tolist() == [False, False, False, True, True]
+
+
+def test_centre_in_box_empty_inputs() -> None:
+    found, false_alarm = centre_in_box(np.empty((0, 2)), [[0, 0, 1, 1]])
+    assert found.tolist() == [False] and false_alarm.shape == (0,)
+    found, false_alarm = centre_in_box([[1.0, 1.0]], [])
+    assert found.shape == (0,) and false_alarm.tolist() == [True]
+
+
+@pytest.mark.parametrize(("centres", "boxes"), [([[1.0, 2.0, 3.0]], [[0, 0, 1, 1]]),
+                                                ([[1.0, 2.0]], [[0, 0, 1]]),
+                                                ([[np.nan, 2.0]], [[0, 0, 1, 1]])])
+def test_centre_in_box_rejects_bad_shapes(centres: object, boxes: object) -> None:
+    with pytest.raises(InputError, match=r"must be a finite array of shape \(K, [24]\)"):
+        centre_in_box(centres, boxes)
+
+
+def test_box_iou_known_answers() -> None:
+    # Inclusive corners: [0, 9] is 10 px. Half-overlap along x: 50 / (100 + 100 - 50) = 1/3.
+    iou = box_iou([[0, 0, 9, 9], [0, 0, 9, 9]], [[0, 0, 9, 9], [5, 0, 14, 9], [20, 20, 29, 29]])
+    np.testing.assert_allclose(iou, [[1.0, 1 / 3, 0.0], [1.0, 1 / 3, 0.0]])
+
+
+def test_iou_match_is_one_to_one_and_strict() -> None:
+    truth = [[0, 0, 9, 9], [5, 0, 14, 9]]
+    detected = [[0, 0, 9, 9], [1, 0, 10, 9]]  # both overlap box 0 best; the second falls to box 1
+    found, correct = iou_match(detected, truth)
+    assert found.tolist() == [True, True] and correct.tolist() == [True, True]
+    found, correct = iou_match([[0, 0, 9, 9]], truth, iou_threshold=0.5)
+    assert found.tolist() == [True, False] and correct.tolist() == [True]
+    # exactly 1/3 is not > 0.3333...: the rule is strict
+    found, _ = iou_match([[5, 0, 14, 9]], [[0, 0, 9, 9]], iou_threshold=1 / 3)
+    assert found.tolist() == [False]
+
+
+def test_iou_match_rejects_bad_threshold() -> None:
+    with pytest.raises(InputError, match="iou_threshold must be in"):
+        iou_match([[0, 0, 1, 1]], [[0, 0, 1, 1]], iou_threshold=1.0)
+
+
+def test_group_defects_merges_close_pieces_and_drops_small() -> None:
+    mask = np.zeros((60, 60), bool)
+    mask[10:14, 10:14] = True  # piece A
+    mask[10:14, 17:21] = True  # piece B, 3 px gap from A
+    mask[40:41, 40:41] = True  # a lone pixel
+    apart = group_defects(mask)
+    assert len(apart.centres_xy) == 3
+    merged = group_defects(mask, merge_gap_px=4, min_area_px=2)
+    np.testing.assert_allclose(merged.centres_xy, [[15.0, 11.5]])
+    np.testing.assert_array_equal(merged.boxes_xyxy, [[10, 10, 20, 13]])
+    grown = group_defects(mask, merge_gap_px=4, min_area_px=2, grow_px=12)
+    np.testing.assert_array_equal(grown.boxes_xyxy, [[0, 0, 32, 25]])  # clipped at the image edge
+
+
+def test_group_defects_empty_mask() -> None:
+    found = group_defects(np.zeros((8, 8), bool), merge_gap_px=2)
+    assert found.centres_xy.shape == (0, 2) and found.boxes_xyxy.shape == (0, 4)
+
+
+@pytest.mark.parametrize(("argument", "value"), [("merge_gap_px", -1), ("min_area_px", 0), ("grow_px", 1.5)])
+def test_group_defects_rejects_bad_arguments(argument: str, value: object) -> None:
+    with pytest.raises(InputError, match=argument):
+        group_defects(np.zeros((8, 8), bool), **{argument: value})  # type: ignore[arg-type]
+
+
+def test_group_defects_rejects_non_2d_mask() -> None:
+    with pytest.raises(InputError, match="mask must be 2-D"):
+        group_defects(np.zeros((2, 8, 8), bool))
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("registration_model", "rigid"), ("flaw_model", "blob"), ("method", "median"), ("size", 0),
+     ("p_false_alarm", 0.5), ("noise_sigma", 0.0), ("misregistration_std_px", -1.0), ("merge_gap_px", -2),
+     ("min_area_px", 0), ("box_padding_px", -1)],
+)
+def test_settings_reject_bad_values(field: str, value: object) -> None:
+    with pytest.raises(InputError, match=field):
+        DeepPcbSettings(**{field: value})  # type: ignore[arg-type]
+
+
+def test_settings_are_frozen() -> None:
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        DeepPcbSettings().size = 5  # type: ignore[misc]
+
+
+def test_evaluate_pairs_counts_known_detections(tmp_path: Path) -> None:
+    root = write_tree(tmp_path, {
+        "00041000": (np.zeros((8, 8), np.uint8), np.zeros((8, 8), np.uint8), "0 0 9 9 1\n20 20 29 29 2\n"),
+        "00041001": (np.zeros((8, 8), np.uint8), np.zeros((8, 8), np.uint8), "0 0 9 9 3\n"),
+    })
+    answers = iter([
+        PcbDetections(np.array([[5.0, 5.0], [50.0, 50.0]]), np.array([[0, 0, 9, 9], [45, 45, 55, 55]])),
+        PcbDetections(np.empty((0, 2)), np.empty((0, 4), np.int64)),
+    ])
+    seen: list[tuple[int, int]] = []
+    result = evaluate_pairs(load_split(root), lambda reference, inspection: next(answers),
+                            progress=lambda done, total: seen.append((done, total)))
+    assert seen == [(1, 2), (2, 2)]
+    assert (result.pairs, result.defects) == (2, 3)
+    assert result.recall == pytest.approx(1 / 3) and result.precision == pytest.approx(0.5)
+    assert result.f1 == pytest.approx(2 * (1 / 3) * 0.5 / (1 / 3 + 0.5))
+    assert result.false_alarms_per_image == pytest.approx(0.5)
+    assert result.iou_recall == pytest.approx(1 / 3) and result.iou_precision == pytest.approx(0.5)
+    assert list(result.to_dict()) == KEYS
+
+
+def test_evaluate_pairs_rejects_no_pairs() -> None:
+    with pytest.raises(InputError, match="pairs is empty"):
+        evaluate_pairs((), lambda reference, inspection: PcbDetections(np.empty((0, 2)), np.empty((0, 4))))
+
+
+def synthetic_board(rng: np.random.Generator, side_px: int = 192) -> np.ndarray:
+    """A binarised board: white with black traces and round pads (copper black, as in DeepPCB)."""
+    image = np.full((side_px, side_px), 255, np.uint8)
+    for _ in range(8):
+        x0, y0, x1, y1 = (int(value) for value in rng.integers(10, side_px - 10, 4))
+        cv2.line(image, (x0, y0), (x1, y1), (0,), int(rng.integers(4, 9)))
+        cv2.circle(image, (x1, y1), int(rng.integers(6, 10)), (0,), -1)
+    return image
+
+
+def test_evaluate_deeppcb_end_to_end_on_a_fake_tree(tmp_path: Path) -> None:
+    rng = np.random.default_rng(7)
+    pairs = {}
+    for index in range(3):
+        reference = synthetic_board(rng)
+        inspection = np.roll(reference, (1, -1), axis=(0, 1))  # DeepPCB pairs are off by about a pixel
+        inspection[:, -1] = 255
+        inspection[-1, :] = 255
+        boxes = []
+        for row, col in ((40 + 30 * index, 150), (150, 40 + 20 * index)):
+            # Defects of DeepPCB size (about 8 px) flip the binary image: extra copper or a missing one.
+            patch = inspection[row - 4:row + 4, col - 4:col + 4]
+            inspection[row - 4:row + 4, col - 4:col + 4] = 255 - patch.max()
+            boxes.append(f"{col - 14} {row - 14} {col + 13} {row + 13} 5")
+        pairs[f"0004100{index}"] = (reference, inspection, "\n".join(boxes))
+    root = write_tree(tmp_path, pairs)
+    result = evaluate_deeppcb(root, "trainval", settings=DeepPcbSettings())
+    assert isinstance(result, EvaluationResult)
+    assert (result.pairs, result.defects) == (3, 6)
+    assert result.recall == 1.0 and result.false_alarms_per_image == 0.0
+    assert result.iou_recall == 1.0 and result.iou_precision == 1.0
+
+
+def test_evaluate_deeppcb_rejects_bad_settings(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="settings must be a DeepPcbSettings"):
+        evaluate_deeppcb(tmp_path, "trainval", settings={"size": 3})  # type: ignore[arg-type]
+
+
+def test_detect_defects_rejects_bad_images() -> None:
+    with pytest.raises(InputError, match="reference must be 2-D"):
+        detect_defects(np.zeros((4, 4, 3)), np.zeros((4, 4)))
+
+
+def test_real_trainval_subset_meets_the_target() -> None:
+    if not (REAL_ROOT / "PCBData" / "trainval.txt").is_file():
+        pytest.skip(f"DeepPCB not found at {REAL_ROOT} (real-data test; see /work/shared/data/deeppcb/README.md)")
+    pairs = load_split(REAL_ROOT, "trainval")[::100]  # 10 pairs across all seven groups
+    settings = DeepPcbSettings()
+    result = evaluate_pairs(pairs, lambda reference, inspection: detect_defects(reference, inspection,
+                                                                                settings=settings))
+    assert result.pairs == 10
+    # Full trainval (benchmarks/eval_deeppcb.py): recall 0.99, 0.1-0.2 false alarms per image.
+    assert result.recall >= 0.95
+    assert result.false_alarms_per_image <= 0.5
