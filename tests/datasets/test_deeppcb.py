@@ -25,7 +25,9 @@ def board(shape: tuple[int, int] = (SIDE_PX, SIDE_PX)) -> np.ndarray:
     return image
 
 
-def write_tree(root: Path, pairs: dict[str, tuple[np.ndarray, np.ndarray, str]], split: str = "trainval") -> Path:
+def write_tree(
+    root: Path, pairs: dict[str, tuple[np.ndarray, np.ndarray, str]], split: str = "trainval"
+) -> Path:
     """Write a DeepPCB-layout tree: {pair id: (reference, inspection, annotation text)}."""
     folder = root / "PCBData"
     lines = []
@@ -154,7 +156,7 @@ def test_malformed_annotation_line_names_file_and_line(tmp_path: Path, text: str
 
 def test_real_trainval_layout() -> None:
     if not (REAL_ROOT / "PCBData" / "trainval.txt").is_file():
-        pytest.skip(f"DeepPCB not found at {REAL_ROOT} (real-data test; see /work/shared/data/deeppcb/README.md)")
+        pytest.skip(f"DeepPCB not found at {REAL_ROOT}: real-data test skipped (see its README.md there)")
     pairs = load_split(REAL_ROOT, "trainval")
     assert len(pairs) == 1000
     assert sum(len(pair.boxes_xyxy) for pair in pairs) == 6873  # README: 6,873 boxes

@@ -210,7 +210,7 @@ def test_detect_defects_rejects_bad_images() -> None:
 
 def test_real_trainval_subset_meets_the_target() -> None:
     if not (REAL_ROOT / "PCBData" / "trainval.txt").is_file():
-        pytest.skip(f"DeepPCB not found at {REAL_ROOT} (real-data test; see /work/shared/data/deeppcb/README.md)")
+        pytest.skip(f"DeepPCB not found at {REAL_ROOT}: real-data test skipped (see its README.md there)")
     pairs = load_split(REAL_ROOT, "trainval")[::100]  # 10 pairs across all seven groups
     settings = DeepPcbSettings()
     result = evaluate_pairs(pairs, lambda reference, inspection: detect_defects(reference, inspection,

@@ -1,0 +1,88 @@
+"""DeepPCB: rsi's detector against a plain difference with a 5x5 opening, on a whole split.
+
+Run from the repository root (the data are read in place, never copied)::
+
+    .venv/bin/python benchmarks/eval_deeppcb.py                      # full trainval, ~5 min on 2 cores
+    .venv/bin/python benchmarks/eval_deeppcb.py --every 10           # every 10th pair, quick look
+    .venv/bin/python benchmarks/eval_deeppcb.py --misregistration-std-px 1,2,3   # sensitivity sweep
+
+The baseline is what a user would write first: threshold |inspection - reference| at mid-grey (the images
+are binarised), open with a 5x5 square, report each connected component (no registration). Both detectors'
+boxes get DeepPCB's 10 px padding so that the IoU columns compare detections, not box conventions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi.datasets.deeppcb import load_split
+from rsi.datasets.evaluate import (
+    DeepPcbSettings,
+    EvaluationResult,
+    PcbDetections,
+    detect_defects,
+    evaluate_pairs,
+    group_defects,
+)
+
+DEFAULT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "deeppcb"
+MID_GREY_DN = 127.5
+OPENING = np.ones((5, 5), np.uint8)
+PADDING_PX = DeepPcbSettings().box_padding_px
+
+
+def baseline(reference: NDArray[np.float32], inspection: NDArray[np.float32]) -> PcbDetections:
+    """Plain difference, thresholded at mid-grey, opened with a 5x5 square; one defect per component."""
+    changed = (np.abs(inspection - reference) > MID_GREY_DN).astype(np.uint8)
+    opened = cv2.morphologyEx(changed, cv2.MORPH_OPEN, OPENING)
+    return group_defects(opened.astype(bool), grow_px=PADDING_PX)
+
+
+def _row(name: str, result: EvaluationResult) -> str:
+    figures = result.to_dict()
+    cells = [f"{figures[key]:.3f}" for key in ("recall", "precision", "f1", "false_alarms_per_image",
+                                               "iou_recall", "iou_precision", "seconds_per_pair")]
+    return f"| {name} | {result.pairs} | {result.defects} | " + " | ".join(cells) + " |"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--root", type=Path, default=DEFAULT_ROOT, help="DeepPCB folder (holds PCBData/)")
+    parser.add_argument("--split", default="trainval", choices=("trainval", "test"))
+    parser.add_argument("--every", type=int, default=1, help="use every n-th pair (1: all)")
+    parser.add_argument("--misregistration-std-px", default=None,
+                        help="comma-separated values to sweep (default: DeepPcbSettings())")
+    parser.add_argument("--no-baseline", action="store_true")
+    args = parser.parse_args(argv)
+    if not (args.root / "PCBData").is_dir():
+        print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
+        return 1
+    pairs = load_split(args.root, args.split)[:: args.every]
+    print(f"DeepPCB {args.split}: {len(pairs)} pairs; centre-in-box rule for recall/precision/F1/FA, "
+          "class-agnostic IoU > 0.33 for the IoU columns\n")
+    print("| detector | pairs | defects | recall | precision | F1 | FA/image | IoU recall | IoU precision "
+          "| s/pair |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    default = DeepPcbSettings()
+    stds = ([default.misregistration_std_px] if args.misregistration_std_px is None
+            else [float(value) for value in args.misregistration_std_px.split(",")])
+    for std_px in stds:
+        settings = dataclasses.replace(default, misregistration_std_px=std_px)
+        result = evaluate_pairs(pairs, lambda reference, inspection, s=settings: detect_defects(
+            reference, inspection, settings=s))
+        print(_row(f"rsi (sigma_s={std_px:g} px)", result), flush=True)
+    if not args.no_baseline:
+        print(_row("difference + 5x5 opening", evaluate_pairs(pairs, baseline)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
