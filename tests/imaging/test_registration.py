@@ -295,3 +295,19 @@ def test_bad_input_names_the_argument(kwargs: dict[str, object], argument: str) 
     arguments: dict[str, object] = {"reference": np.zeros((8, 8)), "inspection": np.zeros((8, 8)), **kwargs}
     with pytest.raises(InputError, match=argument):
         register(**arguments)  # type: ignore[arg-type]
+
+
+def test_shift_validity_rectangle_equals_mapping_every_pixel() -> None:
+    # The fast path for pure shifts must agree with the general per-pixel preimage test.
+    from rsi.imaging import registration as module
+
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        dx, dy = rng.uniform(-30, 30, 2)
+        shape = (int(rng.integers(2, 50)), int(rng.integers(2, 50)))
+        source = (int(rng.integers(2, 50)), int(rng.integers(2, 50)))
+        shift = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
+        not_a_shift = shift.copy()
+        not_a_shift[2, 0] = 1e-15  # forces the general per-pixel path
+        general = module._preimage_inside(not_a_shift, shape, source)
+        np.testing.assert_array_equal(module._preimage_inside(shift, shape, source), general)

@@ -65,6 +65,10 @@ class DeepPcbSettings:
         Detected components closer than this many pixels are one defect (a defect breaks into pieces).
     min_area_px : int
         Smallest merged component (pixels of the detection mask) reported.
+    border_px : int
+        Detections within this many pixels of the image edge are ignored: the images are crops of a
+        larger scan and the crop frame differs between template and test (e.g. a 5 px black stripe
+        along one side of a template only). No ground-truth box centre lies within 9 px of an edge.
     box_padding_px : int
         Margin added on every side of a reported box, DeepPCB's own convention: its boxes exceed the
         defect's extent by 10 px a side (20 px wider and taller in at least 3/4 of matched boxes). Only
@@ -80,6 +84,7 @@ class DeepPcbSettings:
     misregistration_std_px: float = 2.0
     merge_gap_px: int = 6
     min_area_px: int = 1
+    border_px: int = 6
     box_padding_px: int = 10
 
     def __post_init__(self) -> None:
@@ -93,6 +98,7 @@ class DeepPcbSettings:
         in_range(self.misregistration_std_px, "misregistration_std_px", low=0.0)
         positive_int(self.merge_gap_px, "merge_gap_px", minimum=0)
         positive_int(self.min_area_px, "min_area_px")
+        positive_int(self.border_px, "border_px", minimum=0)
         positive_int(self.box_padding_px, "box_padding_px", minimum=0)
 
 
@@ -302,6 +308,14 @@ def group_defects(
     return PcbDetections(centres_xy=centres, boxes_xyxy=boxes)
 
 
+def _clear_border(mask: NDArray[np.bool_], border_px: int) -> None:
+    if border_px:
+        mask[:border_px] = False
+        mask[-border_px:] = False
+        mask[:, :border_px] = False
+        mask[:, -border_px:] = False
+
+
 def detect_defects(
     reference: NDArray[Any], inspection: NDArray[Any], *, settings: DeepPcbSettings | None = None
 ) -> PcbDetections:
@@ -334,9 +348,11 @@ def detect_defects(
     detection = detect(reference_image, inspection_image, flaw_model=chosen.flaw_model, size=chosen.size,
                        method=chosen.method, p_false_alarm=chosen.p_false_alarm, polarity="both",
                        noise_sigma=chosen.noise_sigma, registration=fit)
+    mask = detection.mask.copy()
+    _clear_border(mask, chosen.border_px)
     # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
     undo_erosion = chosen.size // 2 if chosen.method == "erosion" else 0
-    return group_defects(detection.mask, merge_gap_px=chosen.merge_gap_px, min_area_px=chosen.min_area_px,
+    return group_defects(mask, merge_gap_px=chosen.merge_gap_px, min_area_px=chosen.min_area_px,
                          grow_px=undo_erosion + chosen.box_padding_px)
 
 

@@ -19,7 +19,7 @@ from rsi._validate import as_image, as_mask, choice, in_range, positive_int
 from rsi.errors import InputError
 from rsi.imaging._gauss_newton import Settings, solve_level
 from rsi.imaging._pyramid import Estimate, build_levels, coarse_to_fine, level_count
-from rsi.imaging._warps import WARP_MODELS, Image, Matrix, sample
+from rsi.imaging._warps import WARP_MODELS, Image, Matrix, is_translation, sample
 
 __all__ = ["MODELS", "Registration", "register"]
 
@@ -124,6 +124,8 @@ def _preimage_inside(
     inverse: Matrix, shape: tuple[int, int], source_shape: tuple[int, ...]
 ) -> NDArray[np.bool_]:
     """Pixels of an image of `shape` whose preimage under `inverse` lies inside `source_shape` (M, N)."""
+    if is_translation(inverse):
+        return _shifted_inside(inverse[0, 2], inverse[1, 2], shape, source_shape)
     cols = np.arange(shape[1], dtype=np.float64)[None, :]
     rows = np.arange(shape[0], dtype=np.float64)[:, None]
     denominator = inverse[2, 0] * cols + inverse[2, 1] * rows + inverse[2, 2]
@@ -132,6 +134,20 @@ def _preimage_inside(
         coordinate = (inverse[axis, 0] * cols + inverse[axis, 1] * rows + inverse[axis, 2]) / denominator
         high = source_shape[1 - axis] - 1 + _EDGE_TOLERANCE_PX
         valid &= (coordinate >= -_EDGE_TOLERANCE_PX) & (coordinate <= high)
+    return valid
+
+
+def _shifted_inside(
+    dx: float, dy: float, shape: tuple[int, int], source_shape: tuple[int, ...]
+) -> NDArray[np.bool_]:
+    """`_preimage_inside` for a pure shift: a rectangle, found without mapping every pixel."""
+    valid = np.zeros(shape, dtype=bool)
+    spans = []
+    for offset, size, source_size in ((dy, shape[0], source_shape[0]), (dx, shape[1], source_shape[1])):
+        first = max(0, int(np.ceil(-_EDGE_TOLERANCE_PX - offset)))
+        last = min(size, int(np.floor(source_size - 1 + _EDGE_TOLERANCE_PX - offset)) + 1)
+        spans.append(slice(first, max(first, last)))
+    valid[spans[0], spans[1]] = True
     return valid
 
 
