@@ -2,7 +2,7 @@
 
 Run from the repository root (the data are read in place, never copied)::
 
-    .venv/bin/python benchmarks/eval_deeppcb.py                      # full trainval, ~5 min on 2 cores
+    .venv/bin/python benchmarks/eval_deeppcb.py                      # full trainval, 1-3 min on 2 cores
     .venv/bin/python benchmarks/eval_deeppcb.py --every 10           # every 10th pair, quick look
     .venv/bin/python benchmarks/eval_deeppcb.py --misregistration-std-px 1,2,3   # sensitivity sweep
 
@@ -47,37 +47,59 @@ def baseline(reference: NDArray[np.float32], inspection: NDArray[np.float32]) ->
 
 def _row(name: str, result: EvaluationResult) -> str:
     figures = result.to_dict()
-    cells = [f"{figures[key]:.3f}" for key in ("recall", "precision", "f1", "false_alarms_per_image",
-                                               "iou_recall", "iou_precision", "seconds_per_pair")]
+    cells = [
+        f"{figures[key]:.3f}"
+        for key in (
+            "recall",
+            "precision",
+            "f1",
+            "false_alarms_per_image",
+            "iou_recall",
+            "iou_precision",
+            "seconds_per_pair",
+        )
+    ]
     return f"| {name} | {result.pairs} | {result.defects} | " + " | ".join(cells) + " |"
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--root", type=Path, default=DEFAULT_ROOT, help="DeepPCB folder (holds PCBData/)")
     parser.add_argument("--split", default="trainval", choices=("trainval", "test"))
     parser.add_argument("--every", type=int, default=1, help="use every n-th pair (1: all)")
-    parser.add_argument("--misregistration-std-px", default=None,
-                        help="comma-separated values to sweep (default: DeepPcbSettings())")
+    parser.add_argument(
+        "--misregistration-std-px",
+        default=None,
+        help="comma-separated values to sweep (default: DeepPcbSettings())",
+    )
     parser.add_argument("--no-baseline", action="store_true")
     args = parser.parse_args(argv)
     if not (args.root / "PCBData").is_dir():
         print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
         return 1
     pairs = load_split(args.root, args.split)[:: args.every]
-    print(f"DeepPCB {args.split}: {len(pairs)} pairs; centre-in-box rule for recall/precision/F1/FA, "
-          "class-agnostic IoU > 0.33 for the IoU columns\n")
-    print("| detector | pairs | defects | recall | precision | F1 | FA/image | IoU recall | IoU precision "
-          "| s/pair |")
+    print(
+        f"DeepPCB {args.split}: {len(pairs)} pairs; centre-in-box rule for recall/precision/F1/FA, "
+        "class-agnostic IoU > 0.33 for the IoU columns\n"
+    )
+    print(
+        "| detector | pairs | defects | recall | precision | F1 | FA/image | IoU recall | IoU precision "
+        "| s/pair |"
+    )
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     default = DeepPcbSettings()
-    stds = ([default.misregistration_std_px] if args.misregistration_std_px is None
-            else [float(value) for value in args.misregistration_std_px.split(",")])
+    stds = (
+        [default.misregistration_std_px]
+        if args.misregistration_std_px is None
+        else [float(value) for value in args.misregistration_std_px.split(",")]
+    )
     for std_px in stds:
         settings = dataclasses.replace(default, misregistration_std_px=std_px)
-        result = evaluate_pairs(pairs, lambda reference, inspection, s=settings: detect_defects(
-            reference, inspection, settings=s))
+        result = evaluate_pairs(
+            pairs, lambda reference, inspection, s=settings: detect_defects(reference, inspection, settings=s)
+        )
         print(_row(f"rsi (sigma_s={std_px:g} px)", result), flush=True)
     if not args.no_baseline:
         print(_row("difference + 5x5 opening", evaluate_pairs(pairs, baseline)), flush=True)

@@ -51,10 +51,13 @@ def tree(tmp_path: Path) -> Path:
     inspection = reference.copy()
     inspection[40:48, 70:78] = 0
     colour = cv2.cvtColor(reference, cv2.COLOR_GRAY2BGR)  # DeepPCB stores a few files as RGB
-    return write_tree(tmp_path, {
-        "00041000": (reference, inspection, "66 36 81 51 5\n"),
-        "00041001": (colour, reference, "1 2 30 40 1\n\n10 12 20 22 6"),
-    })
+    return write_tree(
+        tmp_path,
+        {
+            "00041000": (reference, inspection, "66 36 81 51 5\n"),
+            "00041001": (colour, reference, "1 2 30 40 1\n\n10 12 20 22 6"),
+        },
+    )
 
 
 def test_load_split_reads_pairs_in_order(tree: Path) -> None:

@@ -26,8 +26,17 @@ from rsi.errors import InputError
 
 REAL_ROOT = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "deeppcb"
 
-KEYS = ["pairs", "defects", "recall", "precision", "f1", "false_alarms_per_image", "iou_recall",
-        "iou_precision", "seconds_per_pair"]
+KEYS = [
+    "pairs",
+    "defects",
+    "recall",
+    "precision",
+    "f1",
+    "false_alarms_per_image",
+    "iou_recall",
+    "iou_precision",
+    "seconds_per_pair",
+]
 
 
 def write_tree(root: Path, pairs: dict[str, tuple[np.ndarray, np.ndarray, str]]) -> Path:
@@ -39,8 +48,9 @@ def write_tree(root: Path, pairs: dict[str, tuple[np.ndarray, np.ndarray, str]])
         (folder / group / number).mkdir(parents=True, exist_ok=True)
         (folder / group / f"{number}_not").mkdir(parents=True, exist_ok=True)
         for suffix, image in (("_temp", reference), ("_test", inspection)):
-            cv2.imwrite(str(folder / group / number / f"{pair_id}{suffix}.jpg"), image,
-                        [cv2.IMWRITE_JPEG_QUALITY, 95])
+            cv2.imwrite(
+                str(folder / group / number / f"{pair_id}{suffix}.jpg"), image, [cv2.IMWRITE_JPEG_QUALITY, 95]
+            )
         (folder / group / f"{number}_not" / f"{pair_id}.txt").write_text(annotation)
         lines.append(f"{group}/{number}/{pair_id}.jpg {group}/{number}_not/{pair_id}.txt")
     (folder / "trainval.txt").write_text("\n".join(lines))
@@ -62,9 +72,10 @@ def test_centre_in_box_empty_inputs() -> None:
     assert found.shape == (0,) and false_alarm.tolist() == [True]
 
 
-@pytest.mark.parametrize(("centres", "boxes"), [([[1.0, 2.0, 3.0]], [[0, 0, 1, 1]]),
-                                                ([[1.0, 2.0]], [[0, 0, 1]]),
-                                                ([[np.nan, 2.0]], [[0, 0, 1, 1]])])
+@pytest.mark.parametrize(
+    ("centres", "boxes"),
+    [([[1.0, 2.0, 3.0]], [[0, 0, 1, 1]]), ([[1.0, 2.0]], [[0, 0, 1]]), ([[np.nan, 2.0]], [[0, 0, 1, 1]])],
+)
 def test_centre_in_box_rejects_bad_shapes(centres: object, boxes: object) -> None:
     with pytest.raises(InputError, match=r"must be a finite array of shape \(K, [24]\)"):
         centre_in_box(centres, boxes)
@@ -125,9 +136,19 @@ def test_group_defects_rejects_non_2d_mask() -> None:
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("registration_model", "rigid"), ("flaw_model", "blob"), ("method", "median"), ("size", 0),
-     ("p_false_alarm", 0.5), ("noise_sigma", 0.0), ("misregistration_std_px", -1.0), ("merge_gap_px", -2),
-     ("min_area_px", 0), ("border_px", -1), ("box_padding_px", -1)],
+    [
+        ("registration_model", "rigid"),
+        ("flaw_model", "blob"),
+        ("method", "median"),
+        ("size", 0),
+        ("p_false_alarm", 0.5),
+        ("noise_sigma", 0.0),
+        ("misregistration_std_px", -1.0),
+        ("merge_gap_px", -2),
+        ("min_area_px", 0),
+        ("border_px", -1),
+        ("box_padding_px", -1),
+    ],
 )
 def test_settings_reject_bad_values(field: str, value: object) -> None:
     with pytest.raises(InputError, match=field):
@@ -140,18 +161,30 @@ def test_settings_are_frozen() -> None:
 
 
 def test_evaluate_pairs_counts_known_detections(tmp_path: Path) -> None:
-    root = write_tree(tmp_path, {
-        "00041000": (np.zeros((8, 8), np.uint8), np.zeros((8, 8), np.uint8), "0 0 9 9 1\n20 20 29 29 2\n"),
-        "00041001": (np.zeros((8, 8), np.uint8), np.zeros((8, 8), np.uint8), "0 0 9 9 3\n"),
-    })
-    answers = iter([
-        PcbDetections(np.array([[5.0, 5.0], [50.0, 50.0]]), np.array([[0, 0, 9, 9], [45, 45, 55, 55]])),
-        PcbDetections(np.empty((0, 2)), np.empty((0, 4), np.int64)),
-    ])
-    seen: list[tuple[int, int]] = []
-    result = evaluate_pairs(load_split(root), lambda reference, inspection: next(answers),
-                            progress=lambda done, total: seen.append((done, total)))
-    assert seen == [(1, 2), (2, 2)]
+    root = write_tree(
+        tmp_path,
+        {
+            "00041000": (
+                np.zeros((8, 8), np.uint8),
+                np.zeros((8, 8), np.uint8),
+                "0 0 9 9 1\n20 20 29 29 2\n",
+            ),
+            "00041001": (np.zeros((8, 8), np.uint8), np.zeros((8, 8), np.uint8), "0 0 9 9 3\n"),
+        },
+    )
+    answers = iter(
+        [
+            PcbDetections(np.array([[5.0, 5.0], [50.0, 50.0]]), np.array([[0, 0, 9, 9], [45, 45, 55, 55]])),
+            PcbDetections(np.empty((0, 2)), np.empty((0, 4), np.int64)),
+        ]
+    )
+    seen: list[tuple[str, int, int]] = []
+    result = evaluate_pairs(
+        load_split(root),
+        lambda reference, inspection: next(answers),
+        progress=lambda stage, done, total: seen.append((stage, done, total)),
+    )
+    assert seen == [("group00041/00041/00041000", 1, 2), ("group00041/00041/00041001", 2, 2)]
     assert (result.pairs, result.defects) == (2, 3)
     assert result.recall == pytest.approx(1 / 3) and result.precision == pytest.approx(0.5)
     assert result.f1 == pytest.approx(2 * (1 / 3) * 0.5 / (1 / 3 + 0.5))
@@ -186,8 +219,8 @@ def test_evaluate_deeppcb_end_to_end_on_a_fake_tree(tmp_path: Path) -> None:
         boxes = []
         for row, col in ((40 + 30 * index, 150), (150, 40 + 20 * index)):
             # Defects of DeepPCB size (about 8 px) flip the binary image: extra copper or a missing one.
-            patch = inspection[row - 4:row + 4, col - 4:col + 4]
-            inspection[row - 4:row + 4, col - 4:col + 4] = 255 - patch.max()
+            patch = inspection[row - 4 : row + 4, col - 4 : col + 4]
+            inspection[row - 4 : row + 4, col - 4 : col + 4] = 255 - patch.max()
             boxes.append(f"{col - 14} {row - 14} {col + 13} {row + 13} 5")
         if index == 0:
             reference[:, :4] = 0  # a crop-frame stripe in the template only: border_px ignores it
@@ -215,8 +248,9 @@ def test_real_trainval_subset_meets_the_target() -> None:
         pytest.skip(f"DeepPCB not found at {REAL_ROOT}: real-data test skipped (see its README.md there)")
     pairs = load_split(REAL_ROOT, "trainval")[::100]  # 10 pairs across all seven groups
     settings = DeepPcbSettings()
-    result = evaluate_pairs(pairs, lambda reference, inspection: detect_defects(reference, inspection,
-                                                                                settings=settings))
+    result = evaluate_pairs(
+        pairs, lambda reference, inspection: detect_defects(reference, inspection, settings=settings)
+    )
     assert result.pairs == 10
     # Full trainval: see docs/deeppcb.md (benchmarks/eval_deeppcb.py).
     assert result.recall >= 0.95

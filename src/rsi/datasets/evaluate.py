@@ -81,7 +81,7 @@ class DeepPcbSettings:
     method: str = "erosion"
     p_false_alarm: float = 1e-5
     noise_sigma: float = 40.0
-    misregistration_std_px: float = 2.0
+    misregistration_std_px: float = 3.0
     merge_gap_px: int = 6
     min_area_px: int = 1
     border_px: int = 6
@@ -92,8 +92,9 @@ class DeepPcbSettings:
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
-        in_range(self.p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False,
-                 high_inclusive=False)
+        in_range(
+            self.p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False, high_inclusive=False
+        )
         in_range(self.noise_sigma, "noise_sigma", low=0.0, low_inclusive=False)
         in_range(self.misregistration_std_px, "misregistration_std_px", low=0.0)
         positive_int(self.merge_gap_px, "merge_gap_px", minimum=0)
@@ -301,8 +302,9 @@ def group_defects(
     area = np.bincount(owner, minlength=count).astype(np.float64)
     keep = (np.arange(count) > 0) & (area >= positive_int(min_area_px, "min_area_px"))
     safe_area = np.maximum(area, 1.0)
-    centres = np.column_stack([np.bincount(owner, cols, count) / safe_area,
-                               np.bincount(owner, rows, count) / safe_area])[keep]
+    centres = np.column_stack(
+        [np.bincount(owner, cols, count) / safe_area, np.bincount(owner, rows, count) / safe_area]
+    )[keep]
     grow = positive_int(grow_px, "grow_px", minimum=0)
     boxes = _grown_boxes(stats[keep], radius - grow, (int(pixels.shape[0]), int(pixels.shape[1])))
     return PcbDetections(centres_xy=centres, boxes_xyxy=boxes)
@@ -343,21 +345,34 @@ def detect_defects(
     floor = chosen.misregistration_std_px
     # seed §2.4: residual mis-registration is extra noise sigma_s^2 |grad ref|^2; the fit's statistical std
     # knows nothing of etching or local distortion, so it is floored at what these boards show.
-    fit = dataclasses.replace(fit, shift_std_px=(max(fit.shift_std_px[0], floor),
-                                                 max(fit.shift_std_px[1], floor)))
-    detection = detect(reference_image, inspection_image, flaw_model=chosen.flaw_model, size=chosen.size,
-                       method=chosen.method, p_false_alarm=chosen.p_false_alarm, polarity="both",
-                       noise_sigma=chosen.noise_sigma, registration=fit)
+    fit = dataclasses.replace(
+        fit, shift_std_px=(max(fit.shift_std_px[0], floor), max(fit.shift_std_px[1], floor))
+    )
+    detection = detect(
+        reference_image,
+        inspection_image,
+        flaw_model=chosen.flaw_model,
+        size=chosen.size,
+        method=chosen.method,
+        p_false_alarm=chosen.p_false_alarm,
+        polarity="both",
+        noise_sigma=chosen.noise_sigma,
+        registration=fit,
+    )
     mask = detection.mask.copy()
     _clear_border(mask, chosen.border_px)
     # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
     undo_erosion = chosen.size // 2 if chosen.method == "erosion" else 0
-    return group_defects(mask, merge_gap_px=chosen.merge_gap_px, min_area_px=chosen.min_area_px,
-                         grow_px=undo_erosion + chosen.box_padding_px)
+    return group_defects(
+        mask,
+        merge_gap_px=chosen.merge_gap_px,
+        min_area_px=chosen.min_area_px,
+        grow_px=undo_erosion + chosen.box_padding_px,
+    )
 
 
 Detector = Callable[[NDArray[np.float32], NDArray[np.float32]], PcbDetections]
-Progress = Callable[[int, int], None]
+Progress = Callable[[str, int, int], None]
 
 
 def _safe_ratio(numerator: float, denominator: float) -> float:
@@ -376,7 +391,7 @@ def evaluate_pairs(
     detector : callable
         ``detector(reference, inspection) -> PcbDetections``.
     progress : callable, optional
-        Called as ``progress(done, total)`` after each pair.
+        Called as ``progress(pair_id, done, total)`` after each pair (the CLI's progress bar).
 
     Returns
     -------
@@ -390,19 +405,30 @@ def evaluate_pairs(
         found = detector(*read_pair(pair))
         hit, false_alarm = centre_in_box(found.centres_xy, pair.boxes_xyxy)
         iou_found, iou_correct = iou_match(found.boxes_xyxy, pair.boxes_xyxy)
-        counts += (hit.size, hit.sum(), false_alarm.size, false_alarm.sum(),
-                   iou_found.sum(), iou_correct.sum())
+        counts += (
+            hit.size,
+            hit.sum(),
+            false_alarm.size,
+            false_alarm.sum(),
+            iou_found.sum(),
+            iou_correct.sum(),
+        )
         if progress is not None:
-            progress(done, len(pairs))
+            progress(pair.pair_id, done, len(pairs))
     elapsed = time.perf_counter() - start
     boxes, hits, detections, false_alarms, iou_hits, iou_correct_count = (float(value) for value in counts)
     recall = _safe_ratio(hits, boxes)
     precision = _safe_ratio(detections - false_alarms, detections)
     return EvaluationResult(
-        pairs=len(pairs), defects=int(boxes), recall=recall, precision=precision,
+        pairs=len(pairs),
+        defects=int(boxes),
+        recall=recall,
+        precision=precision,
         f1=_safe_ratio(2.0 * recall * precision, recall + precision),
-        false_alarms_per_image=false_alarms / len(pairs), iou_recall=_safe_ratio(iou_hits, boxes),
-        iou_precision=_safe_ratio(iou_correct_count, detections), seconds_per_pair=elapsed / len(pairs),
+        false_alarms_per_image=false_alarms / len(pairs),
+        iou_recall=_safe_ratio(iou_hits, boxes),
+        iou_precision=_safe_ratio(iou_correct_count, detections),
+        seconds_per_pair=elapsed / len(pairs),
     )
 
 
@@ -420,7 +446,7 @@ def evaluate_deeppcb(
     settings : DeepPcbSettings, optional
         Defaults to ``DeepPcbSettings()``.
     progress : callable, optional
-        Called as ``progress(done, total)`` after each pair.
+        Called as ``progress(pair_id, done, total)`` after each pair (the CLI's progress bar).
 
     Returns
     -------
