@@ -132,7 +132,8 @@ def _inverse(hessian: NDArray[np.float64]) -> NDArray[np.float64] | None:
         return None
     scale = 1.0 / np.sqrt(diagonal)
     balanced = hessian * np.outer(scale, scale)
-    if np.linalg.cond(balanced) > _MAX_CONDITION:
+    # A Hessian downdated by trimming can lose positive definiteness to rounding: then it is no Hessian.
+    if np.linalg.cond(balanced) > _MAX_CONDITION or np.linalg.eigvalsh(balanced)[0] <= 0:
         return None
     return np.asarray(np.linalg.inv(balanced) * np.outer(scale, scale), dtype=np.float64)
 
