@@ -178,7 +178,8 @@ def main() -> None:
     frame_ms = rows[0][2]
     verdict = "meets" if frame_ms <= FIELD_BUDGET_MS else "MISSES"
     print(
-        f"\n640x480 frame: {frame_ms:.2f} ms per frame, {verdict} the one-field budget of {FIELD_BUDGET_MS:.1f} ms"
+        f"\n640x480 frame: {frame_ms:.2f} ms per frame, "
+        f"{verdict} the one-field budget of {FIELD_BUDGET_MS:.1f} ms"
     )
 
 

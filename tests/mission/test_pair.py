@@ -7,7 +7,6 @@ import pytest
 
 from rsi.datasets.synthetic import synthetic_pair
 from rsi.detection.detect import Flaw
-from rsi.detection.roc import RocCurve
 from rsi.errors import InputError
 from rsi.mission import pair as mission
 from rsi.mission.pair import DemoResult, PairResult, inspect_pair, score_flaws, simulate_demo
@@ -105,7 +104,8 @@ def test_multi_pixel_model_beats_single_pixel_as_theory_says(demo: DemoResult) -
     predicted = float(
         np.interp(np.log10(design), np.log10(single_theory.p_false_alarm), single_theory.p_detection)
     )
-    # 48 flaws (binomial sd ~0.07) and a strength taken at the median sigma, not each flaw's own: a loose match.
+    # 48 flaws (binomial sd ~0.07) and a strength taken at the median sigma, not each flaw's own:
+    # a loose match.
     assert single == pytest.approx(predicted, abs=0.25)
     assert uniform_theory.p_detection.min() > 0.99
 
