@@ -8,9 +8,7 @@ signal is used).
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +16,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi._files import atomic_write_bytes
 from rsi.errors import ImageFileError
 
 PathLike = str | os.PathLike[str]
@@ -31,16 +30,6 @@ _WRITE_SUFFIXES: dict[str, tuple[str, ...]] = {
     "float64": (".tif", ".tiff"),
 }
 _TO_GREY = {3: cv2.COLOR_BGR2GRAY, 4: cv2.COLOR_BGRA2GRAY}
-
-
-def _read_umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-# mkstemp makes private (0600) files; a written image gets the permissions a plain open() would give it.
-_FILE_MODE = 0o666 & ~_read_umask()
 
 
 def read_image(path: PathLike) -> NDArray[np.float32]:
@@ -111,20 +100,8 @@ def write_image(path: PathLike, image: NDArray[Any]) -> None:
     file = Path(path)
     payload = _encode(file, image)
     try:
-        file.parent.mkdir(parents=True, exist_ok=True)
-        descriptor, temporary = tempfile.mkstemp(prefix=f".{file.name}.", suffix=".tmp", dir=file.parent)
+        atomic_write_bytes(file, payload)
     except OSError as error:
-        raise ImageFileError(f"path {str(file)!r} cannot be written: {error.strerror or error}.") from error
-    try:
-        os.chmod(temporary, _FILE_MODE)
-        with os.fdopen(descriptor, "wb") as handle:
-            handle.write(payload)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(temporary, file)
-    except OSError as error:
-        with contextlib.suppress(OSError):
-            os.unlink(temporary)
         raise ImageFileError(f"path {str(file)!r} cannot be written: {error.strerror or error}.") from error
 
 

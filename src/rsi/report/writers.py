@@ -7,19 +7,18 @@ reader never sees half a file.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import json
 import math
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rsi._files import atomic_write_bytes
 from rsi.report import figures
 
 if TYPE_CHECKING:
@@ -31,39 +30,6 @@ if TYPE_CHECKING:
 FLAW_COLUMNS = ("number", "row", "col", "row0", "col0", "row1", "col1", "area_px", "score", "polarity")
 """Columns of flaws.csv (and keys of each flaw in flaws.json); ``number`` matches the overlay labels."""
 ROC_COLUMNS = ("label", "threshold", "p_false_alarm", "p_detection")
-_FILE_MODE = 0o644  # mkstemp makes 0600 files; results are meant to be read by others
-
-
-def atomic_write_bytes(path: Path | str, data: bytes) -> Path:
-    """Write `data` to `path` atomically: a temporary file in the same folder, then ``os.replace``.
-
-    Parameters
-    ----------
-    path : path
-        Destination; its folder is created if missing.
-    data : bytes
-        File contents.
-
-    Returns
-    -------
-    Path
-        The destination.
-    """
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(data)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.chmod(temporary, _FILE_MODE)
-        os.replace(temporary, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temporary)
-        raise
-    return target
 
 
 def atomic_write_text(path: Path | str, text: str) -> Path:
