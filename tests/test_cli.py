@@ -18,7 +18,6 @@ from rsi import cli
 from rsi.cli import app
 from rsi.datasets.synthetic import synthetic_pair
 from rsi.detection.flaw_models import FLAW_MODELS
-from rsi.errors import DatasetError
 from rsi.imaging.io import write_image
 from rsi.imaging.registration import MODELS
 from rsi.mission.pair import score_flaws
@@ -149,31 +148,23 @@ def test_roc_writes_theoretical_curves(tmp_path: Path, extra: tuple[str, ...], c
     assert "P_F=1e-05" in result.stdout
 
 
-def fake_evaluate_module(seen: dict[str, object]) -> types.ModuleType:
-    def evaluate_deeppcb(root: Path, *, split: str, progress: object = None) -> object:
-        if not Path(root).is_dir():
-            raise DatasetError(f"root={str(root)!r} is not a DeepPCB folder.")
-        seen.update(root=root, split=split)
-        if callable(progress):
-            progress("pairs", 2, 2)
-        return types.SimpleNamespace(
-            pairs=2, defects=10, recall=0.9, precision=0.8, f1=0.847, false_alarms_per_image=1.0,
-            iou_recall=0.85, iou_precision=0.75, seconds_per_pair=0.05,
-        )  # fmt: skip
-
-    module = types.ModuleType("rsi.datasets.evaluate")
-    module.evaluate_deeppcb = evaluate_deeppcb  # type: ignore[attr-defined]
-    return module
-
-
-def test_eval_deeppcb_json_is_the_last_stdout_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    seen: dict[str, object] = {}
-    monkeypatch.setitem(sys.modules, "rsi.datasets.evaluate", fake_evaluate_module(seen))
-    result = invoke("eval", "deeppcb", tmp_path, "--split", "trainval", "--json")
+def test_eval_deeppcb_json_is_the_last_stdout_line(defect_tree: Path) -> None:
+    result = invoke("eval", "deeppcb", defect_tree, "--split", "trainval", "--json")
     assert result.exit_code == 0, result.output
-    assert list(last_json_line(result)) == list(cli.DEEPPCB_KEYS)
-    assert seen == {"root": tmp_path, "split": "trainval"}
-    table = invoke("eval", "deeppcb", tmp_path)
+    figures = last_json_line(result)
+    assert list(figures) == [
+        "pairs",
+        "defects",
+        "recall",
+        "precision",
+        "f1",
+        "false_alarms_per_image",
+        "iou_recall",
+        "iou_precision",
+        "seconds_per_pair",
+    ]
+    assert (figures["pairs"], figures["defects"], figures["recall"]) == (3, 6, 1.0)
+    table = invoke("eval", "deeppcb", defect_tree, "--split", "trainval")
     assert table.exit_code == 0 and "recall" in table.stdout
 
 
@@ -228,7 +219,6 @@ def error_cases(
 def test_bad_input_exits_with_its_documented_code(
     case: str, png_pair: PngPair, tmp_path: Path, not_an_image: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setitem(sys.modules, "rsi.datasets.evaluate", fake_evaluate_module({}))
     args, code = error_cases(png_pair, tmp_path, not_an_image)[case]
     result = invoke(*args)
     assert result.exit_code == code, result.output

@@ -45,18 +45,6 @@ DEFAULT_OUT = Path("rsi-results")
 """Where ``rsi demo`` writes unless told otherwise."""
 _MAX_TABLE_ROWS = 20
 _ROC_TABLE_P_FALSE_ALARM = (1e-6, 1e-5, 1e-4, 1e-3)
-#: Keys of the ``rsi eval deeppcb --json`` object, in order (the benchmark scripts parse them).
-DEEPPCB_KEYS = (
-    "pairs",
-    "defects",
-    "recall",
-    "precision",
-    "f1",
-    "false_alarms_per_image",
-    "iou_recall",
-    "iou_precision",
-    "seconds_per_pair",
-)
 
 
 class FlawModel(str, Enum):
@@ -373,7 +361,7 @@ def eval_deeppcb(
 
         with _progress_bar(f"DeepPCB {split.value}") as update:
             evaluation = evaluate_deeppcb(root, split=split.value, progress=update)
-        record = {key: getattr(evaluation, key) for key in DEEPPCB_KEYS}
+        record = evaluation.to_dict()
         if as_json:
             _print_json(record)
             return

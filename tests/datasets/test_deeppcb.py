@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -25,33 +26,13 @@ def board(shape: tuple[int, int] = (SIDE_PX, SIDE_PX)) -> np.ndarray:
     return image
 
 
-def write_tree(
-    root: Path, pairs: dict[str, tuple[np.ndarray, np.ndarray, str]], split: str = "trainval"
-) -> Path:
-    """Write a DeepPCB-layout tree: {pair id: (reference, inspection, annotation text)}."""
-    folder = root / "PCBData"
-    lines = []
-    for pair_id, (reference, inspection, annotation) in pairs.items():
-        group, number = f"group{pair_id[:5]}", pair_id[:5]
-        images, notes = folder / group / number, folder / group / f"{number}_not"
-        images.mkdir(parents=True, exist_ok=True)
-        notes.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(images / f"{pair_id}_temp.jpg"), reference, [cv2.IMWRITE_JPEG_QUALITY, 95])
-        cv2.imwrite(str(images / f"{pair_id}_test.jpg"), inspection, [cv2.IMWRITE_JPEG_QUALITY, 95])
-        (notes / f"{pair_id}.txt").write_text(annotation)
-        lines.append(f"{group}/{number}/{pair_id}.jpg {group}/{number}_not/{pair_id}.txt")
-    # DeepPCB's split file has no trailing newline after the last line.
-    (folder / f"{split}.txt").write_text("\n".join(lines))
-    return root
-
-
 @pytest.fixture
-def tree(tmp_path: Path) -> Path:
+def tree(tmp_path: Path, tree_writer: Callable[..., Path]) -> Path:
     reference = board()
     inspection = reference.copy()
     inspection[40:48, 70:78] = 0
     colour = cv2.cvtColor(reference, cv2.COLOR_GRAY2BGR)  # DeepPCB stores a few files as RGB
-    return write_tree(
+    return tree_writer(
         tmp_path,
         {
             "00041000": (reference, inspection, "66 36 81 51 5\n"),

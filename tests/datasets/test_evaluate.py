@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
@@ -37,24 +37,6 @@ KEYS = [
     "iou_precision",
     "seconds_per_pair",
 ]
-
-
-def write_tree(root: Path, pairs: dict[str, tuple[np.ndarray, np.ndarray, str]]) -> Path:
-    """Write a DeepPCB-layout trainval tree: {pair id: (reference, inspection, annotation text)}."""
-    folder = root / "PCBData"
-    lines = []
-    for pair_id, (reference, inspection, annotation) in pairs.items():
-        group, number = f"group{pair_id[:5]}", pair_id[:5]
-        (folder / group / number).mkdir(parents=True, exist_ok=True)
-        (folder / group / f"{number}_not").mkdir(parents=True, exist_ok=True)
-        for suffix, image in (("_temp", reference), ("_test", inspection)):
-            cv2.imwrite(
-                str(folder / group / number / f"{pair_id}{suffix}.jpg"), image, [cv2.IMWRITE_JPEG_QUALITY, 95]
-            )
-        (folder / group / f"{number}_not" / f"{pair_id}.txt").write_text(annotation)
-        lines.append(f"{group}/{number}/{pair_id}.jpg {group}/{number}_not/{pair_id}.txt")
-    (folder / "trainval.txt").write_text("\n".join(lines))
-    return root
 
 
 def test_centre_in_box_known_answer() -> None:
@@ -160,8 +142,8 @@ def test_settings_are_frozen() -> None:
         DeepPcbSettings().size = 5  # type: ignore[misc]
 
 
-def test_evaluate_pairs_counts_known_detections(tmp_path: Path) -> None:
-    root = write_tree(
+def test_evaluate_pairs_counts_known_detections(tmp_path: Path, tree_writer: Callable[..., Path]) -> None:
+    root = tree_writer(
         tmp_path,
         {
             "00041000": (
@@ -198,34 +180,8 @@ def test_evaluate_pairs_rejects_no_pairs() -> None:
         evaluate_pairs((), lambda reference, inspection: PcbDetections(np.empty((0, 2)), np.empty((0, 4))))
 
 
-def synthetic_board(rng: np.random.Generator, side_px: int = 192) -> np.ndarray:
-    """A binarised board: white with black traces and round pads (copper black, as in DeepPCB)."""
-    image = np.full((side_px, side_px), 255, np.uint8)
-    for _ in range(8):
-        x0, y0, x1, y1 = (int(value) for value in rng.integers(10, side_px - 10, 4))
-        cv2.line(image, (x0, y0), (x1, y1), (0,), int(rng.integers(4, 9)))
-        cv2.circle(image, (x1, y1), int(rng.integers(6, 10)), (0,), -1)
-    return image
-
-
-def test_evaluate_deeppcb_end_to_end_on_a_fake_tree(tmp_path: Path) -> None:
-    rng = np.random.default_rng(7)
-    pairs = {}
-    for index in range(3):
-        reference = synthetic_board(rng)
-        inspection = np.roll(reference, (1, -1), axis=(0, 1))  # DeepPCB pairs are off by about a pixel
-        inspection[:, -1] = 255
-        inspection[-1, :] = 255
-        boxes = []
-        for row, col in ((40 + 30 * index, 150), (150, 40 + 20 * index)):
-            # Defects of DeepPCB size (about 8 px) flip the binary image: extra copper or a missing one.
-            patch = inspection[row - 4 : row + 4, col - 4 : col + 4]
-            inspection[row - 4 : row + 4, col - 4 : col + 4] = 255 - patch.max()
-            boxes.append(f"{col - 14} {row - 14} {col + 13} {row + 13} 5")
-        if index == 0:
-            reference[:, :4] = 0  # a crop-frame stripe in the template only: border_px ignores it
-        pairs[f"0004100{index}"] = (reference, inspection, "\n".join(boxes))
-    root = write_tree(tmp_path, pairs)
+def test_evaluate_deeppcb_end_to_end_on_a_fake_tree(defect_tree: Path) -> None:
+    root = defect_tree
     result = evaluate_deeppcb(root, "trainval", settings=DeepPcbSettings())
     assert isinstance(result, EvaluationResult)
     assert (result.pairs, result.defects) == (3, 6)
