@@ -1,4 +1,4 @@
-"""Helpers shared by several test folders: a DeepPCB-layout tree with known content."""
+"""Shared test set-up: fixed hypothesis seeds, and a DeepPCB-layout tree with known content."""
 
 from __future__ import annotations
 
@@ -8,6 +8,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from hypothesis import settings
+
+# Seeds fixed: hypothesis draws the same examples on every run (and no timing deadline on a loaded CI box).
+settings.register_profile("rsi", derandomize=True, deadline=None, print_blob=True)
+settings.load_profile("rsi")
 
 TreeWriter = Callable[..., Path]
 

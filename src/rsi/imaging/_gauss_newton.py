@@ -40,6 +40,8 @@ _SIGMA_SAMPLES = 1 << 14
 _MAX_CONDITION = 1e12
 _MIN_PIXELS_PER_UNKNOWN = 8
 _COARSE_TOLERANCE_GROWTH = 4.0
+_FINEST_ROW_STEP = 1
+_ROW_STEP_MIN_ROWS = 512
 
 
 @dataclass(frozen=True)
@@ -71,18 +73,19 @@ class Settings:
 class _Problem:
     """The reference-side terms of one level, precomputed once (seed §2.3).
 
-    ``jacobian`` has shape (K, M * N) over every reference pixel of the level, with zero columns where a
-    pixel is not used (outside the valid region or the mask, or trimmed), so ``jacobian @ residual`` sums
-    over used pixels only; ``weights`` of shape (M * N,) is 1 where used and 0 elsewhere. Keeping the full
-    frame lets OpenCV write the gradients straight into the Jacobian, with no copies. ``buffer`` of shape
-    (M, N) receives each residual.
+    The used pixels are the rows ``row0, row0 + row_step, ...`` and the columns ``col0 .. col1 - 1`` of
+    `region`. ``jacobian`` has shape (K, R) over them, R = rows used x columns, with zero columns where a
+    pixel is not used (outside the mask or the valid polygon, or trimmed), so ``jacobian @ residual`` sums
+    over used pixels only; ``weights`` of shape (R,) is 1 where used and 0 elsewhere, or None when every
+    pixel is used. ``buffer`` of shape (rows used, columns) receives each residual.
     """
 
     region: Region
+    row_step: int
     jacobian: NDArray[np.float32]
     hessian: NDArray[np.float64]
     inverse_hessian: NDArray[np.float64]
-    weights: NDArray[np.float32]
+    weights: NDArray[np.float32] | None
     n_used: int
     chosen_at: Matrix
     to_pixels: Matrix
@@ -91,27 +94,32 @@ class _Problem:
 
 
 def _jacobian(
-    level: Level, region: Region, inside: NDArray[np.bool_] | None, settings: Settings, from_pixels: Matrix
+    level: Level, region: Region, row_step: int, settings: Settings, from_pixels: Matrix
 ) -> NDArray[np.float32]:
-    """Steepest-descent images, shape (K, M * N), zero outside `region` and where `inside` is False."""
+    """Steepest-descent images on the used rows of `region`, shape (K, rows used * columns)."""
     reference, n_params = level.reference, settings.model.n_params
-    jacobian = np.empty((n_params + 2 * settings.photometric, *reference.shape), dtype=np.float32)
+    row0, row1, col0, col1 = region
+    rows = slice(row0, row1, row_step)
+    jacobian = np.empty(
+        (n_params + 2 * settings.photometric, len(range(row0, row1, row_step)), col1 - col0), np.float32
+    )
     scale = 0.5 / from_pixels[0, 0]
-    # Central differences in normalised units; the used region keeps off the 1-pixel image border.
-    gu = np.asarray(cv2.Sobel(reference, cv2.CV_32F, 1, 0, dst=jacobian[0], ksize=1, scale=scale), np.float32)
-    gv = np.asarray(cv2.Sobel(reference, cv2.CV_32F, 0, 1, dst=jacobian[1], ksize=1, scale=scale), np.float32)
+    # Central differences in normalised units, on the used pixels only; the region keeps off the border.
+    gu = cv2.addWeighted(
+        reference[rows, col0 + 1 : col1 + 1], scale, reference[rows, col0 - 1 : col1 - 1], -scale, 0.0,
+        dst=jacobian[0],
+    )
+    above, below = slice(row0 - 1, row1 - 1, row_step), slice(row0 + 1, row1 + 1, row_step)
+    gv = cv2.addWeighted(
+        reference[below, col0:col1], scale, reference[above, col0:col1], -scale, 0.0, dst=jacobian[1]
+    )
     if n_params > 2:
-        u = (np.arange(reference.shape[1]) * from_pixels[0, 0] + from_pixels[0, 2]).astype(np.float32)
-        v = (np.arange(reference.shape[0]) * from_pixels[1, 1] + from_pixels[1, 2]).astype(np.float32)
+        u = (np.arange(col0, col1) * from_pixels[0, 0] + from_pixels[0, 2]).astype(np.float32)
+        v = (np.arange(row0, row1, row_step) * from_pixels[1, 1] + from_pixels[1, 2]).astype(np.float32)
         jacobian[2:n_params] = settings.model.descent(gu, gv, u[None, :], v[:, None])[2:]
     if settings.photometric:
-        jacobian[n_params] = reference
+        jacobian[n_params] = reference[rows, col0:col1]
         jacobian[n_params + 1] = 1.0
-    row0, row1, col0, col1 = region
-    # Clearing the strips around the region is far cheaper than a full multiply by the weights.
-    jacobian[:, :row0] = jacobian[:, row1:] = jacobian[:, :, :col0] = jacobian[:, :, col1:] = 0.0
-    if inside is not None:
-        jacobian[:, row0:row1, col0:col1] *= inside
     return jacobian.reshape(jacobian.shape[0], -1)
 
 
@@ -138,6 +146,12 @@ def _inverse(hessian: NDArray[np.float64]) -> NDArray[np.float64] | None:
     return np.asarray(np.linalg.inv(balanced) * np.outer(scale, scale), dtype=np.float64)
 
 
+def _row_step(level: Level) -> int:
+    # Accuracy at full resolution is limited by interpolation bias, not by noise (seed §2.3): every other
+    # row of a large finest level carries the same information at half the cost.
+    return _FINEST_ROW_STEP if level.index == 0 and level.reference.shape[0] >= _ROW_STEP_MIN_ROWS else 1
+
+
 def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
     """Choose the used pixels for this level and precompute the Jacobian and Hessian; None if degenerate."""
     region, inside = valid_region(matrix, level.reference.shape, level.inspection.shape, _MARGIN_PX)
@@ -147,38 +161,44 @@ def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
     if level.mask is not None:
         user = level.mask[row0:row1, col0:col1]
         inside = user if inside is None else inside & user
-    weights = np.zeros(level.reference.shape, dtype=np.float32)
-    weights[row0:row1, col0:col1] = 1.0 if inside is None else inside
-    n_used = (row1 - row0) * (col1 - col0) if inside is None else int(np.count_nonzero(inside))
+    row_step = _row_step(level)
     from_pixels = normaliser(level.reference.shape)
-    jacobian = _jacobian(level, region, inside, settings, from_pixels)
+    jacobian = _jacobian(level, region, row_step, settings, from_pixels)
+    weights = None
+    n_used = jacobian.shape[1]
+    if inside is not None:
+        weights = np.ascontiguousarray(inside[::row_step], dtype=np.float32).ravel()
+        jacobian *= weights
+        n_used = int(np.count_nonzero(weights))
     hessian = _gram(jacobian)
     inverse = _inverse(hessian)
     if inverse is None or n_used < _MIN_PIXELS_PER_UNKNOWN * jacobian.shape[0]:
         return None
     return _Problem(
         region=region,
+        row_step=row_step,
         jacobian=jacobian,
         hessian=hessian,
         inverse_hessian=inverse,
-        weights=weights.ravel(),
+        weights=weights,
         n_used=n_used,
         chosen_at=matrix,
         to_pixels=np.asarray(np.linalg.inv(from_pixels), dtype=np.float64),
         from_pixels=from_pixels,
-        buffer=np.empty_like(level.reference),
+        buffer=np.empty((len(range(row0, row1, row_step)), col1 - col0), dtype=np.float32),
     )
 
 
 def _residual(level: Level, problem: _Problem, estimate: Estimate, photometric: bool) -> Image:
-    """Normalised residual ``(I(W(x)) - bias) / gain - T(x)`` over the level, shape (M * N,)."""
-    rows, cols = level.reference.shape
-    warped = sample(level.inspection, estimate.matrix, (0, rows, 0, cols), out=problem.buffer)
+    """Normalised residual ``(I(W(x)) - bias) / gain - T(x)`` over the used pixels, shape (R,)."""
+    row0, row1, col0, col1 = problem.region
+    template = level.reference[row0:row1:problem.row_step, col0:col1]
+    warped = sample(level.inspection, estimate.matrix, problem.region, problem.row_step, out=problem.buffer)
     if photometric:
         gain = estimate.gain
-        cv2.addWeighted(warped, 1.0 / gain, level.reference, -1.0, -estimate.bias / gain, dst=warped)
+        cv2.addWeighted(warped, 1.0 / gain, template, -1.0, -estimate.bias / gain, dst=warped)
     else:
-        cv2.subtract(warped, level.reference, dst=warped)
+        cv2.subtract(warped, template, dst=warped)
     return warped.ravel()
 
 
@@ -205,10 +225,18 @@ def _is_sane(estimate: Estimate) -> bool:
     return bool(np.isfinite(estimate.matrix).all() and np.isfinite(estimate.bias) and estimate.gain > 0)
 
 
-def _trim(problem: _Problem, residual: Image) -> _Problem | None:
-    """Drop pixels whose residual is an outlier (a flaw, seed §2.4) and downdate the Hessian; None if none."""
+def _trim(
+    problem: _Problem, residual: Image, gradient: NDArray[np.float64]
+) -> tuple[_Problem, NDArray[np.float64]] | None:
+    """Drop pixels whose residual is an outlier (a flaw, seed §2.4); None if none.
+
+    The Hessian and the gradient ``J^T r`` are downdated by the dropped columns alone, so trimming costs one
+    pass over the residual, not a new solve.
+    """
     stride = max(1, residual.size // _SIGMA_SAMPLES)
-    probe = residual[::stride][problem.weights[::stride] > 0]
+    probe = residual[::stride]
+    if problem.weights is not None:
+        probe = probe[problem.weights[::stride] > 0]
     if probe.size == 0:
         return None
     centre = float(np.median(probe))
@@ -217,7 +245,8 @@ def _trim(problem: _Problem, residual: Image) -> _Problem | None:
         return None
     spread = _TRIM_SIGMAS * sigma
     index = np.flatnonzero(cv2.inRange(residual, centre - spread, centre + spread) == 0)
-    index = index[problem.weights[index] > 0]
+    weights = np.ones(residual.size, np.float32) if problem.weights is None else problem.weights
+    index = index[weights[index] > 0]
     if index.size == 0:
         return None
     dropped = problem.jacobian[:, index]
@@ -225,15 +254,21 @@ def _trim(problem: _Problem, residual: Image) -> _Problem | None:
     inverse = _inverse(hessian)
     if inverse is None:
         return None
+    gradient = gradient - np.asarray(dropped @ residual[index], dtype=np.float64)
     # The level's Jacobian is owned by this solve: zero the trimmed columns in place rather than copy it.
     problem.jacobian[:, index] = 0.0
-    problem.weights[index] = 0.0
-    return replace(problem, hessian=hessian, inverse_hessian=inverse, n_used=problem.n_used - index.size)
+    weights[index] = 0.0
+    trimmed = replace(
+        problem, hessian=hessian, inverse_hessian=inverse, weights=weights, n_used=problem.n_used - index.size
+    )
+    return trimmed, gradient
 
 
-def _solve(problem: _Problem, residual: Image, settings: Settings) -> tuple[NDArray[np.float64], float]:
+def _solve(
+    problem: _Problem, gradient: NDArray[np.float64], settings: Settings
+) -> tuple[NDArray[np.float64], float]:
     """The Gauss-Newton update ``H^-1 J^T r`` and how far, in pixels, it moves the region's corners."""
-    delta = problem.inverse_hessian @ (problem.jacobian @ residual).astype(np.float64)
+    delta = problem.inverse_hessian @ gradient
     return delta, corner_motion_px(np.eye(3), _step_matrix(problem, delta, settings), problem.region)
 
 
@@ -242,26 +277,27 @@ def _iterate(
 ) -> tuple[Estimate, _Problem, Image]:
     """Gauss-Newton steps on one level; returns the estimate, the final problem and the last residual.
 
-    When a step falls below the tolerance, its residual is used to trim flaws (seed §2.4: a new flaw must
-    not pull the registration) and the step is recomputed from the trimmed sums, with no new resampling;
-    the level ends when a step after trimming is below the tolerance too.
+    On the finest level, when a step falls below the tolerance, its residual is used to trim flaws (seed
+    §2.4: a new flaw must not pull the registration) and the step is recomputed from the trimmed sums, with
+    no new resampling; the level ends when a step after trimming is below the tolerance too. Coarse levels
+    only have to land the next one inside its basin, which a flaw does not prevent: they do not trim.
     """
-    # Coarse levels only have to land the next one inside its basin, and aliasing limits their accuracy
-    # anyway: their tolerance grows with the level so that the work goes to full resolution.
-    tolerance_px, trimmed = settings.tolerance_px * _COARSE_TOLERANCE_GROWTH**level.index, False
+    # Coarse levels' accuracy is limited by aliasing anyway: their tolerance grows with the level so that
+    # the work goes to full resolution.
+    tolerance_px = settings.tolerance_px * _COARSE_TOLERANCE_GROWTH**level.index
+    trimmed = level.index > 0
     residual = _residual(level, problem, estimate, settings.photometric)
-    for count in range(settings.max_iterations):
+    for _ in range(settings.max_iterations):
         if settings.deadline is not None and time.perf_counter() > settings.deadline:
             return replace(estimate, reason="deadline"), problem, residual
-        if count:
-            residual = _residual(level, problem, estimate, settings.photometric)
-        delta, moved_px = _solve(problem, residual, settings)
+        gradient = np.asarray(problem.jacobian @ residual, dtype=np.float64)
+        delta, moved_px = _solve(problem, gradient, settings)
         if moved_px < tolerance_px and not trimmed:
             trimmed = True
-            cleaned = _trim(problem, residual)
+            cleaned = _trim(problem, residual, gradient)
             if cleaned is not None:
-                problem = cleaned
-                delta, moved_px = _solve(problem, residual, settings)
+                problem, gradient = cleaned
+                delta, moved_px = _solve(problem, gradient, settings)
         previous, estimate = estimate, _update(estimate, problem, delta, settings)
         if not _is_sane(estimate):
             return replace(previous, iterations=estimate.iterations, reason="diverged"), problem, residual
@@ -272,17 +308,20 @@ def _iterate(
             rebuilt = _build(level, estimate.matrix, settings)
             if rebuilt is None:
                 return replace(estimate, reason="diverged"), problem, residual
-            problem, trimmed = rebuilt, False
+            problem, trimmed = rebuilt, level.index > 0
+        residual = _residual(level, problem, estimate, settings.photometric)
     return replace(estimate, reason="max_iterations"), problem, residual
 
 
 def _with_statistics(estimate: Estimate, problem: _Problem, residual: Image, level: Level) -> Estimate:
     """Residual RMS and the translation's std from sigma^2 H^-1 (the detector's registration noise, §2.4)."""
-    residual *= problem.weights
+    if problem.weights is not None:
+        residual *= problem.weights
     rss = float(np.dot(residual, residual))
     dof = max(problem.n_used - problem.hessian.shape[0], 1)
     variance = rss / dof * np.diag(problem.inverse_hessian)[:2]
-    # Translation parameters are in units of half a side: back to full-resolution pixels.
+    # Translation parameters are in units of half a side: back to full-resolution pixels. Skipped rows are
+    # as noisy as the used ones, so the std is that of the rows used.
     std_px = np.sqrt(variance) * problem.to_pixels[0, 0] * 2.0**level.index
     rms = np.sqrt(rss / max(problem.n_used, 1)) * estimate.gain
     return replace(estimate, residual_rms=float(rms), shift_std_px=(float(std_px[0]), float(std_px[1])))

@@ -13,7 +13,7 @@ from rsi.imaging._warps import Image, Matrix, rescale
 
 # The coarsest level keeps at least this many pixels per side: phase correlation there must still see the
 # texture, and a shift of up to half this side (times 2**level) is captured.
-_COARSEST_SIDE_PX = 256
+_COARSEST_SIDE_PX = 128
 _SMOOTHING_SIZE_PX = 5
 _MIN_PHASE_SIDE_PX = 16
 
