@@ -10,8 +10,8 @@ import scipy.ndimage as ndi
 from numpy.typing import NDArray
 
 from rsi.errors import InputError
-from rsi.imaging import _gauss_newton
-from rsi.imaging._warps import map_points
+from rsi.imaging import _gauss_newton, _pyramid
+from rsi.imaging._warps import map_points, sample
 from rsi.imaging.registration import MODELS, Registration, register
 
 SIDE_PX = 256
@@ -311,3 +311,30 @@ def test_shift_validity_rectangle_equals_mapping_every_pixel() -> None:
         not_a_shift[2, 0] = 1e-15  # forces the general per-pixel path
         general = module._preimage_inside(not_a_shift, shape, source)
         np.testing.assert_array_equal(module._preimage_inside(shift, shape, source), general)
+
+
+@pytest.mark.parametrize(
+    "matrix",
+    [
+        np.array([[1.0, 0.0, 3.3], [0.0, 1.0, -2.6], [0.0, 0.0, 1.0]]),  # strided fast path
+        np.array([[1.0, 0.0, -7.25], [0.0, 1.0, 1.5], [0.0, 0.0, 1.0]]),  # leaves the image: bordered path
+        TRUTHS["affine"],
+    ],
+)
+def test_sampling_every_other_row_equals_every_row(matrix: NDArray[np.float64]) -> None:
+    # Large levels use every other row (seed §2.3 accuracy is bias-limited): the rows must be the same.
+    image = texture()
+    region = (3, 250, 5, 240)
+    every_row = sample(image, matrix, region)
+    every_other = sample(image, matrix, region, row_step=2)
+    assert every_other.shape == every_row[::2].shape and every_other.flags.c_contiguous
+    np.testing.assert_allclose(every_other, every_row[::2], atol=1e-6)
+
+
+def test_large_image_uses_every_other_row_and_stays_accurate() -> None:
+    reference = texture(side_px=512, seed=4)
+    inspection = 1.1 * shifted(reference, (9.6, -8.3)) + 0.03
+    assert _gauss_newton._row_step(_pyramid.build_levels(reference, inspection, None, 1)[0]) == 2
+    result = register(reference, inspection)
+    assert result.converged
+    np.testing.assert_allclose(result.translation_xy, (9.6, -8.3), atol=SUBPIXEL_PX)

@@ -36,11 +36,11 @@ _MARGIN_PX = 2.0
 # A flaw is an outlier of the registration model: trim |residual| beyond this many robust sigmas.
 _TRIM_SIGMAS = 4.0
 _MAD_TO_SIGMA = 1.4826
-_SIGMA_SAMPLES = 1 << 14
+_SIGMA_SAMPLES = 1 << 12
 _MAX_CONDITION = 1e12
 _MIN_PIXELS_PER_UNKNOWN = 8
 _COARSE_TOLERANCE_GROWTH = 4.0
-_FINEST_ROW_STEP = 1
+_ROW_STEP = 2
 _ROW_STEP_MIN_ROWS = 512
 
 
@@ -76,8 +76,9 @@ class _Problem:
     The used pixels are the rows ``row0, row0 + row_step, ...`` and the columns ``col0 .. col1 - 1`` of
     `region`. ``jacobian`` has shape (K, R) over them, R = rows used x columns, with zero columns where a
     pixel is not used (outside the mask or the valid polygon, or trimmed), so ``jacobian @ residual`` sums
-    over used pixels only; ``weights`` of shape (R,) is 1 where used and 0 elsewhere, or None when every
-    pixel is used. ``buffer`` of shape (rows used, columns) receives each residual.
+    over used pixels only; ``weights`` of shape (R,) is 0 outside the mask or polygon and 1 elsewhere, or
+    None when there is neither; ``trimmed`` indexes the pixels trimmed as flaws. ``buffer`` of shape
+    (rows used, columns) receives each residual.
     """
 
     region: Region
@@ -86,6 +87,7 @@ class _Problem:
     hessian: NDArray[np.float64]
     inverse_hessian: NDArray[np.float64]
     weights: NDArray[np.float32] | None
+    trimmed: NDArray[np.intp] | None
     n_used: int
     chosen_at: Matrix
     to_pixels: Matrix
@@ -105,14 +107,11 @@ def _jacobian(
     )
     scale = 0.5 / from_pixels[0, 0]
     # Central differences in normalised units, on the used pixels only; the region keeps off the border.
-    gu = cv2.addWeighted(
-        reference[rows, col0 + 1 : col1 + 1], scale, reference[rows, col0 - 1 : col1 - 1], -scale, 0.0,
-        dst=jacobian[0],
-    )
-    above, below = slice(row0 - 1, row1 - 1, row_step), slice(row0 + 1, row1 + 1, row_step)
-    gv = cv2.addWeighted(
-        reference[below, col0:col1], scale, reference[above, col0:col1], -scale, 0.0, dst=jacobian[1]
-    )
+    right, left = reference[rows, col0 + 1 : col1 + 1], reference[rows, col0 - 1 : col1 - 1]
+    gu = np.asarray(cv2.addWeighted(right, scale, left, -scale, 0.0, dst=jacobian[0]), np.float32)
+    below = reference[row0 + 1 : row1 + 1 : row_step, col0:col1]
+    above = reference[row0 - 1 : row1 - 1 : row_step, col0:col1]
+    gv = np.asarray(cv2.addWeighted(below, scale, above, -scale, 0.0, dst=jacobian[1]), np.float32)
     if n_params > 2:
         u = (np.arange(col0, col1) * from_pixels[0, 0] + from_pixels[0, 2]).astype(np.float32)
         v = (np.arange(row0, row1, row_step) * from_pixels[1, 1] + from_pixels[1, 2]).astype(np.float32)
@@ -141,15 +140,16 @@ def _inverse(hessian: NDArray[np.float64]) -> NDArray[np.float64] | None:
     scale = 1.0 / np.sqrt(diagonal)
     balanced = hessian * np.outer(scale, scale)
     # A Hessian downdated by trimming can lose positive definiteness to rounding: then it is no Hessian.
-    if np.linalg.cond(balanced) > _MAX_CONDITION or np.linalg.eigvalsh(balanced)[0] <= 0:
+    eigenvalues = np.linalg.eigvalsh(balanced)
+    if eigenvalues[0] <= 0 or eigenvalues[-1] > _MAX_CONDITION * eigenvalues[0]:
         return None
     return np.asarray(np.linalg.inv(balanced) * np.outer(scale, scale), dtype=np.float64)
 
 
 def _row_step(level: Level) -> int:
-    # Accuracy at full resolution is limited by interpolation bias, not by noise (seed §2.3): every other
-    # row of a large finest level carries the same information at half the cost.
-    return _FINEST_ROW_STEP if level.index == 0 and level.reference.shape[0] >= _ROW_STEP_MIN_ROWS else 1
+    # With this many rows the accuracy is limited by interpolation bias, not by noise (seed §2.3): every
+    # other row carries the same information at half the cost.
+    return _ROW_STEP if level.reference.shape[0] >= _ROW_STEP_MIN_ROWS else 1
 
 
 def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
@@ -181,6 +181,7 @@ def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
         hessian=hessian,
         inverse_hessian=inverse,
         weights=weights,
+        trimmed=None,
         n_used=n_used,
         chosen_at=matrix,
         to_pixels=np.asarray(np.linalg.inv(from_pixels), dtype=np.float64),
@@ -192,7 +193,7 @@ def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
 def _residual(level: Level, problem: _Problem, estimate: Estimate, photometric: bool) -> Image:
     """Normalised residual ``(I(W(x)) - bias) / gain - T(x)`` over the used pixels, shape (R,)."""
     row0, row1, col0, col1 = problem.region
-    template = level.reference[row0:row1:problem.row_step, col0:col1]
+    template = level.reference[row0 : row1 : problem.row_step, col0:col1]
     warped = sample(level.inspection, estimate.matrix, problem.region, problem.row_step, out=problem.buffer)
     if photometric:
         gain = estimate.gain
@@ -245,8 +246,8 @@ def _trim(
         return None
     spread = _TRIM_SIGMAS * sigma
     index = np.flatnonzero(cv2.inRange(residual, centre - spread, centre + spread) == 0)
-    weights = np.ones(residual.size, np.float32) if problem.weights is None else problem.weights
-    index = index[weights[index] > 0]
+    if problem.weights is not None:
+        index = index[problem.weights[index] > 0]
     if index.size == 0:
         return None
     dropped = problem.jacobian[:, index]
@@ -257,9 +258,8 @@ def _trim(
     gradient = gradient - np.asarray(dropped @ residual[index], dtype=np.float64)
     # The level's Jacobian is owned by this solve: zero the trimmed columns in place rather than copy it.
     problem.jacobian[:, index] = 0.0
-    weights[index] = 0.0
     trimmed = replace(
-        problem, hessian=hessian, inverse_hessian=inverse, weights=weights, n_used=problem.n_used - index.size
+        problem, hessian=hessian, inverse_hessian=inverse, trimmed=index, n_used=problem.n_used - index.size
     )
     return trimmed, gradient
 
@@ -317,11 +317,13 @@ def _with_statistics(estimate: Estimate, problem: _Problem, residual: Image, lev
     """Residual RMS and the translation's std from sigma^2 H^-1 (the detector's registration noise, §2.4)."""
     if problem.weights is not None:
         residual *= problem.weights
+    if problem.trimmed is not None:
+        residual[problem.trimmed] = 0.0
     rss = float(np.dot(residual, residual))
     dof = max(problem.n_used - problem.hessian.shape[0], 1)
     variance = rss / dof * np.diag(problem.inverse_hessian)[:2]
-    # Translation parameters are in units of half a side: back to full-resolution pixels. Skipped rows are
-    # as noisy as the used ones, so the std is that of the rows used.
+    # Translation parameters are in units of half a side: back to full-resolution pixels. The estimate uses
+    # only the rows used (every other one on large levels), so sigma^2 H^-1 over them is its std.
     std_px = np.sqrt(variance) * problem.to_pixels[0, 0] * 2.0**level.index
     rms = np.sqrt(rss / max(problem.n_used, 1)) * estimate.gain
     return replace(estimate, residual_rms=float(rms), shift_std_px=(float(std_px[0]), float(std_px[1])))

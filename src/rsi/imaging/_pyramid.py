@@ -12,7 +12,9 @@ from numpy.typing import NDArray
 from rsi.imaging._warps import Image, Matrix, rescale
 
 # The coarsest level keeps at least this many pixels per side: phase correlation there must still see the
-# texture, and a shift of up to half this side (times 2**level) is captured.
+# texture, and a shift of up to half this side (times 2**level) is captured. At 128 the benchmark's largest
+# shift (40.2, 44.7) px is found within 0.3 coarse pixels on all textures at 512 and 1024, for a quarter of
+# the FFT time of 256 (docs/registration.md).
 _COARSEST_SIDE_PX = 128
 _SMOOTHING_SIZE_PX = 5
 _MIN_PHASE_SIDE_PX = 16

@@ -154,11 +154,12 @@ def sample(
     row0, row1, col0, col1 = region
     size_wh = (col1 - col0, len(range(row0, row1, row_step)))
     if is_translation(matrix):
+        origin_xy = (col0 + matrix[0, 2], row0 + matrix[1, 2])
         if row_step == 1:
             # A shift is a sub-pixel crop: getRectSubPix is ~9x cheaper than warpAffine at 1024^2.
-            centre = (col0 + matrix[0, 2] + (size_wh[0] - 1) / 2.0, row0 + matrix[1, 2] + (size_wh[1] - 1) / 2.0)
+            centre = (origin_xy[0] + (size_wh[0] - 1) / 2.0, origin_xy[1] + (size_wh[1] - 1) / 2.0)
             return np.asarray(cv2.getRectSubPix(image, size_wh, centre, patch=out), dtype=np.float32)
-        rows = _skipped_rows(image, matrix[0, 2] + col0, matrix[1, 2] + row0, size_wh, row_step, out)
+        rows = _skipped_rows(image, origin_xy, size_wh, row_step, out)
         if rows is not None:
             return rows
     shifted = matrix @ np.array([[1.0, 0.0, col0], [0.0, row_step, row0], [0.0, 0.0, 1.0]])
@@ -175,19 +176,20 @@ def sample(
 
 
 def _skipped_rows(
-    image: Image, x0: float, y0: float, size_wh: tuple[int, int], row_step: int, out: Image | None
+    image: Image, origin_xy: tuple[float, float], size_wh: tuple[int, int], row_step: int, out: Image | None
 ) -> Image | None:
-    """Bilinear shift by (x0, y0) of every `row_step`-th row, as two weighted sums of strided views.
+    """Bilinear crop at `origin_xy` of every `row_step`-th row, as two weighted sums of strided views.
 
     None when the samples would leave the image (the caller then takes the general, bordered path).
     """
-    (width, height), col, row = size_wh, int(np.floor(x0)), int(np.floor(y0))
+    (width, height), (x0, y0) = size_wh, origin_xy
+    col, row = int(np.floor(x0)), int(np.floor(y0))
     fx, fy = x0 - col, y0 - row
     last_row = row + 1 + row_step * (height - 1)
     if col < 0 or row < 0 or col + width >= image.shape[1] or last_row >= image.shape[0]:
         return None
     columns = slice(col, col + width + 1)
-    upper = image[row : last_row : row_step, columns]
+    upper = image[row:last_row:row_step, columns]
     lower = image[row + 1 : last_row + 1 : row_step, columns]
     vertical = cv2.addWeighted(upper, 1.0 - fy, lower, fy, 0.0)
     return np.asarray(

@@ -235,8 +235,9 @@ def register(
     Each level minimises ``sum_x w(x) [(I(W(x; p)) - b) / g - T(x)]^2`` over the warp parameters ``p``,
     gain ``g`` and bias ``b``, where ``T`` and ``I`` are the lightly smoothed reference and inspection and
     ``w`` selects reference pixels that map inside the inspection, lie in `mask` and, after a first
-    convergence, are not outliers beyond 4 robust sigmas (flaws must not pull the warp). The translation's
-    standard deviation comes from ``sigma^2 H^-1``.
+    convergence at full resolution, are not outliers beyond 4 robust sigmas (flaws must not pull the warp).
+    Levels of 512 rows or more use every other row: there the accuracy is limited by interpolation bias, not
+    by noise. The translation's standard deviation comes from ``sigma^2 H^-1`` over the pixels used.
 
     References
     ----------
