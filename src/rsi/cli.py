@@ -223,6 +223,13 @@ def inspect_command(
     method: Annotated[
         Method, typer.Option(help="Likelihood-ratio test or erosion approximation.")
     ] = Method.lrt,
+    noise_sigma: Annotated[
+        float | None,
+        typer.Option(help="Noise std of one image in its own units; estimated from the data if omitted."),
+    ] = None,
+    misregistration_std_px: Annotated[
+        float, typer.Option(help="Floor on the residual shift std (px): local distortion becomes edge noise.")
+    ] = 0.0,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,
 ) -> None:
     """Register REFERENCE to INSPECTION, detect flaws, write flaws.json/.csv and PNG pictures to --out."""
@@ -240,6 +247,8 @@ def inspect_command(
             polarity=polarity.value,
             registration_model=model.value,
             method=method.value,
+            noise_sigma=noise_sigma,
+            misregistration_std_px=misregistration_std_px,
         )
         files = write_pair_report(out, result)
         _print_inspection(result, out, files, as_json=as_json)

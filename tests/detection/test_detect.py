@@ -270,6 +270,8 @@ GOOD = np.zeros((32, 32))
         ({"registration": np.eye(3)}, "registration"),
         ({"registration_model": "elastic"}, "registration_model"),
         ({"min_area_px": 0}, "min_area_px"),
+        ({"misregistration_std_px": -0.5}, "misregistration_std_px"),
+        ({"misregistration_std_px": float("nan")}, "misregistration_std_px"),
     ],
 )
 def test_bad_arguments_are_named(kwargs: dict[str, object], argument: str) -> None:
@@ -282,3 +284,22 @@ def test_bad_arguments_are_named(kwargs: dict[str, object], argument: str) -> No
     arguments.update(kwargs)
     with pytest.raises(InputError, match=argument):
         detect(**arguments)  # type: ignore[arg-type]
+
+
+def test_misregistration_floor_turns_a_moved_edge_into_noise() -> None:
+    # seed §2.3-2.4: an edge moved by a residual shift is a false "flaw" unless the noise model knows the
+    # shift's spread; with a floor of the shift's size the edge falls below threshold and a real flaw stays.
+    rng = np.random.default_rng(3)
+    reference = np.zeros((96, 96))
+    reference[:, 48:] = 1.0
+    inspection = np.zeros((96, 96))
+    inspection[:, 49:] = 1.0  # the edge moved by one pixel
+    inspection[20:25, 20:25] -= 0.5  # a real flaw, away from the edge
+    reference += 0.01 * rng.standard_normal(reference.shape)
+    inspection += 0.01 * rng.standard_normal(inspection.shape)
+    common = {"flaw_model": "uniform", "size": 5, "noise_sigma": 0.01, "registration": None}
+    naive = detect(reference, inspection, **common)  # type: ignore[arg-type]
+    floored = detect(reference, inspection, misregistration_std_px=1.0, **common)  # type: ignore[arg-type]
+    assert naive.mask[:, 46:52].any()
+    assert not floored.mask[:, 40:60].any()
+    assert floored.mask[22, 22]

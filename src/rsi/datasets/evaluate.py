@@ -342,12 +342,6 @@ def detect_defects(
     reference_image = as_image(reference, "reference")
     inspection_image = as_image(inspection, "inspection")
     fit = register(reference_image, inspection_image, model=chosen.registration_model)
-    floor = chosen.misregistration_std_px
-    # seed §2.4: residual mis-registration is extra noise sigma_s^2 |grad ref|^2; the fit's statistical std
-    # knows nothing of etching or local distortion, so it is floored at what these boards show.
-    fit = dataclasses.replace(
-        fit, shift_std_px=(max(fit.shift_std_px[0], floor), max(fit.shift_std_px[1], floor))
-    )
     detection = detect(
         reference_image,
         inspection_image,
@@ -358,6 +352,9 @@ def detect_defects(
         polarity="both",
         noise_sigma=chosen.noise_sigma,
         registration=fit,
+        # seed §2.4: residual mis-registration is extra noise sigma_s^2 |grad ref|^2; the fit's statistical
+        # std knows nothing of etching or local distortion, so it is floored at what these boards show.
+        misregistration_std_px=chosen.misregistration_std_px,
     )
     mask = detection.mask.copy()
     _clear_border(mask, chosen.border_px)

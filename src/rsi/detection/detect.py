@@ -226,6 +226,19 @@ def _sensor_variances(
     )
 
 
+def _prediction_errors(
+    aligned: _Aligned, registration: Registration | None, shift_floor: float
+) -> tuple[Float32Array, ...]:
+    """Coherent one-sigma errors of the prediction: residual shift and resampling (seed §2.3-2.4)."""
+    if registration is None and shift_floor == 0.0:
+        return ()
+    # Unregistered images are not resampled: no sub-pixel phase, hence no resampling error.
+    fraction = (0.0, 0.0) if registration is None else aligned.fraction_xy
+    own = (0.0, 0.0) if registration is None else registration.shift_std_px
+    shift_std = (max(own[0], shift_floor), max(own[1], shift_floor))
+    return noise.systematic_errors(aligned.predicted, fraction, shift_std)
+
+
 def _correlate(image: Float32Array, weights: NDArray[np.float64]) -> Float32Array:
     if weights.shape == (1, 1):
         scaled: Float32Array = image * np.float32(weights[0, 0])
@@ -338,6 +351,7 @@ def detect(
     registration: str | Registration | None = "auto",
     registration_model: str = "translation",
     min_area_px: int = 1,
+    misregistration_std_px: float = 0.0,
 ) -> Detection:
     """Detect flaws in an inspection image by comparison with a reference image (seed §2.4).
 
@@ -365,6 +379,11 @@ def detect(
         Model for ``registration="auto"``, one of :data:`rsi.imaging.registration.MODELS`.
     min_area_px : int
         Components of the mask smaller than this are not reported as flaws.
+    misregistration_std_px : float
+        Floor, >= 0, on the residual shift std the noise model uses (seed §2.3-2.4). The registration's own
+        ``shift_std_px`` is the statistical precision of one global fit; local distortion (thermal
+        expansion, flexible structures, etching of a printed board) moves edges further, and this floor
+        turns it into noise at edges instead of false alarms. Also applies with ``registration=None``.
 
     Returns
     -------
@@ -388,6 +407,7 @@ def detect(
     )
     choice(registration_model, "registration_model", MODELS)
     min_area = positive_int(min_area_px, "min_area_px")
+    shift_floor = in_range(misregistration_std_px, "misregistration_std_px", low=0.0)
     weights = flaw_kernel(chosen_model, size=size, peak_ratio=peak_ratio, kernel=kernel)
 
     reference_in = _unpack(reference, "reference", sigma_known)
@@ -405,11 +425,7 @@ def detect(
     variance = np.maximum(np.broadcast_to(variance, difference.shape), _VARIANCE_FLOOR).astype(np.float32)
     inverse_variance = (np.float32(1.0) / variance).astype(np.float32, copy=False)
     inverse_variance[~valid] = 0.0
-    errors = (
-        ()
-        if used_registration is None
-        else noise.systematic_errors(aligned.predicted, aligned.fraction_xy, used_registration.shift_std_px)
-    )
+    errors = _prediction_errors(aligned, used_registration, shift_floor)
 
     statistic = _lrt(difference, inverse_variance, test_weights, errors)
     if sigma_known is None:

@@ -98,6 +98,7 @@ def inspect_pair(
     registration_model: str = "translation",
     method: str = "lrt",
     noise_sigma: float | None = None,
+    misregistration_std_px: float = 0.0,
 ) -> PairResult:
     """Register the reference to the inspection image, then detect flaws (seed §2.3-2.4).
 
@@ -120,6 +121,8 @@ def inspect_pair(
         Optimal weighted-sum test or its sub-optimal morphological-erosion version (seed §2.4).
     noise_sigma : float, optional
         Noise standard deviation of one image, in image units; estimated from the data when omitted.
+    misregistration_std_px : float
+        Floor on the residual shift std of the noise model (see :func:`rsi.detection.detect.detect`).
 
     Returns
     -------
@@ -142,6 +145,7 @@ def inspect_pair(
         polarity=polarity,
         noise_sigma=noise_sigma,
         registration=registration,
+        misregistration_std_px=misregistration_std_px,
     )
     return PairResult(reference_image, inspection_image, detection, time.perf_counter() - start_s)
 
@@ -276,7 +280,6 @@ class DemoResult:
     score: Score
     curves: tuple[RocCurve, ...]
     elapsed_s: float
-
 
 
 @dataclass(frozen=True)
