@@ -108,7 +108,7 @@ def flaws_document(detection: Detection, *, is_true: Sequence[bool] | None = Non
     }
 
 
-def _csv_text(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> str:
+def csv_text(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> str:
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
@@ -119,7 +119,7 @@ def _csv_text(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> str:
 def flaws_csv(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None) -> str:
     """flaws.csv content: a header of :data:`FLAW_COLUMNS` (+ ``true_flaw``) and one row per flaw."""
     columns = (*FLAW_COLUMNS, "true_flaw") if is_true is not None else FLAW_COLUMNS
-    return _csv_text(columns, flaw_records(flaws, is_true=is_true))
+    return csv_text(columns, flaw_records(flaws, is_true=is_true))
 
 
 def roc_csv(curves: Sequence[RocCurve]) -> str:
@@ -136,7 +136,7 @@ def roc_csv(curves: Sequence[RocCurve]) -> str:
             np.ravel(curve.threshold), np.ravel(curve.p_false_alarm), np.ravel(curve.p_detection), strict=True
         )
     ]
-    return _csv_text(ROC_COLUMNS, rows)
+    return csv_text(ROC_COLUMNS, rows)
 
 
 def registration_record(registration: Registration | None) -> dict[str, Any] | None:
@@ -206,7 +206,7 @@ def _pair_files(result: PairResult, *, is_true: Sequence[bool] | None = None) ->
     }
 
 
-def _write_all(out_dir: Path | str, contents: Mapping[str, bytes]) -> dict[str, Path]:
+def write_files(out_dir: Path | str, contents: Mapping[str, bytes]) -> dict[str, Path]:
     folder = Path(out_dir)
     return {name: atomic_write_bytes(folder / name, data) for name, data in contents.items()}
 
@@ -226,7 +226,7 @@ def write_pair_report(out_dir: Path | str, result: PairResult) -> dict[str, Path
     dict of str to Path
         File name -> written path.
     """
-    return _write_all(out_dir, _pair_files(result))
+    return write_files(out_dir, _pair_files(result))
 
 
 def write_roc_report(
@@ -249,7 +249,7 @@ def write_roc_report(
         File name -> written path.
     """
     contents = {"roc.png": figures.roc_png(curves, title=title), "roc.csv": roc_csv(curves).encode()}
-    return _write_all(out_dir, contents)
+    return write_files(out_dir, contents)
 
 
 def write_demo_report(out_dir: Path | str, demo: DemoResult) -> dict[str, Path]:
@@ -281,7 +281,7 @@ def write_demo_report(out_dir: Path | str, demo: DemoResult) -> dict[str, Path]:
         **_pair_files(demo.pair, is_true=demo.score.is_true),
         "summary.json": to_json(demo_summary(demo)).encode(),
     }
-    files = _write_all(out_dir, contents)
+    files = write_files(out_dir, contents)
     title = f"Demo ROC: {demo.pair.detection.flaw_model} and single-pixel flaw models (seed {demo.seed})"
     files.update(write_roc_report(out_dir, demo.curves, title=title))
     return files

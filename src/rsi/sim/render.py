@@ -1,0 +1,238 @@
+"""Seed §2.1-2.2, §4: camera frames of the mock-up from MuJoCo's classic renderer.
+
+The classic renderer is linear (no gamma) but returns uint8 colour, and a pixel saturates at 255. So each
+light group is rendered alone (a *basis* image), converted to float32 luminance, scaled to lux by its
+calibration, and only then combined, in numpy, by the camera model :func:`rsi.imaging.camera.expose`: an
+interlaced frame whose odd field the strobe lights (seed §2.2), with the shutter of seed §2.1, shot and read
+noise and 8 bits. The basis images sum to the all-lights render within quantisation (tested).
+
+Quantisation: each group's level puts a white Lambertian surface facing its light at ~0.8-0.9 of 255, while
+the camera maps the same surface to ~160 DN (13 lux s on reflectance 1, ``CameraModel`` defaults), so one
+basis step is ~0.7 camera DN: its rounding error (0.2 DN rms) stays below the camera's own read and
+quantisation noise (0.4 DN rms).
+
+Backend: chosen lazily from ``MUJOCO_GL`` (``egl`` by default, ``osmesa`` if EGL is not installed,
+``glfw`` with a display); a missing one fails only when something is rendered, naming what to install.
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import importlib
+import os
+import sys
+from dataclasses import dataclass
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi.errors import RsiError
+
+F32 = NDArray[np.float32]
+BoolArray = NDArray[np.bool_]
+
+_BACKENDS = {"egl": "mujoco.egl", "osmesa": "mujoco.osmesa", "glfw": "mujoco.glfw"}
+_INSTALL = {
+    "egl": "an EGL driver (Debian/Ubuntu: apt-get install libegl1 libgl1; NVIDIA GPUs: the driver's libEGL)",
+    "osmesa": "OSMesa for CPU rendering (Debian/Ubuntu: apt-get install libosmesa6)",
+    "glfw": "GLFW and a display (pip install glfw; apt-get install libglfw3; set DISPLAY)",
+}
+_LUMINANCE = np.array([0.299, 0.587, 0.114], dtype=np.float32)  # seed §2.1: luminance only (Rec. 601)
+STATES = ("inspection", "reference")
+
+
+class RenderBackendError(RsiError, RuntimeError):
+    """No usable OpenGL backend for MuJoCo's renderer (the message says what to install)."""
+
+
+def backend_name() -> str:
+    """The OpenGL backend for rendering: ``MUJOCO_GL`` if set, else ``egl`` or, lacking EGL, ``osmesa``."""
+    requested = os.environ.get("MUJOCO_GL", "").strip().lower()
+    if requested:
+        return requested
+    if ctypes.util.find_library("EGL") is None and ctypes.util.find_library("OSMesa") is not None:
+        return "osmesa"
+    return "egl"
+
+
+def import_mujoco() -> ModuleType:
+    """Import MuJoCo without letting its import-time ``MUJOCO_GL`` check break physics-only use.
+
+    MuJoCo validates ``MUJOCO_GL`` when imported; an unusable value would stop the world from even being
+    built. We import it with our chosen backend (or rendering disabled when the value is unknown) and
+    restore the variable, so that a bad backend fails only when a frame is rendered.
+    """
+    if "mujoco" in sys.modules:
+        return sys.modules["mujoco"]
+    original = os.environ.get("MUJOCO_GL")
+    name = backend_name()
+    os.environ["MUJOCO_GL"] = name if name in _BACKENDS else "disable"
+    try:
+        return importlib.import_module("mujoco")
+    finally:
+        if original is None:
+            del os.environ["MUJOCO_GL"]
+        else:
+            os.environ["MUJOCO_GL"] = original
+
+
+def _gl_context(width: int, height: int) -> Any:
+    """An OpenGL context from the backend of :func:`backend_name`, or a clear RenderBackendError."""
+    name = backend_name()
+    if name not in _BACKENDS:
+        choices = "; ".join(f"MUJOCO_GL={key} needs {hint}" for key, hint in _INSTALL.items())
+        raise RenderBackendError(
+            f"MUJOCO_GL={name!r} is not a rendering backend rsi can use. Set one of: {choices}."
+        )
+    try:
+        module = importlib.import_module(_BACKENDS[name])
+        return module.GLContext(width, height)
+    except Exception as error:  # backends fail with ImportError, OSError, AttributeError or GL errors
+        raise RenderBackendError(
+            f"MUJOCO_GL={name!r}: the OpenGL backend could not start ({type(error).__name__}: {error}). "
+            f"Install {_INSTALL[name]}, or choose another backend with MUJOCO_GL=egl|osmesa|glfw."
+        ) from error
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """Where a frame was taken from: a pinhole camera looking along `forward`.
+
+    Attributes
+    ----------
+    position_m : ndarray of shape (3,)
+        Camera centre in the world frame.
+    rotation : ndarray of shape (3, 3)
+        Columns: image right, image up and backward (minus the viewing direction) in the world frame.
+    fovy_rad : float
+        Vertical field of view.
+    shape : (int, int)
+        (rows, cols) of the image.
+    """
+
+    position_m: NDArray[np.float64]
+    rotation: NDArray[np.float64]
+    fovy_rad: float
+    shape: tuple[int, int]
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length in pixels (square pixels)."""
+        return self.shape[0] / 2 / float(np.tan(self.fovy_rad / 2))
+
+    def project(self, points_m: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Pixel coordinates (x = col, y = row; pixel centres at integers) and depth of world points.
+
+        Parameters
+        ----------
+        points_m : ndarray of shape (K, 3)
+
+        Returns
+        -------
+        xy : ndarray of shape (K, 2)
+        depth_m : ndarray of shape (K,)
+            Distance along the viewing direction (negative behind the camera).
+        """
+        local = (np.asarray(points_m, dtype=np.float64) - self.position_m) @ self.rotation
+        depth = -local[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (self.shape[1] - 1) / 2 + self.focal_px * local[:, 0] / depth
+            y = (self.shape[0] - 1) / 2 - self.focal_px * local[:, 1] / depth
+        return np.stack([x, y], axis=1), depth
+
+
+class SceneRenderer:
+    """Offscreen classic-renderer of one model at one image size (owns its OpenGL context).
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+    height, width : int
+        Image size in pixels, at most the model's offscreen buffer (2048).
+    """
+
+    def __init__(self, model: Any, height: int, width: int) -> None:
+        mujoco = import_mujoco()
+        self._mujoco = mujoco
+        self._model = model
+        self._context = _gl_context(width, height)
+        self._context.make_current()
+        self._mjr = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100.value)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._mjr)
+        self._mjr.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self._scene = mujoco.MjvScene(model, maxgeom=4000)
+        self._option = mujoco.MjvOption()
+        # rangefinder rays would otherwise be drawn into the camera images
+        self._option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = False
+        self._camera = mujoco.MjvCamera()
+        self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        self._rect = mujoco.MjrRect(0, 0, width, height)
+        self.shape = (height, width)
+
+    def _update(self, data: Any, camera: str, state: str, lights: tuple[int, ...] | None) -> None:
+        mujoco = self._mujoco
+        self._camera.fixedcamid = mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+        anomalous = state == "inspection"
+        self._option.geomgroup[:] = [1, 0, 0, int(anomalous), int(not anomalous), 0]
+        if lights is not None:
+            self._model.light_active[:] = 0
+            self._model.light_active[list(lights)] = 1
+        self._context.make_current()
+        mujoco.mjv_updateScene(
+            self._model, data, self._option, None, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene
+        )
+
+    def rgb(
+        self, data: Any, camera: str, *, state: str = "inspection", lights: tuple[int, ...] | None = None
+    ) -> NDArray[np.uint8]:
+        """uint8 colour image of shape (M, N, 3) lit by the light ids `lights` (None: the model's own)."""
+        self._update(data, camera, state, lights)
+        buffer = np.empty((*self.shape, 3), dtype=np.uint8)
+        self._mujoco.mjr_render(self._rect, self._scene, self._mjr)
+        self._mujoco.mjr_readPixels(buffer, None, self._rect, self._mjr)
+        return np.ascontiguousarray(buffer[::-1])
+
+    def luminance(self, data: Any, camera: str, *, state: str, lights: tuple[int, ...]) -> F32:
+        """float32 luminance (0..255 render units) lit by `lights` only (seed §2.1: luminance signal)."""
+        return np.asarray(self.rgb(data, camera, state=state, lights=lights).astype(np.float32) @ _LUMINANCE)
+
+    def depth_and_segments(self, data: Any, camera: str, *, state: str) -> tuple[F32, NDArray[np.int32]]:
+        """Depth along the view axis in metres and the geom id seen in each pixel (-1: background)."""
+        mujoco = self._mujoco
+        self._update(data, camera, state, None)
+        flags = self._scene.flags
+        flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
+        flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
+        colour = np.empty((*self.shape, 3), dtype=np.uint8)
+        depth = np.empty(self.shape, dtype=np.float32)
+        try:
+            mujoco.mjr_render(self._rect, self._scene, self._mjr)
+            mujoco.mjr_readPixels(colour, depth, self._rect, self._mjr)
+        finally:
+            flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = False
+            flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = False
+        code = colour[::-1].astype(np.int64) @ np.array([1, 256, 65536])
+        lookup = np.full(self._scene.ngeom + 2, -1, dtype=np.int32)
+        for k in range(self._scene.ngeom):
+            geom = self._scene.geoms[k]
+            if geom.segid >= 0 and geom.objtype == mujoco.mjtObj.mjOBJ_GEOM:
+                lookup[geom.segid + 1] = geom.objid
+        segments = lookup[np.clip(code, 0, lookup.size - 1)]
+        return self._metric_depth(depth[::-1]), segments
+
+    def _metric_depth(self, buffer: F32) -> F32:
+        # reversed-Z perspective depth of the classic renderer back to metres (as mujoco.Renderer does)
+        extent = self._model.stat.extent
+        near = np.float32(self._model.vis.map.znear * extent)
+        far = np.float32(self._model.vis.map.zfar * extent)
+        c_coef = np.float32(-0.5) * (-(far + near) / (far - near)) - np.float32(0.5)
+        d_coef = np.float32(-0.5) * (-(np.float32(2) * far * near) / (far - near))
+        return np.asarray(d_coef / (buffer.astype(np.float64) + c_coef), dtype=np.float32)
+
+    def close(self) -> None:
+        """Free the OpenGL resources."""
+        self._context.make_current()
+        self._mjr.free()
+        self._context.free()

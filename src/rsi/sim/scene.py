@@ -1,0 +1,420 @@
+"""Seed §4: MJCF of the truss mock-up with its anomalies, materials, textures, lights and the ISEE camera.
+
+:func:`scene_mjcf` is pure (text and PNG bytes); :func:`build_model` compiles it with MuJoCo.
+
+Light groups (one basis image each, see :mod:`rsi.sim.render`):
+
+- ``"sun"``: the solar-simulator lamp (a spot light 3 m away on the mocap body ``solar_lamp``, cutoff
+  12 deg, exponent 0, shadows from a 2048 map: a directional light puts 1-px shadow acne on panels that
+  looks like flaws) and the room's dim ambient (seed §4: a room darkened by black curtains);
+- ``"strobe"``: the end-effector strobe (seed §2.1), a spot light beside the camera falling off as 1/d^2;
+- ``"lamps"``: the two end-effector halogen lamps (seed §3), likewise.
+
+Geom groups keep the pristine mock-up and the anomalous one in a single model: group 0 is common, group 3
+holds what anomalies add (impact spots, screw holes, defective components: the *inspection* state) and
+group 4 what they remove (removed screws, the original components: the *reference* state).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import cv2
+import numpy as np
+
+from rsi.sim.anomalies import AnomalySet, Impact, MissingScrew, SwappedComponent
+from rsi.sim.mockup import (
+    DOOR_HINGE_AXIS,
+    SCREW_RADIUS_M,
+    Mockup,
+    Part,
+    vector3,
+)
+
+if TYPE_CHECKING:
+    import mujoco
+
+COMMON_GROUP, ANOMALY_GROUP, PRISTINE_GROUP = 0, 3, 4
+
+# Render levels: the light's diffuse colour in the classic renderer, which returns
+# 255 * reflectance * level * cos(incidence) * attenuation (linear, measured). Each group's level fills
+# most of the 8-bit range on its own (a white Lambertian surface facing the lamp renders at 0.9 * 255), so
+# the uint8 basis images lose less than the camera's own 8-bit quantisation (see rsi.sim.render).
+SUN_LEVEL = 0.9
+STROBE_LEVEL = 0.2  # with 1/d^2 fall-off: 0.8 at the reference distance
+HALOGEN_LEVEL = 0.1  # each of two lamps: 0.8 together at the reference distance
+REFERENCE_DISTANCE_M = 0.5  # seed §2.1 inspection standoff at which strobe and lamps are calibrated
+LAMP_DISTANCE_M = 3.0
+LAMP_CUTOFF_DEG = 12.0
+SHADOW_MAP_PX = 2048
+STEREO_BASELINE_M = 0.06
+CAMERA_FOVY_DEG = 35.0  # 0.32 m x 0.32 m at 0.5 m: the seed's ~0.1 m^2 scene (seed §2.1)
+MAX_RENDER_PX = 2048
+DECAL_HALF_THICKNESS_M = 5e-5
+DECAL_LIFT_M = 1e-4  # above the surface: clear of depth-buffer fighting at 0.5 m
+
+LIGHT_GROUPS: dict[str, tuple[str, ...]] = {
+    "sun": ("solar_lamp", "room"),
+    "strobe": ("strobe",),
+    "lamps": ("halogen_0", "halogen_1"),
+}
+
+
+@dataclass(frozen=True)
+class Material:
+    """Optical look of a surface in the classic renderer.
+
+    Attributes
+    ----------
+    rgb : (float, float, float)
+        Diffuse reflectance (multiplied by the texture, whose mean is ~0.9).
+    specular : float
+        Specular reflectance in [0, 1].
+    shininess : float
+        Specular exponent / 128 in [0, 1].
+    texture : str or None
+        Procedural texture: ``"brushed"``, ``"grain"``, ``"cells"`` or None.
+    """
+
+    rgb: tuple[float, float, float]
+    specular: float
+    shininess: float
+    texture: str | None
+
+
+# Visible-band optics: polished aluminium is bright and specular (and of low thermal emissivity, seed §4),
+# black Kapton dark and glossy, solar cells dark blue with silver grid lines.
+MATERIALS: dict[str, Material] = {
+    "aluminium": Material((0.60, 0.61, 0.63), 0.5, 0.3, "brushed"),
+    "plate": Material((0.62, 0.62, 0.60), 0.15, 0.1, "grain"),
+    "kapton": Material((0.04, 0.035, 0.03), 0.35, 0.6, "grain"),
+    "solar_cell": Material((0.10, 0.13, 0.30), 0.3, 0.5, "cells"),
+    "cold_plate": Material((0.70, 0.55, 0.30), 0.4, 0.4, "grain"),
+    "connector": Material((0.18, 0.18, 0.19), 0.3, 0.3, None),
+    "screw": Material((0.60, 0.60, 0.62), 0.6, 0.5, None),
+    "hole": Material((0.02, 0.02, 0.02), 0.0, 0.0, None),
+}
+_PLATES = ("B_plate", "D_plate")  # bead-blasted plates: matte, so that they read differently from tanks
+_TEXTURE_PX = 256
+_TEXTURE_REPEAT_PER_M = 10.0  # one 256-texel tile per 0.1 m: ~0.4 mm texels, finer than a pixel at 0.5 m
+# Lights: the room is dark (seed §4, black curtains); its ambient is 0.5 % of the lamp's illuminance.
+ROOM_FRACTION = 0.005
+
+
+@dataclass(frozen=True)
+class SceneIndex:
+    """Names the renderer and the world need: which geoms show each anomaly.
+
+    Attributes
+    ----------
+    flaw_geoms : dict of int to tuple of str
+        Index into ``AnomalySet.anomalies`` -> geoms whose image is that anomaly's truth (inspection state).
+    pristine_geoms : dict of int to tuple of str
+        Index -> geoms of the pristine state it replaces (a removed screw's head, an original component).
+    """
+
+    flaw_geoms: dict[int, tuple[str, ...]]
+    pristine_geoms: dict[int, tuple[str, ...]]
+
+
+def _texture(kind: str) -> np.ndarray:
+    """A seamless grey texture of mean ~0.9 (uint8 RGB), fixed: the mock-up's surfaces do not change."""
+    rng = np.random.default_rng(1994)  # the seed paper's year: a fixed texture, not a per-world draw
+    side = _TEXTURE_PX
+    if kind == "cells":
+        # seed §4 C: square cells with silver fingers every 8 texels and a bus bar per cell
+        image = np.full((side, side), 0.85)
+        image[::8, :] = 1.0
+        image[:, ::64] = 1.0
+        image[::64, :] = 0.35
+        image[:, 63::64] = 0.35
+        image += 0.03 * rng.standard_normal((side, side))
+    else:
+        noise = rng.standard_normal((side, side))
+        # wrap-around filtering keeps the tile seamless
+        sigma = (0.6, 6.0) if kind == "brushed" else (1.2, 1.2)
+        smooth = cv2.GaussianBlur(np.tile(noise, (3, 3)), (0, 0), sigmaX=sigma[1], sigmaY=sigma[0])
+        smooth = smooth[side : 2 * side, side : 2 * side]
+        image = 0.9 + 0.06 * smooth / smooth.std()
+    grey = np.clip(np.rint(255 * image), 0, 255).astype(np.uint8)
+    return np.repeat(grey[:, :, None], 3, axis=2)
+
+
+def _png(image: np.ndarray) -> bytes:
+    ok, encoded = cv2.imencode(".png", image)
+    if not ok:  # pragma: no cover - OpenCV always encodes a uint8 RGB array
+        raise RuntimeError("OpenCV could not encode a texture as PNG.")
+    return bytes(encoded.tobytes())
+
+
+def _fmt(values: tuple[float, ...] | list[float] | np.ndarray) -> str:
+    return " ".join(f"{float(value):.6g}" for value in values)
+
+
+def _material_xml(name: str, material: Material, factor: float = 1.0) -> str:
+    rgb = _fmt([channel * factor for channel in material.rgb])
+    texture = ""
+    if material.texture is not None:
+        texture = (
+            f' texture="tex_{material.texture}" texuniform="true" '
+            f'texrepeat="{_TEXTURE_REPEAT_PER_M:g} {_TEXTURE_REPEAT_PER_M:g}"'
+        )
+    # emission 0 and reflectance 0: every pixel then comes from the lights, linearly (basis images add up)
+    return (
+        f'<material name="{name}" rgba="{rgb} 1" specular="{material.specular}" '
+        f'shininess="{material.shininess}" emission="0" reflectance="0"{texture}/>'
+    )
+
+
+def _geom_xml(
+    part: Part, *, group: int, material: str | None = None, origin: tuple[float, ...] = (0, 0, 0)
+) -> str:
+    pos = np.asarray(part.pos) - np.asarray(origin)
+    return (
+        f'<geom name="{part.name}" type="{part.shape}" size="{_fmt(part.size)}" pos="{_fmt(pos)}" '
+        f'zaxis="{_fmt(part.zaxis)}" material="{material or part.material}" group="{group}"/>'
+    )
+
+
+def _decal(
+    name: str, centre: np.ndarray, normal: np.ndarray, radius_m: float, *, material: str, lift_m: float
+) -> Part:
+    position = centre + normal * (lift_m + DECAL_HALF_THICKNESS_M)
+    return Part(
+        name,
+        "decal",
+        "cylinder",
+        (radius_m, DECAL_HALF_THICKNESS_M),
+        vector3(*position),
+        material,
+        vector3(*normal),
+    )
+
+
+def _impact_parts(index: int, impact: Impact) -> tuple[list[Part], list[str]]:
+    """Seed §2.4 flaw models: a uniformly darkened disc, or one with a darker crater centre ("peak")."""
+    centre, normal = np.asarray(impact.position_m), np.asarray(impact.normal)
+    parts = [
+        _decal(
+            f"impact_{index}",
+            centre,
+            normal,
+            impact.size_m / 2,
+            material=f"impact_{index}",
+            lift_m=DECAL_LIFT_M,
+        )
+    ]
+    materials = [f"impact_{index}"]
+    if impact.profile == "peak" and impact.centre_diameter_m > 0:
+        parts.append(
+            _decal(
+                f"impact_{index}_core",
+                centre,
+                normal,
+                impact.centre_diameter_m / 2,
+                material=f"impact_{index}_core",
+                lift_m=DECAL_LIFT_M + 2 * DECAL_HALF_THICKNESS_M,
+            )
+        )
+        materials.append(f"impact_{index}_core")
+    return parts, materials
+
+
+def _impact_materials(index: int, impact: Impact) -> list[str]:
+    base = MATERIALS["kapton" if impact.surface == "kapton" else "aluminium"]
+    if impact.site.startswith(("B_plate", "D_plate")):
+        base = MATERIALS["plate"]
+    if impact.site.startswith("C_"):
+        base = MATERIALS["solar_cell"]
+    flat = Material(base.rgb, 0.05, 0.1, None)  # tape and pen ink (seed §4) are matte
+    xml = [_material_xml(f"impact_{index}", flat, 1.0 - impact.darkening)]
+    if impact.profile == "peak":
+        xml.append(_material_xml(f"impact_{index}_core", flat, 1.0 - impact.centre_darkening))
+    return xml
+
+
+def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, bytes], SceneIndex]:
+    """MJCF text, its texture assets and the flaw index for a mock-up carrying `anomalies`.
+
+    Parameters
+    ----------
+    mockup : Mockup
+        The geometry (:func:`rsi.sim.mockup.truss_mockup`).
+    anomalies : AnomalySet
+        What to plant: impacts become dark decals, removed screws leave a hole, swapped components are
+        dented (a bulging facet) or discoloured. Thermal spots and leaks do not show in visible light.
+
+    Returns
+    -------
+    xml : str
+        The MJCF document.
+    assets : dict of str to bytes
+        PNG textures named as in `xml` (pass to ``mujoco.MjModel.from_xml_string``).
+    index : SceneIndex
+        Which geoms show each anomaly.
+    """
+    by_name = {part.name: part for part in mockup.parts}
+    materials = [_material_xml(name, material) for name, material in MATERIALS.items()]
+    anomaly_parts: list[Part] = []
+    pristine_names: set[str] = set()
+    door_parts: list[Part] = []
+    flaw_geoms: dict[int, tuple[str, ...]] = {}
+    pristine_geoms: dict[int, tuple[str, ...]] = {}
+    for index, anomaly in enumerate(anomalies.anomalies):
+        if isinstance(anomaly, Impact):
+            parts, _ = _impact_parts(index, anomaly)
+            materials += _impact_materials(index, anomaly)
+            (door_parts if anomaly.site == "A_door_face" else anomaly_parts).extend(parts)
+            flaw_geoms[index] = tuple(part.name for part in parts)
+        elif isinstance(anomaly, MissingScrew):
+            heads = (anomaly.site, f"{anomaly.site}_slot")
+            pristine_names.update(heads)
+            hole = _decal(
+                f"hole_{anomaly.site}",
+                np.asarray(anomaly.position_m),
+                np.asarray(anomaly.normal),
+                0.45 * SCREW_RADIUS_M,
+                material="hole",
+                lift_m=DECAL_LIFT_M,
+            )
+            anomaly_parts.append(hole)
+            flaw_geoms[index] = (hole.name,)
+            pristine_geoms[index] = heads
+        elif isinstance(anomaly, SwappedComponent):
+            originals = [by_name[name] for name in mockup.components[anomaly.site]]
+            pristine_names.update(part.name for part in originals)
+            if anomaly.defect == "discoloured":
+                copies = []
+                for part in originals:
+                    name = f"{part.name}_swapped"
+                    materials.append(_material_xml(name, _material_of(part), anomaly.reflectance_factor))
+                    copies.append(
+                        Part(name, part.component, part.shape, part.size, part.pos, name, part.zaxis)
+                    )
+                anomaly_parts += copies
+                flaw_geoms[index] = tuple(part.name for part in copies)
+            else:
+                anomaly_parts += [
+                    Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, _visual(p), p.zaxis)
+                    for p in originals
+                ]
+                dent = _dent(index, anomaly, originals[0])
+                anomaly_parts.append(dent)
+                flaw_geoms[index] = (dent.name,)
+            pristine_geoms[index] = tuple(part.name for part in originals)
+    hinge = np.asarray(mockup.door_hinge_m)
+    world_xml, door_xml = [], []
+    for part in mockup.parts:
+        group = PRISTINE_GROUP if part.name in pristine_names else COMMON_GROUP
+        if part.component == "A_door":
+            door_xml.append(_geom_xml(part, group=group, material=_visual(part), origin=tuple(hinge)))
+        else:
+            world_xml.append(_geom_xml(part, group=group, material=_visual(part)))
+    world_xml += [_geom_xml(part, group=ANOMALY_GROUP) for part in anomaly_parts]
+    door_xml += [_geom_xml(part, group=ANOMALY_GROUP, origin=tuple(hinge)) for part in door_parts]
+    textures = {kind: _png(_texture(kind)) for kind in ("brushed", "grain", "cells")}
+    texture_xml = [f'<texture name="tex_{kind}" type="2d" file="{kind}.png"/>' for kind in textures]
+    xml = _document(materials, texture_xml, world_xml, door_xml, hinge)
+    index_record = SceneIndex(flaw_geoms=flaw_geoms, pristine_geoms=pristine_geoms)
+    return xml, {f"{kind}.png": data for kind, data in textures.items()}, index_record
+
+
+def _visual(part: Part) -> str:
+    return "plate" if part.name in _PLATES else part.material
+
+
+def _material_of(part: Part) -> Material:
+    return MATERIALS[_visual(part)]
+
+
+def _dent(index: int, anomaly: SwappedComponent, part: Part) -> Part:
+    """A dent drawn as a shallow facet sunk `dent_depth_m` into the component at its site (seed §4)."""
+    normal = np.asarray(anomaly.normal)
+    radius = 0.03 + 2.0 * anomaly.dent_depth_m
+    # a flat disc pushed into the surface: the flat facet shades unlike the curved or painted skin around it
+    centre = np.asarray(anomaly.position_m) - normal * anomaly.dent_depth_m
+    lift = anomaly.dent_depth_m * 0.5
+    return _decal(f"dent_{index}", centre, normal, radius, material=_visual(part), lift_m=lift)
+
+
+def _document(
+    materials: list[str], textures: list[str], world: list[str], door: list[str], hinge: np.ndarray
+) -> str:
+    lamp_dir = "0 0 -1"
+    strobe = _spot("strobe", (0.0, 0.03, 0.0), STROBE_LEVEL, 32.0)
+    halogens = "".join(
+        _spot(f"halogen_{k}", (x, -0.03, 0.0), HALOGEN_LEVEL, 35.0) for k, x in enumerate((-0.05, 0.05))
+    )
+    half = STEREO_BASELINE_M / 2
+    room, sun = f"{ROOM_FRACTION * SUN_LEVEL:.6g}", f"{SUN_LEVEL} {SUN_LEVEL} {SUN_LEVEL}"
+    return f"""<mujoco model="rsi_truss_mockup">
+  <compiler angle="radian"/>
+  <statistic extent="3" center="0.9 0 1.2"/>
+  <visual>
+    <headlight active="0" ambient="0 0 0" diffuse="0 0 0" specular="0 0 0"/>
+    <global offwidth="{MAX_RENDER_PX}" offheight="{MAX_RENDER_PX}" fovy="{CAMERA_FOVY_DEG}"/>
+    <quality shadowsize="{SHADOW_MAP_PX}"/>
+    <map znear="0.004" zfar="20" haze="0"/>
+    <rgba fog="0 0 0 1" haze="0 0 0 1"/>
+  </visual>
+  <asset>
+    {"".join(textures)}
+    {"".join(materials)}
+  </asset>
+  <worldbody>
+    <light name="room" type="directional" pos="0.9 0 4" dir="0 0 -1" castshadow="false"
+           diffuse="0 0 0" specular="0 0 0" ambient="{room} {room} {room}"/>
+    <body name="solar_lamp" mocap="true" pos="0.9 -2.5 2.9">
+      <light name="solar_lamp" mode="fixed" type="spot" pos="0 0 0" dir="{lamp_dir}" castshadow="true"
+             cutoff="{LAMP_CUTOFF_DEG:g}" exponent="0" attenuation="1 0 0"
+             diffuse="{sun}" specular="{sun}" ambient="0 0 0"/>
+    </body>
+    <body name="isee" mocap="true" pos="0.3 -1 1.2">
+      <camera name="isee" pos="0 0 0" fovy="{CAMERA_FOVY_DEG}"/>
+      <camera name="isee_left" pos="{-half} 0 0" fovy="{CAMERA_FOVY_DEG}"/>
+      <camera name="isee_right" pos="{half} 0 0" fovy="{CAMERA_FOVY_DEG}"/>
+      <site name="isee_range" pos="0 0 0" zaxis="0 0 -1" size="0.005"/>
+      {strobe}{halogens}
+    </body>
+    {"".join(world)}
+    <body name="A_door" pos="{_fmt(hinge)}">
+      <joint name="A_door_hinge" type="hinge" axis="{_fmt(DOOR_HINGE_AXIS)}" range="0 1.92" limited="true"/>
+      {"".join(door)}
+    </body>
+  </worldbody>
+  <sensor>
+    <rangefinder name="isee_range" site="isee_range"/>
+  </sensor>
+</mujoco>"""
+
+
+def _spot(name: str, pos: tuple[float, float, float], level: float, cutoff_deg: float) -> str:
+    # 1/d^2 fall-off (attenuation 0 0 1) as for any small source; no shadows: the source is by the lens
+    return (
+        f'<light name="{name}" pos="{_fmt(pos)}" dir="0 0 -1" type="spot" castshadow="false" '
+        f'cutoff="{cutoff_deg:g}" exponent="0" attenuation="0 0 1" ambient="0 0 0" '
+        f'diffuse="{level} {level} {level}" specular="{level} {level} {level}"/>'
+    )
+
+
+def build_model(mockup: Mockup, anomalies: AnomalySet) -> tuple[mujoco.MjModel, SceneIndex]:
+    """Compile the mock-up with its anomalies into a MuJoCo model.
+
+    Parameters
+    ----------
+    mockup : Mockup
+        The geometry.
+    anomalies : AnomalySet
+        The anomalies to plant.
+
+    Returns
+    -------
+    model : mujoco.MjModel
+    index : SceneIndex
+    """
+    from rsi.sim.render import import_mujoco
+
+    mujoco_module: Any = import_mujoco()
+    xml, assets, index = scene_mjcf(mockup, anomalies)
+    return mujoco_module.MjModel.from_xml_string(xml, assets), index

@@ -1,0 +1,586 @@
+"""Seed §4: the World, a seeded mock-up with its anomalies, lamp, end-effector camera and frames.
+
+dm_control's Physics role: state (lamp, door, halogen lamps, time), named read-outs, rendering. Randomness
+comes from one seed split into independent streams (anomalies, viewpoint errors, camera noise), so the same
+seed and the same calls give the same frames bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi import _validate as v
+from rsi.errors import InputError
+from rsi.imaging.camera import DEFAULT_CAMERA, CameraModel, Frame, expose
+from rsi.sim import fields
+from rsi.sim.anomalies import AnomalySet, AnomalySettings, seed_anomalies
+from rsi.sim.mockup import Mockup, Vista, truss_mockup
+from rsi.sim.orbit import (
+    LAB_SUN_FRACTION,
+    SCENE_AREA_M2,
+    STROBE_LM_S,
+    SUN_ILLUMINANCE_LUX,
+    compensating_exposure,
+)
+from rsi.sim.render import STATES, CameraPose, SceneRenderer, import_mujoco
+from rsi.sim.scene import (
+    CAMERA_FOVY_DEG,
+    HALOGEN_LEVEL,
+    LIGHT_GROUPS,
+    MAX_RENDER_PX,
+    REFERENCE_DISTANCE_M,
+    STROBE_LEVEL,
+    SUN_LEVEL,
+    SceneIndex,
+    build_model,
+)
+from rsi.sim.solar_simulator import (
+    LampConfiguration,
+    LampTask,
+    forward_kinematics,
+    inverse_kinematics,
+    lamp_pose,
+)
+
+F32 = NDArray[np.float32]
+BoolArray = NDArray[np.bool_]
+
+SCENES = ("truss",)
+# Seed §2.3 viewpoint repeatability, as the image shift it causes at the vista's standoff: the lab arm
+# returns within 1-2 px; in orbit arm flexibility and thermal expansion give about 10 px.
+REPEATABILITY_PX: dict[str, tuple[float, float]] = {"lab": (1.0, 2.0), "space": (8.0, 12.0)}
+LAB_LAMP_LUX = LAB_SUN_FRACTION * SUN_ILLUMINANCE_LUX  # seed §4.1: 1.5 % of sunlight, 1950 lux
+STROBE_LUX_S = STROBE_LM_S / SCENE_AREA_M2  # seed §2.1: 1.3 lm s over 0.1 m^2 at the inspection standoff
+HALOGEN_LUX = 1500.0  # end-effector lamps' regulated illuminance at the standoff (rsi.sensors.LampController)
+DEFAULT_SIZE = (480, 640)  # the seed's video frame
+_TRUTH_DEPTH_TOLERANCE_M = 5e-3
+_MARKER_COLOURS = {
+    "hot_spot": (255, 64, 32),
+    "cold_spot": (64, 160, 255),
+    "gas_leak": (64, 255, 64),
+    "missing_screw": (255, 200, 0),
+    "impact": (255, 0, 255),
+    "swapped_component": (255, 128, 0),
+}
+
+
+@dataclass(frozen=True)
+class View:
+    """One visit of a vista point: the camera frame, its light basis, depth and ground truth.
+
+    Attributes
+    ----------
+    vista : str
+        Vista name.
+    state : {"inspection", "reference"}
+        Whether the anomalies were present ("reference" is the pristine mock-up, seed §2.3).
+    frame : Frame
+        Interlaced 8-bit frame, strobe in ``frame.lit_field`` (seed §2.1-2.2).
+    basis : dict of str to ndarray of shape (M, N), float32
+        Luminance of each light group alone, in render units 0..255 (see :mod:`rsi.sim.render`).
+    ambient_lux : ndarray of shape (M, N), float32
+        Reflectance-weighted ambient illuminance given to the camera model.
+    strobe_lux_s : ndarray of shape (M, N), float32
+        Reflectance-weighted strobe exposure given to the camera model.
+    depth_m : ndarray of shape (M, N), float32
+        Distance along the viewing axis (the far plane where nothing is hit).
+    flaw_masks : dict of int to ndarray of shape (M, N), bool
+        Index into ``World.anomalies.anomalies`` -> pixels showing that anomaly; only visible ones.
+    pose : CameraPose
+        The camera actually used (the vista plus this visit's error).
+    pose_error_px : (float, float)
+        Image shift (x = col, y = row) of the vista's target plane caused by this visit's pose error.
+    stereo : tuple of Frame or None
+        Left and right frames (baseline :data:`rsi.sim.scene.STEREO_BASELINE_M`) when asked for.
+    """
+
+    vista: str
+    state: str
+    frame: Frame
+    basis: dict[str, F32]
+    ambient_lux: F32
+    strobe_lux_s: F32
+    depth_m: F32
+    flaw_masks: dict[int, BoolArray]
+    pose: CameraPose
+    pose_error_px: tuple[float, float]
+    stereo: tuple[Frame, Frame] | None = field(default=None)
+
+    @property
+    def flaw_mask(self) -> BoolArray:
+        """Union of every visible anomaly's mask."""
+        union = np.zeros(self.frame.raw.shape, dtype=bool)
+        for mask in self.flaw_masks.values():
+            union |= mask
+        return union
+
+
+def _rotation(forward: NDArray[np.float64], up: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Camera rotation: columns right, up, backward (MuJoCo cameras look along -z)."""
+    back = -forward / np.linalg.norm(forward)
+    right = np.cross(up, back)
+    right /= np.linalg.norm(right)
+    return np.column_stack([right, np.cross(back, right), back])
+
+
+class World:
+    """A seeded truss mock-up: state, read-outs, frames and fields (seed §4).
+
+    Build it with :func:`load`. Rendering starts an OpenGL context on first use (see :mod:`rsi.sim.render`).
+    """
+
+    def __init__(
+        self,
+        mockup: Mockup,
+        anomalies: AnomalySet,
+        *,
+        seed: int,
+        repeatability: str = "lab",
+        camera: CameraModel = DEFAULT_CAMERA,
+    ) -> None:
+        self._mujoco: Any = import_mujoco()
+        self.mockup = mockup
+        self.anomalies = anomalies
+        self.repeatability = v.choice(repeatability, "repeatability", REPEATABILITY_PX)
+        self.camera = camera
+        self.seed = seed
+        poses, noise = np.random.SeedSequence([seed, 1]).spawn(2)
+        self._pose_rng = np.random.default_rng(poses)
+        self._noise_rng = np.random.default_rng(noise)
+        model, index = build_model(mockup, anomalies)
+        self.model: Any = model
+        self.index: SceneIndex = index
+        self.data: Any = self._mujoco.MjData(model)
+        self.time_s = 0.0
+        self.halogen_on = False
+        self._renderers: dict[tuple[int, int], SceneRenderer] = {}
+        self._lights = {
+            group: [self._id("light", name) for name in names] for group, names in LIGHT_GROUPS.items()
+        }
+        centre = (0.9, -0.47, 1.2)  # front of the middle bay
+        # seed §4.1: the pan range (theta 90-180 deg) puts the lamp on the +x side of its spot
+        self.lamp = inverse_kinematics(centre, intensity_lux=LAB_LAMP_LUX, rail_m=2.0)
+        self.set_lamp(self.lamp)
+
+    # ------------------------------------------------------------------------------------------ state
+
+    def _id(self, kind: str, name: str) -> int:
+        obj = getattr(self._mujoco.mjtObj, f"mjOBJ_{kind.upper()}")
+        return int(self._mujoco.mj_name2id(self.model, obj, name))
+
+    @property
+    def vistas(self) -> tuple[str, ...]:
+        """Names of the vista points."""
+        return tuple(self.mockup.vistas)
+
+    def vista(self, name: str) -> Vista:
+        """The vista point called `name` (InputError listing the names otherwise)."""
+        return self.mockup.vistas[v.choice(name, "vista", self.mockup.vistas)]
+
+    @property
+    def lamp_task(self) -> LampTask:
+        """Spot centre, beam half-angle and intensity the lamp now gives (seed §4.1 forward kinematics)."""
+        return forward_kinematics(self.lamp)
+
+    def set_lamp(self, configuration: LampConfiguration) -> None:
+        """Pose the solar-simulator lamp by its kinematics and set its beam (seed §4.1).
+
+        Parameters
+        ----------
+        configuration : LampConfiguration
+            ``(rho, theta, phi, lambda, gamma)``; the lamp body follows :func:`lamp_pose`, the spot light's
+            cutoff is the beam half-angle and its level the intensity at the spot centre.
+        """
+        task = forward_kinematics(configuration)
+        pose = lamp_pose(configuration)
+        head = pose.rotation_world_from_head
+        beam, pan = head[:, 0], head[:, 1]
+        # the light shines along the body's -z: body axes (o, o x n, -n) with n the beam axis
+        rotation = np.column_stack([pan, np.cross(pan, beam), -beam])
+        body = self._id("body", "solar_lamp")
+        mocap = int(self.model.body_mocapid[body])
+        self.data.mocap_pos[mocap] = pose.position_world_m
+        self._mujoco.mju_mat2Quat(self.data.mocap_quat[mocap], rotation.ravel())
+        light = self._id("light", "solar_lamp")
+        self.model.light_cutoff[light] = math.degrees(task.beam_angle_rad)
+        # 1/rho^2 fall-off, with the level SUN_LEVEL at the spot centre
+        self.model.light_attenuation[light] = (0.0, 0.0, 1.0 / configuration.rho_m**2)
+        self.lamp = configuration
+
+    def aim_lamp(
+        self, spot_world_m: object, *, light_from: object, intensity_lux: float = LAB_LAMP_LUX
+    ) -> None:
+        """Point the lamp at a spot, light arriving from `light_from`, at `intensity_lux` (seed §4.1 IK)."""
+        self.set_lamp(inverse_kinematics(spot_world_m, intensity_lux=intensity_lux, light_from=light_from))
+
+    def set_door(self, angle_rad: float) -> None:
+        """Open the ORU A door by `angle_rad` in [0, 1.92] (0 = closed): shows connectors and cold plate."""
+        angle = v.in_range(angle_rad, "angle_rad", low=0.0, high=1.92)
+        self.data.qpos[self.model.jnt_qposadr[self._id("joint", "A_door_hinge")]] = angle
+
+    @property
+    def door_angle_rad(self) -> float:
+        """Opening angle of the ORU A door."""
+        return float(self.data.qpos[self.model.jnt_qposadr[self._id("joint", "A_door_hinge")]])
+
+    def set_halogen(self, on: bool) -> None:
+        """Switch the end-effector halogen lamps (seed §3); they add to the ambient term of every frame."""
+        if not isinstance(on, bool):
+            raise InputError(f"on must be True or False; got {on!r}.")
+        self.halogen_on = on
+
+    def place_camera(self, position_m: object, forward: object, up: object = (0.0, 0.0, 1.0)) -> None:
+        """Move the end-effector camera (with its strobe and lamps) and update the read-outs."""
+        rotation = _rotation(np.asarray(forward, dtype=np.float64), np.asarray(up, dtype=np.float64))
+        mocap = int(self.model.body_mocapid[self._id("body", "isee")])
+        self.data.mocap_pos[mocap] = np.asarray(position_m, dtype=np.float64)
+        self._mujoco.mju_mat2Quat(self.data.mocap_quat[mocap], rotation.ravel())
+        self._mujoco.mj_forward(self.model, self.data)
+
+    def readouts(self) -> dict[str, float]:
+        """Named read-outs.
+
+        ``standoff_m`` (rangefinder along the view axis, -1 = no return), ``door_angle_rad``,
+        ``lamp_intensity_lux`` and ``time_s``.
+        """
+        self._mujoco.mj_forward(self.model, self.data)
+        return {
+            "standoff_m": float(self.data.sensor("isee_range").data[0]),
+            "door_angle_rad": self.door_angle_rad,
+            "lamp_intensity_lux": self.lamp_task.intensity_lux,
+            "time_s": self.time_s,
+        }
+
+    # ------------------------------------------------------------------------------------------ fields
+
+    def temperature_k(self, points_m: object) -> NDArray[np.float64]:
+        """Surface temperature at world points (seed §4: ambient plus the active Peltier spots)."""
+        return fields.surface_temperature_k(points_m, self.anomalies)
+
+    def gas_concentration_ppm(self, points_m: object, time_s: object) -> NDArray[np.float64]:
+        """Ammonia concentration at world points and times from the active leaks (seed §4)."""
+        return fields.gas_concentration_ppm(points_m, time_s, self.anomalies)
+
+    # ------------------------------------------------------------------------------------------ frames
+
+    def _renderer(self, shape: tuple[int, int]) -> SceneRenderer:
+        if shape not in self._renderers:
+            self._renderers[shape] = SceneRenderer(self.model, *shape)
+        return self._renderers[shape]
+
+    def basis(
+        self, camera: str = "isee", *, size: tuple[int, int] = DEFAULT_SIZE, state: str = "inspection"
+    ) -> dict[str, F32]:
+        """Luminance of each light group alone (render units 0..255, float32) from the current camera pose."""
+        renderer = self._renderer(_size(size))
+        return {
+            group: renderer.luminance(self.data, camera, state=state, lights=tuple(ids))
+            for group, ids in self._lights.items()
+        }
+
+    def render_all_lights(self, camera: str = "isee", *, size: tuple[int, int] = DEFAULT_SIZE) -> F32:
+        """Luminance with every light group on at once (to check that the basis images add up)."""
+        ids = tuple(i for group in self._lights.values() for i in group)
+        return self._renderer(_size(size)).luminance(self.data, camera, state="inspection", lights=ids)
+
+    def render(
+        self,
+        vista: str,
+        *,
+        size: tuple[int, int] = DEFAULT_SIZE,
+        state: str = "inspection",
+        stereo: bool = False,
+        lit_field: str = "odd",
+        exposure_s: float | None = None,
+    ) -> View:
+        """Visit a vista point and take a frame (seed §2.1-2.3).
+
+        Each call is a new visit: the camera pose misses the vista by an error drawn from this world's
+        generator (``repeatability``: "lab" 1-2 px, "space" ~10 px of image shift), so a reference and an
+        inspection frame of the same vista are mis-registered as on a real arm.
+
+        Parameters
+        ----------
+        vista : str
+            One of :attr:`vistas`.
+        size : (int, int)
+            (rows, cols) of the frame, each 16..2048.
+        state : {"inspection", "reference"}
+            With the anomalies, or the pristine mock-up the references are taken of.
+        stereo : bool
+            Also take left and right frames with the stereo baseline.
+        lit_field : {"odd", "even"}
+            Field the strobe lights (seed §2.2).
+        exposure_s : float or None
+            Shutter; None keeps the orbit's ambient-to-strobe ratio under the lamp's intensity
+            (seed §2.1, :func:`rsi.sim.orbit.compensating_exposure`).
+
+        Returns
+        -------
+        View
+        """
+        point = self.vista(vista)
+        shape = _size(size)
+        v.choice(state, "state", STATES)
+        v.choice(lit_field, "lit_field", ("odd", "even"))
+        intensity = self.lamp_task.intensity_lux
+        seconds = (
+            compensating_exposure(intensity).lab_exposure_s
+            if exposure_s is None
+            else v.in_range(exposure_s, "exposure_s", low=0.0, low_inclusive=False)
+        )
+        forward, up = np.asarray(point.forward), np.asarray(point.up)
+        rotation = _rotation(forward, up)
+        fovy = math.radians(CAMERA_FOVY_DEG)
+        focal = shape[0] / 2 / math.tan(fovy / 2)
+        low, high = REPEATABILITY_PX[self.repeatability]
+        magnitude, angle = self._pose_rng.uniform(low, high), self._pose_rng.uniform(0.0, 2 * math.pi)
+        # a lateral camera offset t shifts the target plane by -t * f / standoff in the image
+        offset_px = np.array([math.cos(angle), math.sin(angle)]) * magnitude
+        offset_m = offset_px * point.standoff_m / focal
+        position = np.asarray(point.position_m) + offset_m[0] * rotation[:, 0] + offset_m[1] * rotation[:, 1]
+        self.place_camera(position, forward, up)
+        pose = CameraPose(position, rotation, fovy, shape)
+        settings: dict[str, Any] = {
+            "state": state,
+            "lit_field": lit_field,
+            "seconds": seconds,
+            "intensity": intensity,
+        }
+        frame, basis, ambient, strobe = self._frame("isee", shape, **settings)
+        renderer = self._renderer(shape)
+        depth, segments = renderer.depth_and_segments(self.data, "isee", state=state)
+        masks = self._truth(pose, depth, segments, state) if state == "inspection" else {}
+        pair = None
+        if stereo:
+            pair = (
+                self._frame("isee_left", shape, **settings)[0],
+                self._frame("isee_right", shape, **settings)[0],
+            )
+        return View(
+            vista,
+            state,
+            frame,
+            basis,
+            ambient,
+            strobe,
+            depth,
+            masks,
+            pose,
+            (float(-offset_px[0]), float(offset_px[1])),
+            pair,
+        )
+
+    def _frame(
+        self,
+        camera: str,
+        shape: tuple[int, int],
+        *,
+        state: str,
+        lit_field: str,
+        seconds: float,
+        intensity: float,
+    ) -> tuple[Frame, dict[str, F32], F32, F32]:
+        renderer = self._renderer(shape)
+        groups = ("sun", "strobe", "lamps") if self.halogen_on else ("sun", "strobe")
+        basis = {
+            g: renderer.luminance(self.data, camera, state=state, lights=tuple(self._lights[g]))
+            for g in groups
+        }
+        # render units -> lux: 255 * level is a white surface facing the light at its calibration point
+        ambient = basis["sun"] * np.float32(intensity / (255 * SUN_LEVEL))
+        at_reference = 1.0 / REFERENCE_DISTANCE_M**2
+        if self.halogen_on:
+            ambient = ambient + basis["lamps"] * np.float32(
+                HALOGEN_LUX / (255 * 2 * HALOGEN_LEVEL * at_reference)
+            )
+        strobe = basis["strobe"] * np.float32(STROBE_LUX_S / (255 * STROBE_LEVEL * at_reference))
+        frame = expose(
+            ambient, strobe, exposure_s=seconds, camera=self.camera, lit_field=lit_field, rng=self._noise_rng
+        )
+        return frame, basis, ambient, strobe
+
+    def _truth(
+        self, pose: CameraPose, depth: F32, segments: NDArray[np.int32], state: str
+    ) -> dict[int, BoolArray]:
+        """Pixels of each anomaly: its geoms in the frame, and where it replaced pristine geoms (seed §4)."""
+        masks: dict[int, BoolArray] = {}
+        renderer = self._renderer(pose.shape)
+        pristine = None
+        if self.index.pristine_geoms:
+            pristine = renderer.depth_and_segments(self.data, "isee", state="reference")[1]
+        for index, names in self.index.flaw_geoms.items():
+            ids = [self._id("geom", name) for name in names]
+            mask = np.isin(segments, ids)
+            if pristine is not None and index in self.index.pristine_geoms:
+                mask |= np.isin(pristine, [self._id("geom", n) for n in self.index.pristine_geoms[index]])
+            # a flaw smaller than a pixel still marks the pixel its centre falls in, if nothing hides it
+            anomaly = self.anomalies.anomalies[index]
+            xy, along = pose.project(np.asarray([anomaly.position_m]))
+            col, row = (round(c) for c in xy[0])
+            if (
+                0 <= row < pose.shape[0]
+                and 0 <= col < pose.shape[1]
+                and abs(depth[row, col] - along[0]) < _TRUTH_DEPTH_TOLERANCE_M
+            ):
+                mask[row, col] = True
+            if mask.any():
+                masks[index] = mask
+        return masks
+
+    def overview_picture(self, *, size: tuple[int, int] = DEFAULT_SIZE) -> NDArray[np.uint8]:
+        """Colour picture (RGB uint8) of the whole mock-up from the overview vista, anomalies marked.
+
+        Markers: circles coloured by kind (hot spot red, cold spot blue, leak green, missing screw yellow,
+        impact magenta, swapped component orange) with the anomaly's index.
+        """
+        shape = _size(size)
+        point = self.vista("overview")
+        self.place_camera(point.position_m, point.forward, point.up)
+        renderer = self._renderer(shape)
+        ids = tuple(self._lights["sun"])
+        room = self._id("light", "room")
+        saved = self.model.light_ambient[room].copy()
+        self.model.light_ambient[room] = 0.25  # a lit room for people to see the whole mock-up by
+        try:
+            image = renderer.rgb(self.data, "isee", state="inspection", lights=ids)
+        finally:
+            self.model.light_ambient[room] = saved
+        pose = CameraPose(
+            np.asarray(point.position_m),
+            _rotation(np.asarray(point.forward), np.asarray(point.up)),
+            math.radians(CAMERA_FOVY_DEG),
+            shape,
+        )
+        picture = np.ascontiguousarray(image)
+        radius = max(4, shape[0] // 60)
+        for k, anomaly in enumerate(self.anomalies.anomalies):
+            xy, _ = pose.project(np.asarray([anomaly.position_m]))
+            centre = (round(xy[0, 0]), round(xy[0, 1]))
+            colour = _MARKER_COLOURS[anomaly.kind]
+            cv2.circle(picture, centre, radius, colour, 2, cv2.LINE_AA)
+            cv2.putText(
+                picture,
+                str(k),
+                (centre[0] + radius, centre[1] - radius),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.4,
+                colour,
+                1,
+                cv2.LINE_AA,
+            )
+        return picture
+
+    def close(self) -> None:
+        """Free every renderer's OpenGL context."""
+        for renderer in self._renderers.values():
+            renderer.close()
+        self._renderers.clear()
+
+
+def _size(size: object) -> tuple[int, int]:
+    if not isinstance(size, tuple) or len(size) != 2:
+        raise InputError(f"size must be a (rows, cols) tuple; got {size!r}. Try size=(480, 640).")
+    rows, cols = (v.positive_int(side, "size", minimum=16) for side in size)
+    if max(rows, cols) > MAX_RENDER_PX:
+        raise InputError(f"size must be at most {MAX_RENDER_PX} pixels a side; got {size!r}.")
+    return (rows, cols)
+
+
+def load(
+    scene: str = "truss",
+    *,
+    seed: int,
+    repeatability: str = "lab",
+    settings: AnomalySettings | None = None,
+    camera: CameraModel = DEFAULT_CAMERA,
+) -> World:
+    """Build a seeded world (seed §4): the mock-up with anomalies drawn from `seed`.
+
+    Parameters
+    ----------
+    scene : {"truss"}
+        The mock-up.
+    seed : int
+        Seed of every random choice (anomalies, viewpoint errors, camera noise), >= 0.
+    repeatability : {"lab", "space"}
+        Viewpoint repeatability of each vista visit (seed §2.3).
+    settings : AnomalySettings, optional
+        Anomaly counts and ranges (defaults of :class:`rsi.sim.anomalies.AnomalySettings`).
+    camera : CameraModel
+        The inspection camera (seed §2.1).
+
+    Returns
+    -------
+    World
+    """
+    v.choice(scene, "scene", SCENES)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed must be an integer >= 0; got {seed!r}.")
+    mockup = truss_mockup()
+    streams = np.random.SeedSequence([int(seed), 0])
+    anomalies = seed_anomalies(mockup.candidates, rng=np.random.default_rng(streams), settings=settings)
+    return World(mockup, anomalies, seed=int(seed), repeatability=repeatability, camera=camera)
+
+
+def render_vista_to_folder(
+    world: World,
+    vista: str,
+    out_dir: str | Path,
+    *,
+    size: tuple[int, int] = DEFAULT_SIZE,
+    state: str = "inspection",
+) -> dict[str, Path]:
+    """Visit `vista` and write the frame (PNG), ambient/strobe exposures (float TIFF), depth (float TIFF),
+    the flaw mask (PNG) and the truth (JSON) into `out_dir` atomically.
+
+    Returns
+    -------
+    dict of str to Path
+        ``frame``, ``ambient``, ``strobe``, ``depth``, ``mask``, ``truth``.
+    """
+    from rsi._files import atomic_write_bytes
+    from rsi.imaging.io import write_image
+
+    view = world.render(vista, size=size, state=state)
+    folder = Path(out_dir)
+    stem = f"{vista}_{state}"
+    paths = {
+        "frame": folder / f"{stem}_frame.png",
+        "ambient": folder / f"{stem}_ambient_lux.tif",
+        "strobe": folder / f"{stem}_strobe_lux_s.tif",
+        "depth": folder / f"{stem}_depth_m.tif",
+        "mask": folder / f"{stem}_flaw_mask.png",
+        "truth": folder / f"{stem}_truth.json",
+    }
+    write_image(paths["frame"], view.frame.raw)
+    write_image(paths["ambient"], view.ambient_lux)
+    write_image(paths["strobe"], view.strobe_lux_s)
+    write_image(paths["depth"], view.depth_m)
+    write_image(paths["mask"], (view.flaw_mask * np.uint8(255)).astype(np.uint8))
+    visible = {
+        str(k): [int(n) for n in np.argwhere(mask).mean(axis=0)[::-1]] for k, mask in view.flaw_masks.items()
+    }
+    truth = {
+        "seed": world.seed,
+        "vista": vista,
+        "state": state,
+        "lit_field": view.frame.lit_field,
+        "exposure_s": view.frame.exposure_s,
+        "pose_error_px": list(view.pose_error_px),
+        "camera_position_m": view.pose.position_m.tolist(),
+        "camera_rotation": view.pose.rotation.tolist(),
+        "fovy_rad": view.pose.fovy_rad,
+        "visible_anomaly_centres_xy": visible,
+        "anomalies": world.anomalies.to_dict(),
+    }
+    atomic_write_bytes(paths["truth"], json.dumps(truth, indent=2).encode("utf-8"))
+    return paths

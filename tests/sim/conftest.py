@@ -1,0 +1,21 @@
+"""One world for the simulator tests: building and rendering cost seconds, so share it per module."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.sim.world import World, load
+
+SEED = 3  # five impacts on the solar panel, a missing screw and a dented tank
+
+
+@pytest.fixture(scope="module")
+def world() -> Iterator[World]:
+    built = load("truss", seed=SEED)
+    yield built
+    built.close()

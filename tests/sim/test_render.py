@@ -1,0 +1,76 @@
+"""Rendering: basis images add up, no shadow acne, clear error for a missing backend."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+
+from rsi.sim.world import World
+
+SIZE = (120, 160)
+
+
+def test_basis_images_add_up_to_the_all_lights_render(world: World) -> None:
+    point = world.vista("D_tubing")
+    world.place_camera(point.position_m, point.forward, point.up)
+    model = world.model
+    saved = [model.light_diffuse.copy(), model.light_specular.copy(), model.light_ambient.copy()]
+    # The classic renderer clamps the lit colour to 1 before multiplying by the texture, so lights whose sum
+    # passes 1 clip unseen; at a third of the levels no sum of the three groups does.
+    model.light_diffuse[:] = saved[0] / 3.0
+    model.light_specular[:] = saved[1] / 3.0
+    model.light_ambient[:] = saved[2] / 3.0
+    try:
+        basis = world.basis(size=SIZE)
+        together = world.render_all_lights(size=SIZE)
+    finally:
+        model.light_diffuse[:], model.light_specular[:], model.light_ambient[:] = saved
+    lit = together > 0
+    assert lit.mean() > 0.5
+    difference = (sum(basis.values()) - together)[lit]
+    # three uint8 renders, each rounded: within 1.5 render units, plus the luminance weights' rounding
+    assert np.abs(difference).max() <= 2.0
+    assert abs(float(difference.mean())) < 0.25
+
+
+def test_lamp_on_a_flat_panel_leaves_no_isolated_dark_dots(world: World) -> None:
+    point = world.vista("A_kapton")
+    world.place_camera(point.position_m, point.forward, point.up)
+    size = (240, 320)
+    sun = world.basis(size=size)["sun"]
+    _, segments = world._renderer(size).depth_and_segments(world.data, "isee", state="inspection")
+    panel = np.isin(segments, [world._id("geom", name) for name in ("A_fill", "A_body")])
+    panel = cv2.erode(panel.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    assert panel.sum() > 5000
+    assert np.median(sun[panel]) > 60  # the lamp lights the face
+    local = cv2.medianBlur(np.clip(sun, 0, 255).astype(np.uint8), 5).astype(np.float32)
+    dark = (sun < 0.7 * local) & panel
+    _count, _labels, stats, _ = cv2.connectedComponentsWithStats(dark.astype(np.uint8), connectivity=8)
+    isolated = int(np.sum(stats[1:, cv2.CC_STAT_AREA] <= 2))
+    assert isolated == 0
+
+
+def test_an_unknown_gl_backend_fails_only_when_rendering_with_a_clear_error() -> None:
+    code = (
+        "import rsi.sim as s; w = s.load('truss', seed=1); print('built', len(w.anomalies));\n"
+        "try:\n    w.render('A_door', size=(32, 32))\n"
+        "except Exception as e:\n    print(type(e).__name__, e)"
+    )
+    environment = {**os.environ, "MUJOCO_GL": "nonsense"}
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=environment, check=True
+    )
+    assert "built" in result.stdout
+    assert "RenderBackendError" in result.stdout
+    assert "MUJOCO_GL='nonsense'" in result.stdout and "apt-get install" in result.stdout
+
+
+@pytest.mark.parametrize("size", [(8, 64), (64, 4096), [64, 64]])
+def test_bad_sizes_are_refused(world: World, size: object) -> None:
+    with pytest.raises(ValueError, match="size"):
+        world.render("A_door", size=size)  # type: ignore[arg-type]

@@ -1,0 +1,67 @@
+"""The mock-up's geometry and its MJCF: parts, candidates, vistas, anomaly groups, cheap import."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+
+from rsi.sim.anomalies import AnomalySettings, seed_anomalies
+from rsi.sim.mockup import BAY_M, BAYS, truss_mockup
+from rsi.sim.scene import ANOMALY_GROUP, PRISTINE_GROUP, build_model, scene_mjcf
+
+
+def test_importing_rsi_sim_does_not_import_mujoco() -> None:
+    code = "import sys, rsi.sim; print('mujoco' in sys.modules)"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == "False"
+
+
+def test_mockup_has_the_seed_components_and_enough_candidates() -> None:
+    mockup = truss_mockup()
+    components = {part.component for part in mockup.parts}
+    assert {"truss", "A", "A_door", "B", "C", "D"} <= components
+    assert len(mockup.candidates.peltier_sites) >= 4
+    assert len(mockup.candidates.leak_sites) == 3
+    assert len(mockup.candidates.screw_sites) >= 16
+    assert {"A_door", "A_kapton", "B_tank", "C_panel", "D_tubing", "overview"} <= set(mockup.vistas)
+    span = [part.pos[0] for part in mockup.parts if part.component == "truss"]
+    assert min(span) >= -0.05 and max(span) <= BAY_M * BAYS + 0.05
+
+
+def test_vistas_look_at_their_target_from_the_standoff() -> None:
+    for vista in truss_mockup().vistas.values():
+        offset = np.asarray(vista.target_m) - np.asarray(vista.position_m)
+        assert np.linalg.norm(offset) == np.float64(vista.standoff_m) or np.isclose(
+            np.linalg.norm(offset), vista.standoff_m
+        )
+        assert np.allclose(offset / np.linalg.norm(offset), vista.forward)
+        assert abs(np.dot(vista.forward, vista.up)) < 1e-12
+
+
+def test_anomalies_go_to_their_geom_groups() -> None:
+    mockup = truss_mockup()
+    settings = AnomalySettings(missing_screw_count=2, impact_count=3, swapped_component_count=1)
+    anomalies = seed_anomalies(mockup.candidates, rng=5, settings=settings)
+    model, index = build_model(mockup, anomalies)
+    import mujoco
+
+    def group(name: str) -> int:
+        return int(model.geom_group[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)])
+
+    kinds = [anomaly.kind for anomaly in anomalies.anomalies]
+    for position, kind in enumerate(kinds):
+        if kind in ("impact", "missing_screw", "swapped_component"):
+            assert all(group(name) == ANOMALY_GROUP for name in index.flaw_geoms[position])
+        if kind in ("missing_screw", "swapped_component"):
+            assert all(group(name) == PRISTINE_GROUP for name in index.pristine_geoms[position])
+    assert sum(kind == "impact" for kind in kinds) == 3
+
+
+def test_mjcf_has_no_emission_and_spot_lamp() -> None:
+    mockup = truss_mockup()
+    xml, assets, _ = scene_mjcf(mockup, seed_anomalies(mockup.candidates, rng=0))
+    assert 'emission="0"' in xml and 'type="directional"' in xml  # only the room's ambient is directional
+    assert 'name="solar_lamp" mode="fixed" type="spot"' in xml
+    assert set(assets) == {"brushed.png", "grain.png", "cells.png"}

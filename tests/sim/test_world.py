@@ -1,0 +1,133 @@
+"""The World: determinism, flaws where the truth says, mis-registration per visit, folders, bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rsi
+from rsi.errors import InputError
+from rsi.imaging.compensation import compensate_interlaced
+from rsi.sim.world import REPEATABILITY_PX, World, load, render_vista_to_folder
+
+SMALL = (120, 160)
+SEED = 3  # the conftest world's seed: five impacts on the solar panel
+
+
+def test_same_seed_same_world_and_frames_different_seed_different_anomalies(world: World) -> None:
+    twin = load("truss", seed=SEED)
+    try:
+        assert twin.anomalies == world.anomalies
+        first, second = twin.render("B_tank", size=SMALL), load_and_render()
+        assert np.array_equal(first.frame.raw, second.frame.raw)
+        assert first.pose_error_px == second.pose_error_px
+    finally:
+        twin.close()
+    assert load("truss", seed=SEED + 1).anomalies != world.anomalies
+
+
+def load_and_render() -> object:
+    other = load("truss", seed=SEED)
+    try:
+        return other.render("B_tank", size=SMALL)
+    finally:
+        other.close()
+
+
+def test_every_visible_flaw_is_dark_where_its_mask_says(world: World) -> None:
+    view = world.render("C_panel", size=(480, 640))
+    assert len(view.flaw_masks) >= 4  # this seed plants its impacts on the panel
+    compensated = compensate_interlaced(view.frame)
+    field = compensated.image
+    background = float(np.median(field))
+    checked = 0
+    for index, mask in view.flaw_masks.items():
+        rows = mask[1::2][: field.shape[0]]  # the strobe-lit (odd) rows of the frame
+        if rows.sum() < 2:
+            continue  # below the field's resolution: a spot of < 2 field pixels hides in the noise
+        anomaly = world.anomalies.anomalies[index]
+        assert anomaly.kind in ("impact", "missing_screw", "swapped_component")
+        assert float(field[rows].min()) < 0.8 * background, (index, anomaly)
+        checked += 1
+    assert checked >= 3
+
+
+def test_reference_and_inspection_visits_are_misregistered_by_the_drawn_error(world: World) -> None:
+    first = world.render("D_tubing", size=(240, 320), state="reference")
+    second = world.render("D_tubing", size=(240, 320), state="reference")
+    low, high = REPEATABILITY_PX["lab"]
+    for view in (first, second):
+        assert low <= float(np.hypot(*view.pose_error_px)) <= high
+    result = rsi.register(compensate_interlaced(first.frame).image, compensate_interlaced(second.frame).image)
+    dx, dy_field = result.translation_xy
+    expected = np.subtract(second.pose_error_px, first.pose_error_px)
+    # field images have every other row: vertical shifts halve
+    assert abs(dx - expected[0]) < 0.35
+    assert abs(2 * dy_field - expected[1]) < 0.5
+
+
+def test_stereo_depth_and_readouts(world: World) -> None:
+    view = world.render("B_tank", size=SMALL, stereo=True)
+    assert view.stereo is not None
+    left, right = view.stereo
+    assert not np.array_equal(left.raw, right.raw)
+    centre = view.depth_m[SMALL[0] // 2, SMALL[1] // 2]
+    assert abs(centre - 0.5) < 0.02  # the tank's front at the 0.5 m standoff
+    assert abs(world.readouts()["standoff_m"] - 0.5) < 0.02
+
+
+def test_door_opens_and_fields_delegate(world: World) -> None:
+    world.set_door(1.5)
+    assert world.readouts()["door_angle_rad"] == 1.5
+    world.set_door(0.0)
+    spots = world.anomalies.thermal_spots
+    assert len(spots) == 2
+    temperatures = world.temperature_k([spot.position_m for spot in spots])
+    assert np.allclose(np.abs(temperatures - 293.15), 30.0)
+    leak = world.anomalies.gas_leaks[0]
+    ahead = np.asarray(leak.position_m) + 0.05 * np.asarray(leak.normal)
+    assert world.gas_concentration_ppm([ahead], leak.start_time_s + 60.0)[0] > 0
+
+
+def test_render_vista_to_folder_writes_frames_depth_and_truth(world: World, tmp_path: Path) -> None:
+    paths = render_vista_to_folder(world, "C_panel", tmp_path, size=SMALL)
+    assert all(path.exists() for path in paths.values())
+    truth = json.loads(paths["truth"].read_text())
+    assert truth["seed"] == SEED and truth["anomalies"]["counts"]["impact"] == 5
+
+
+def test_overview_picture_is_colour_and_marked(world: World) -> None:
+    picture = world.overview_picture(size=SMALL)
+    assert picture.shape == (*SMALL, 3) and picture.dtype == np.uint8
+    assert picture[..., 0].max() == 255  # magenta/red markers
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda w: w.render("nowhere"), "vista"),
+        (lambda w: w.render("A_door", state="later"), "state"),
+        (lambda w: w.set_door(3.0), "angle_rad"),
+        (lambda w: w.set_halogen(1), "on"),
+        (lambda w: w.aim_lamp((0.9, -0.47, 1.2), light_from=(-1.0, -1.0, 0.0)), "light_from"),
+    ],
+)
+def test_bad_input_is_refused_with_its_name(world: World, call: object, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        call(world)  # type: ignore[operator]
+
+
+@pytest.mark.parametrize(("scene", "seed"), [("station", 1), ("truss", -1), ("truss", 1.5), ("truss", True)])
+def test_bad_scene_or_seed_is_refused(scene: str, seed: object) -> None:
+    with pytest.raises(InputError):
+        load(scene, seed=seed)  # type: ignore[arg-type]
+
+
+def test_bad_folder_is_refused(world: World, tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(InputError):
+        render_vista_to_folder(world, "A_door", blocker / "inside", size=SMALL)
