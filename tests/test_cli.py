@@ -269,3 +269,30 @@ def test_import_and_help_stay_light() -> None:
     code = "import sys, rsi.cli; print(sorted({'numpy', 'cv2', 'matplotlib', 'scipy'} & set(sys.modules)))"
     completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert completed.stdout.strip() == "[]"
+
+
+def test_sim_render_writes_both_visits_the_truth_and_the_overview(tmp_path: Path) -> None:
+    result = invoke("sim", "render", "--seed", "3", "--vista", "C_panel", "--rows", "120", "--cols", "160",
+                    "--out", tmp_path)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    for state in ("reference", "inspection"):
+        assert (tmp_path / f"C_panel_{state}_frame.png").read_bytes().startswith(PNG_SIGNATURE)
+        truth = json.loads((tmp_path / f"C_panel_{state}_truth.json").read_text())
+        assert truth["seed"] == 3 and truth["vista"] == "C_panel"
+    assert (tmp_path / "overview.png").read_bytes().startswith(PNG_SIGNATURE)
+    assert "impact" in result.stdout
+
+
+def test_sim_sun_writes_the_lamp_trajectory(tmp_path: Path) -> None:
+    result = invoke("sim", "sun", "--orbits", "0.2", "--step-s", "30", "--out", tmp_path)
+    assert result.exit_code == 0, result.output
+    header = (tmp_path / "sun_path.csv").read_text().splitlines()[0]
+    assert header.startswith("time_s,orbit_angle_deg,sunlit")
+    assert "Period 92.6 min" in result.stdout  # 400 km: 2 pi sqrt(a^3 / mu) = 5553.6 s
+
+
+@pytest.mark.parametrize("command", ["render", "sun"])
+def test_sim_unknown_vista_is_an_invalid_value(command: str, tmp_path: Path) -> None:
+    result = invoke("sim", command, "--vista", "Z_roof", "--out", tmp_path)
+    assert result.exit_code == cli.EXIT_INVALID_VALUE
+    assert "vista='Z_roof' is not known" in result.stderr

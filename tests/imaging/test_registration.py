@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from rsi.errors import InputError
 from rsi.imaging import _gauss_newton, _pyramid
 from rsi.imaging._warps import map_points, sample
-from rsi.imaging.registration import MODELS, Registration, register
+from rsi.imaging.registration import MODELS, Registration, prepare_reference, register
 
 SIDE_PX = 256
 SUBPIXEL_PX = 0.02  # stated accuracy on clean synthetic pairs, seed §2.3 residual mis-registration
@@ -334,7 +334,121 @@ def test_sampling_every_other_row_equals_every_row(matrix: NDArray[np.float64]) 
 def test_large_image_uses_every_other_row_and_stays_accurate() -> None:
     reference = texture(side_px=512, seed=4)
     inspection = 1.1 * shifted(reference, (9.6, -8.3)) + 0.03
-    assert _gauss_newton._row_step(_pyramid.build_levels(reference, inspection, None, 1)[0]) == 2
+    assert _gauss_newton._row_step(_pyramid.reference_pyramid(reference, None, 1)[0][0].shape) == 2
     result = register(reference, inspection)
     assert result.converged
     np.testing.assert_allclose(result.translation_xy, (9.6, -8.3), atol=SUBPIXEL_PX)
+
+
+PREPARED_CASES = [
+    ("translation", TRUTHS["translation"]),
+    ("translation", np.array([[1.0, 0.0, -31.4], [0.0, 1.0, 27.9], [0.0, 0.0, 1.0]])),
+    ("euclidean", TRUTHS["euclidean"]),
+    ("affine", TRUTHS["affine"]),
+    ("homography", TRUTHS["homography"]),
+]
+
+
+@pytest.mark.parametrize(("model", "truth"), PREPARED_CASES)
+@pytest.mark.parametrize("photometric", [True, False])
+def test_prepared_reference_gives_the_cold_answer(
+    model: str, truth: NDArray[np.float64], photometric: bool
+) -> None:
+    # Seed §2.3: the Jacobian terms are precomputed once; registering to them must change nothing.
+    reference = texture(sigma_px=2.0)
+    inspection = warped(reference, truth)
+    if photometric:
+        inspection = 1.1 * inspection + 0.03
+    cold = register(reference, inspection, model=model, photometric=photometric)
+    prepared = prepare_reference(reference, model=model, photometric=photometric)
+    for _ in range(2):  # and the prepared reference is not changed by use
+        warm = register(prepared, inspection)
+        np.testing.assert_allclose(warm.matrix, cold.matrix, atol=1e-6)
+        assert (warm.gain, warm.bias, warm.iterations, warm.reason) == (
+            cold.gain,
+            cold.bias,
+            cold.iterations,
+            cold.reason,
+        )
+        assert warm.model == model and warm.residual_rms == pytest.approx(cold.residual_rms, rel=1e-6)
+    assert corner_error_px(cold.matrix, truth) < SUBPIXEL_PX
+
+
+def test_prepared_reference_with_mask_and_flaw_gives_the_cold_answer() -> None:
+    reference = texture()
+    inspection = shifted(reference, (2.0, 1.0))
+    inspection[60:110, 60:110] = 1.0
+    inspection[150:160, 180:190] += 0.5  # an unmasked flaw, trimmed
+    mask = np.ones(reference.shape, dtype=bool)
+    mask[50:115, 50:115] = False
+    cold = register(reference, inspection, mask=mask)
+    warm = register(prepare_reference(reference, mask=mask), inspection)
+    np.testing.assert_allclose(warm.matrix, cold.matrix, atol=1e-6)
+    np.testing.assert_allclose(warm.translation_xy, (2.0, 1.0), atol=SUBPIXEL_PX)
+
+
+def test_prepared_reference_with_a_smaller_inspection() -> None:
+    # Fewer levels are needed than were prepared: the coarsest ones are left unused.
+    reference = texture(side_px=512, seed=4)
+    inspection = shifted(reference, (3.5, 2.5))[10:200, 20:230]
+    prepared = prepare_reference(reference)
+    warm = register(prepared, inspection)
+    np.testing.assert_allclose(warm.matrix, register(reference, inspection).matrix, atol=1e-6)
+    np.testing.assert_allclose(warm.translation_xy, (3.5 - 20.0, 2.5 - 10.0), atol=SUBPIXEL_PX)
+
+
+def test_prepared_reference_is_frozen_and_read_only() -> None:
+    prepared = prepare_reference(texture(), model="affine", photometric=False)
+    assert (prepared.model, prepared.photometric, prepared.masked, prepared.shape) == (
+        "affine",
+        False,
+        False,
+        (SIDE_PX, SIDE_PX),
+    )
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        prepared.model = "translation"  # type: ignore[misc]
+    with pytest.raises(ValueError, match="read-only"):
+        prepared.images[0][0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        prepared.terms[0].jacobian[0, 0] = 1.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "argument"),
+    [
+        ({"reference": np.zeros((8, 8, 3))}, "reference"),
+        ({"reference": [[0.0, 1.0], [1.0, 0.0]]}, "reference"),
+        ({"model": "projective"}, "model"),
+        ({"photometric": 1}, "photometric"),
+        ({"mask": np.ones((7, 8), dtype=bool)}, "mask"),
+    ],
+)
+def test_prepare_reference_bad_input_names_the_argument(kwargs: dict[str, object], argument: str) -> None:
+    arguments: dict[str, object] = {"reference": np.zeros((8, 8)), **kwargs}
+    with pytest.raises(InputError, match=argument):
+        prepare_reference(**arguments)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "argument"),
+    [
+        ({"model": "affine"}, "model"),
+        ({"model": "projective"}, "model"),
+        ({"photometric": False}, "photometric"),
+        ({"mask": np.ones((8, 8), dtype=bool)}, "mask"),
+        ({"inspection": np.full((8, 8), np.nan)}, "inspection"),
+        ({"max_iterations": 0}, "max_iterations"),
+    ],
+)
+def test_prepared_reference_bad_call_names_the_argument(kwargs: dict[str, object], argument: str) -> None:
+    arguments: dict[str, object] = {"inspection": np.zeros((8, 8)), **kwargs}
+    with pytest.raises(InputError, match=argument):
+        register(prepare_reference(np.zeros((8, 8))), **arguments)  # type: ignore[arg-type]
+
+
+def test_prepared_reference_accepts_its_own_settings_repeated() -> None:
+    reference = texture()
+    inspection = shifted(reference, (1.5, -0.5))
+    prepared = prepare_reference(reference, model="similarity", photometric=False)
+    same = register(prepared, inspection, model="similarity", photometric=False)
+    np.testing.assert_allclose(same.matrix, register(prepared, inspection).matrix, atol=0.0)

@@ -3,8 +3,10 @@
 Seed §2.3: the residual sum of squares between the inspection and the transformed reference is minimised by
 Gauss-Newton, and "terms involving the Jacobian ... can be pre-computed". The inverse-compositional form
 (Baker & Matthews 2004, doi:10.1023/B:VISI.0000011205.11775.fd) makes that true for every warp model: the
-steepest-descent images and the Hessian are taken on the reference once per level, and each iteration
-costs one resampling of the inspection, one subtraction and one matrix-vector product.
+steepest-descent images and the Hessian are taken on the whole reference level once (:func:`reference_terms`,
+reusable across inspections), the Hessian of the pixels a warp leaves usable is that minus the thin strips
+outside them, and each iteration costs one resampling of the inspection, one subtraction and one
+matrix-vector product.
 
 Gain and bias are fitted in the same solve without breaking the fixed Hessian by normalising the warped
 inspection instead of scaling the reference: with ``N = (I(W(x)) - bias) / gain`` the linearised residual
@@ -14,6 +16,7 @@ inspection instead of scaling the reference: with ``N = (I(W(x)) - bias) / gain`
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import cv2
@@ -40,6 +43,12 @@ _SIGMA_SAMPLES = 1 << 12
 _MAX_CONDITION = 1e12
 _MIN_PIXELS_PER_UNKNOWN = 8
 _COARSE_TOLERANCE_GROWTH = 4.0
+# Trim flaws once a step moves less than this many pixels: the pyramid lands the finest level within about
+# 0.05 px and one step brings it within a few thousandths, where the misfit at edges is below the noise.
+_TRIM_AFTER_STEP_PX = 0.01
+# Gauss-Newton with a fixed Hessian converges linearly; with a contraction q = |step k| / |step k-1| the
+# motion still to come after step k is about |step k| q / (1 - q). Trusted only for a clear contraction.
+_MAX_CONTRACTION = 0.5
 _ROW_STEP = 2
 _ROW_STEP_MIN_ROWS = 512
 
@@ -70,19 +79,47 @@ class Settings:
 
 
 @dataclass(frozen=True)
-class _Problem:
-    """The reference-side terms of one level, precomputed once (seed §2.3).
+class Terms:
+    """The reference-side terms of one level, computed once per reference (seed §2.3: "terms involving the
+    Jacobian matrix ... can be pre-computed").
 
-    The used pixels are the rows ``row0, row0 + row_step, ...`` and the columns ``col0 .. col1 - 1`` of
-    `region`. ``jacobian`` has shape (K, R) over them, R = rows used x columns, with zero columns where a
-    pixel is not used (outside the mask or the valid polygon, or trimmed), so ``jacobian @ residual`` sums
-    over used pixels only; ``weights`` of shape (R,) is 0 outside the mask or polygon and 1 elsewhere, or
-    None when there is neither; ``trimmed`` indexes the pixels trimmed as flaws. ``buffer`` of shape
-    (rows used, columns) receives each residual.
+    Attributes
+    ----------
+    jacobian : ndarray of shape (K, rows used * N), float32, read-only
+        Steepest-descent images on the rows ``0, row_step, 2 row_step, ...`` and every column of the level,
+        zero outside the mask and on the image's edge (where central differences are undefined).
+    hessian : ndarray of shape (K, K), float64
+        ``jacobian @ jacobian.T`` over the whole level; a region's is this minus the strips outside it.
+    row_step : int
+        1, or 2 on levels with at least 512 rows (their accuracy is limited by interpolation bias, not noise).
+    width : int
+        N, the level's columns.
+    from_pixels, to_pixels : ndarray of shape (3, 3)
+        Level pixels to normalised coordinates and back.
     """
 
-    region: Region
+    jacobian: NDArray[np.float32]
+    hessian: NDArray[np.float64]
     row_step: int
+    width: int
+    from_pixels: Matrix
+    to_pixels: Matrix
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """The used pixels of one level for the current warp, and their Hessian.
+
+    The used pixels are the rows ``row0, row0 + row_step, ...`` (row0 a multiple of row_step) and the
+    columns ``col0 .. col1 - 1`` of `region`, less `weights` == 0 and the `trimmed` flaws. ``jacobian`` of
+    shape (K, R) is the view of the level's Jacobian on the used rows, all N columns: ``jacobian @ residual``
+    sums over used pixels only because ``buffer`` of shape (rows used, N), which receives each residual, is
+    zero wherever a pixel is not used. ``weights`` of shape (rows used, col1 - col0) is 0 outside the mask or
+    the valid polygon and 1 elsewhere, or None when there is neither; ``trimmed`` indexes the flaws in R.
+    """
+
+    terms: Terms
+    region: Region
     jacobian: NDArray[np.float32]
     hessian: NDArray[np.float64]
     inverse_hessian: NDArray[np.float64]
@@ -90,36 +127,54 @@ class _Problem:
     trimmed: NDArray[np.intp] | None
     n_used: int
     chosen_at: Matrix
-    to_pixels: Matrix
-    from_pixels: Matrix
     buffer: Image
 
 
-def _jacobian(
-    level: Level, region: Region, row_step: int, settings: Settings, from_pixels: Matrix
-) -> NDArray[np.float32]:
-    """Steepest-descent images on the used rows of `region`, shape (K, rows used * columns)."""
-    reference, n_params = level.reference, settings.model.n_params
-    row0, row1, col0, col1 = region
-    rows = slice(row0, row1, row_step)
-    jacobian = np.empty(
-        (n_params + 2 * settings.photometric, len(range(row0, row1, row_step)), col1 - col0), np.float32
-    )
-    scale = 0.5 / from_pixels[0, 0]
-    # Central differences in normalised units, on the used pixels only; the region keeps off the border.
-    right, left = reference[rows, col0 + 1 : col1 + 1], reference[rows, col0 - 1 : col1 - 1]
-    gu = np.asarray(cv2.addWeighted(right, scale, left, -scale, 0.0, dst=jacobian[0]), np.float32)
-    below = reference[row0 + 1 : row1 + 1 : row_step, col0:col1]
-    above = reference[row0 - 1 : row1 - 1 : row_step, col0:col1]
-    gv = np.asarray(cv2.addWeighted(below, scale, above, -scale, 0.0, dst=jacobian[1]), np.float32)
+def _row_step(shape: tuple[int, ...]) -> int:
+    # With this many rows the accuracy is limited by interpolation bias, not by noise (seed §2.3): every
+    # other row carries the same information at half the cost.
+    return _ROW_STEP if shape[0] >= _ROW_STEP_MIN_ROWS else 1
+
+
+def reference_terms(
+    reference: Image, mask: NDArray[np.bool_] | None, model: WarpModel, photometric: bool
+) -> Terms:
+    """Steepest-descent images and Hessian of one smoothed reference level (`mask` True = usable)."""
+    rows, cols = reference.shape
+    row_step, from_pixels, n_params = _row_step(reference.shape), normaliser((rows, cols)), model.n_params
+    jacobian = np.zeros((n_params + 2 * photometric, len(range(0, rows, row_step)), cols), np.float32)
+    # Used rows 1 .. last (reference rows row_step .. last * row_step) have both neighbours.
+    last = (rows - 2) // row_step
+    if last >= 1 and cols >= 3:
+        scale, used = 0.5 / from_pixels[0, 0], slice(row_step, last * row_step + 1, row_step)
+        # Central differences in normalised units.
+        right, left = reference[used, 2:], reference[used, :-2]
+        cv2.addWeighted(right, scale, left, -scale, 0.0, dst=jacobian[0, 1 : last + 1, 1:-1])
+        below = reference[row_step + 1 : last * row_step + 2 : row_step, 1:-1]
+        above = reference[row_step - 1 : last * row_step : row_step, 1:-1]
+        cv2.addWeighted(below, scale, above, -scale, 0.0, dst=jacobian[1, 1 : last + 1, 1:-1])
     if n_params > 2:
-        u = (np.arange(col0, col1) * from_pixels[0, 0] + from_pixels[0, 2]).astype(np.float32)
-        v = (np.arange(row0, row1, row_step) * from_pixels[1, 1] + from_pixels[1, 2]).astype(np.float32)
-        jacobian[2:n_params] = settings.model.descent(gu, gv, u[None, :], v[:, None])[2:]
-    if settings.photometric:
-        jacobian[n_params] = reference[rows, col0:col1]
+        u = (np.arange(cols) * from_pixels[0, 0] + from_pixels[0, 2]).astype(np.float32)
+        v = (np.arange(0, rows, row_step) * from_pixels[1, 1] + from_pixels[1, 2]).astype(np.float32)
+        jacobian[2:n_params] = model.descent(jacobian[0], jacobian[1], u[None, :], v[:, None])[2:]
+    if photometric:
+        jacobian[n_params] = reference[::row_step]
         jacobian[n_params + 1] = 1.0
-    return jacobian.reshape(jacobian.shape[0], -1)
+        edge = jacobian[n_params:]
+        # The same pixels as the gradients: no pixel on the image's edge is ever used.
+        edge[:, 0] = edge[:, last + 1 :] = edge[:, :, 0] = edge[:, :, -1] = 0.0
+    if mask is not None:
+        np.multiply(jacobian, mask[::row_step], out=jacobian)
+    flat = jacobian.reshape(jacobian.shape[0], -1)
+    flat.setflags(write=False)
+    return Terms(
+        jacobian=flat,
+        hessian=_gram(flat),
+        row_step=row_step,
+        width=cols,
+        from_pixels=from_pixels,
+        to_pixels=np.asarray(np.linalg.inv(from_pixels), dtype=np.float64),
+    )
 
 
 def _gram(jacobian: NDArray[np.float32]) -> NDArray[np.float64]:
@@ -130,6 +185,11 @@ def _gram(jacobian: NDArray[np.float32]) -> NDArray[np.float64]:
         for j in range(i, size):
             gram[i, j] = gram[j, i] = np.dot(jacobian[i], jacobian[j])
     return gram
+
+
+def _outer(columns: NDArray[np.float32]) -> NDArray[np.float64]:
+    """``columns @ columns.T`` in float64 for a few pixels (thin strips, dropped pixels)."""
+    return _gram(np.ascontiguousarray(columns).reshape(columns.shape[0], -1))
 
 
 def _inverse(hessian: NDArray[np.float64]) -> NDArray[np.float64] | None:
@@ -146,37 +206,46 @@ def _inverse(hessian: NDArray[np.float64]) -> NDArray[np.float64] | None:
     return np.asarray(np.linalg.inv(balanced) * np.outer(scale, scale), dtype=np.float64)
 
 
-def _row_step(level: Level) -> int:
-    # With this many rows the accuracy is limited by interpolation bias, not by noise (seed §2.3): every
-    # other row carries the same information at half the cost.
-    return _ROW_STEP if level.reference.shape[0] >= _ROW_STEP_MIN_ROWS else 1
+def _band_index(box_index: NDArray[np.intp], box_width: int, col0: int, width: int) -> NDArray[np.intp]:
+    """Flat indices in a (rows, box_width) box at column col0 -> flat indices in (rows, width)."""
+    rows, cols = np.divmod(box_index, box_width)
+    return np.asarray(rows * width + (cols + col0), dtype=np.intp)
 
 
-def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
-    """Choose the used pixels for this level and precompute the Jacobian and Hessian; None if degenerate."""
+def _build(level: Level, terms: Terms, matrix: Matrix) -> _Problem | None:
+    """Choose the used pixels for this level and their Hessian; None if degenerate.
+
+    The Hessian is the whole level's less the rows above and below the region and the columns beside it
+    (thin strips: a few per cent of the pixels), and less the box pixels outside a non-rectangular polygon.
+    """
     region, inside = valid_region(matrix, level.reference.shape, level.inspection.shape, _MARGIN_PX)
     row0, row1, col0, col1 = region
-    if row1 <= row0 or col1 <= col0:
+    step, width = terms.row_step, terms.width
+    first, end = -(-row0 // step), -(-row1 // step)  # used rows first .. end - 1 (level rows times step)
+    if end <= first or col1 <= col0:
         return None
-    if level.mask is not None:
-        user = level.mask[row0:row1, col0:col1]
-        inside = user if inside is None else inside & user
-    row_step = _row_step(level)
-    from_pixels = normaliser(level.reference.shape)
-    jacobian = _jacobian(level, region, row_step, settings, from_pixels)
-    weights = None
-    n_used = jacobian.shape[1]
+    jacobian = terms.jacobian[:, first * width : end * width]
+    band = jacobian.reshape(jacobian.shape[0], end - first, width)
+    above, below = terms.jacobian[:, : first * width], terms.jacobian[:, end * width :]
+    left, right = (np.reshape(side, (side.shape[0], -1)) for side in (band[:, :, :col0], band[:, :, col1:]))
+    # One gram of the four strips together: a tenth of the pixels at most, and few small calls.
+    hessian = terms.hessian - _gram(np.concatenate((above, below, left, right), axis=1))
+    used = None
     if inside is not None:
-        weights = np.ascontiguousarray(inside[::row_step], dtype=np.float32).ravel()
-        jacobian *= weights
-        n_used = int(np.count_nonzero(weights))
-    hessian = _gram(jacobian)
+        used = inside[first * step - row0 :: step]
+        hessian -= _outer(jacobian[:, _band_index(np.flatnonzero(~used), col1 - col0, col0, width)])
+    if level.mask is not None:
+        # Masked pixels have zero Jacobian columns already: they only leave the statistics and trimming.
+        user = level.mask[first * step : row1 : step, col0:col1]
+        used = user if used is None else used & user
+    weights = None if used is None else used.astype(np.float32)
+    n_used = (end - first) * (col1 - col0) if used is None else int(np.count_nonzero(used))
     inverse = _inverse(hessian)
     if inverse is None or n_used < _MIN_PIXELS_PER_UNKNOWN * jacobian.shape[0]:
         return None
     return _Problem(
-        region=region,
-        row_step=row_step,
+        terms=terms,
+        region=(first * step, row1, col0, col1),
         jacobian=jacobian,
         hessian=hessian,
         inverse_hessian=inverse,
@@ -184,23 +253,30 @@ def _build(level: Level, matrix: Matrix, settings: Settings) -> _Problem | None:
         trimmed=None,
         n_used=n_used,
         chosen_at=matrix,
-        to_pixels=np.asarray(np.linalg.inv(from_pixels), dtype=np.float64),
-        from_pixels=from_pixels,
-        buffer=np.empty((len(range(row0, row1, row_step)), col1 - col0), dtype=np.float32),
+        buffer=np.zeros((end - first, width), dtype=np.float32),
     )
 
 
 def _residual(level: Level, problem: _Problem, estimate: Estimate, photometric: bool) -> Image:
-    """Normalised residual ``(I(W(x)) - bias) / gain - T(x)`` over the used pixels, shape (R,)."""
+    """Normalised residual ``(I(W(x)) - bias) / gain - T(x)``, zero where unused, shape (R,)."""
     row0, row1, col0, col1 = problem.region
-    template = level.reference[row0 : row1 : problem.row_step, col0:col1]
-    warped = sample(level.inspection, estimate.matrix, problem.region, problem.row_step, out=problem.buffer)
+    step = problem.terms.row_step
+    template = level.reference[row0:row1:step, col0:col1]
+    box = problem.buffer[:, col0:col1]
+    warped = sample(level.inspection, estimate.matrix, problem.region, step, out=box)
+    if not np.shares_memory(warped, box):
+        box[...] = warped
     if photometric:
         gain = estimate.gain
-        cv2.addWeighted(warped, 1.0 / gain, template, -1.0, -estimate.bias / gain, dst=warped)
+        cv2.addWeighted(box, 1.0 / gain, template, -1.0, -estimate.bias / gain, dst=box)
     else:
-        cv2.subtract(warped, template, dst=warped)
-    return warped.ravel()
+        cv2.subtract(box, template, dst=box)
+    if problem.weights is not None:
+        np.multiply(box, problem.weights, out=box)
+    residual = problem.buffer.reshape(-1)
+    if problem.trimmed is not None:
+        residual[problem.trimmed] = 0.0
+    return residual
 
 
 def _update(
@@ -219,7 +295,8 @@ def _update(
 
 def _step_matrix(problem: _Problem, delta: NDArray[np.float64], settings: Settings) -> Matrix:
     """The increment warp W(dp) in the level's pixels."""
-    return problem.to_pixels @ settings.model.step(delta[: settings.model.n_params]) @ problem.from_pixels
+    terms = problem.terms
+    return terms.to_pixels @ settings.model.step(delta[: settings.model.n_params]) @ terms.from_pixels
 
 
 def _is_sane(estimate: Estimate) -> bool:
@@ -234,10 +311,13 @@ def _trim(
     The Hessian and the gradient ``J^T r`` are downdated by the dropped columns alone, so trimming costs one
     pass over the residual, not a new solve.
     """
-    stride = max(1, residual.size // _SIGMA_SAMPLES)
-    probe = residual[::stride]
+    col0, col1 = problem.region[2:]
+    box = problem.buffer[:, col0:col1]
+    # About _SIGMA_SAMPLES residuals on a regular grid over the box.
+    stride = max(1, int(np.sqrt(box.size / _SIGMA_SAMPLES)))
+    probe = box[::stride, ::stride]
     if problem.weights is not None:
-        probe = probe[problem.weights[::stride] > 0]
+        probe = probe[problem.weights[::stride, ::stride] > 0]
     if probe.size == 0:
         return None
     centre = float(np.median(probe))
@@ -245,9 +325,10 @@ def _trim(
     if sigma <= 0:
         return None
     spread = _TRIM_SIGMAS * sigma
-    index = np.flatnonzero(cv2.inRange(residual, centre - spread, centre + spread) == 0)
+    outliers = cv2.inRange(box, centre - spread, centre + spread) == 0
     if problem.weights is not None:
-        index = index[problem.weights[index] > 0]
+        outliers &= problem.weights > 0
+    index = _band_index(np.flatnonzero(outliers), col1 - col0, col0, problem.terms.width)
     if index.size == 0:
         return None
     dropped = problem.jacobian[:, index]
@@ -256,8 +337,6 @@ def _trim(
     if inverse is None:
         return None
     gradient = gradient - np.asarray(dropped @ residual[index], dtype=np.float64)
-    # The level's Jacobian is owned by this solve: zero the trimmed columns in place rather than copy it.
-    problem.jacobian[:, index] = 0.0
     trimmed = replace(
         problem, hessian=hessian, inverse_hessian=inverse, trimmed=index, n_used=problem.n_used - index.size
     )
@@ -269,30 +348,34 @@ def _solve(
 ) -> tuple[NDArray[np.float64], float]:
     """The Gauss-Newton update ``H^-1 J^T r`` and how far, in pixels, it moves the region's corners."""
     delta = problem.inverse_hessian @ gradient
+    if settings.model.n_params == 2:
+        # A translation moves every corner alike: no need to map them (this runs every iteration).
+        return delta, float(np.hypot(delta[0], delta[1]) * problem.terms.to_pixels[0, 0])
     return delta, corner_motion_px(np.eye(3), _step_matrix(problem, delta, settings), problem.region)
 
 
 def _iterate(
-    level: Level, problem: _Problem, estimate: Estimate, settings: Settings
+    level: Level, terms: Terms, problem: _Problem, estimate: Estimate, settings: Settings
 ) -> tuple[Estimate, _Problem, Image]:
     """Gauss-Newton steps on one level; returns the estimate, the final problem and the last residual.
 
-    On the finest level, when a step falls below the tolerance, its residual is used to trim flaws (seed
-    §2.4: a new flaw must not pull the registration) and the step is recomputed from the trimmed sums, with
-    no new resampling; the level ends when a step after trimming is below the tolerance too. Coarse levels
+    On the finest level, once a step falls below ``_TRIM_AFTER_STEP_PX``, its residual is used to trim flaws
+    (seed §2.4: a new flaw must not pull the registration) and the step is recomputed from the trimmed sums,
+    with no new resampling; the level ends after trimming when a step, or the motion its contraction
+    predicts is still to come, is below the tolerance. Coarse levels
     only have to land the next one inside its basin, which a flaw does not prevent: they do not trim.
     """
     # Coarse levels' accuracy is limited by aliasing anyway: their tolerance grows with the level so that
     # the work goes to full resolution.
     tolerance_px = settings.tolerance_px * _COARSE_TOLERANCE_GROWTH**level.index
-    trimmed = level.index > 0
+    trimmed, previous_px = level.index > 0, np.inf
     residual = _residual(level, problem, estimate, settings.photometric)
     for _ in range(settings.max_iterations):
         if settings.deadline is not None and time.perf_counter() > settings.deadline:
             return replace(estimate, reason="deadline"), problem, residual
         gradient = np.asarray(problem.jacobian @ residual, dtype=np.float64)
         delta, moved_px = _solve(problem, gradient, settings)
-        if moved_px < tolerance_px and not trimmed:
+        if moved_px < _TRIM_AFTER_STEP_PX and not trimmed:
             trimmed = True
             cleaned = _trim(problem, residual, gradient)
             if cleaned is not None:
@@ -301,11 +384,14 @@ def _iterate(
         previous, estimate = estimate, _update(estimate, problem, delta, settings)
         if not _is_sane(estimate):
             return replace(previous, iterations=estimate.iterations, reason="diverged"), problem, residual
-        if moved_px < tolerance_px and trimmed:
+        contraction = moved_px / previous_px if np.isfinite(previous_px) else 1.0
+        to_come_px = np.inf if contraction >= _MAX_CONTRACTION else moved_px * contraction / (1 - contraction)
+        if trimmed and min(moved_px, to_come_px) < tolerance_px:
             return replace(estimate, reason="converged"), problem, residual
+        previous_px = moved_px
         if corner_motion_px(problem.chosen_at, estimate.matrix, problem.region) > _MARGIN_PX / 2:
             # Moved out of the margin the region was chosen with: choose it again before sampling outside.
-            rebuilt = _build(level, estimate.matrix, settings)
+            rebuilt = _build(level, terms, estimate.matrix)
             if rebuilt is None:
                 return replace(estimate, reason="diverged"), problem, residual
             problem, trimmed = rebuilt, level.index > 0
@@ -315,8 +401,6 @@ def _iterate(
 
 def _with_statistics(estimate: Estimate, problem: _Problem, residual: Image, level: Level) -> Estimate:
     """Residual RMS and the translation's std from sigma^2 H^-1 (the detector's registration noise, §2.4)."""
-    if problem.weights is not None:
-        residual *= problem.weights
     if problem.trimmed is not None:
         residual[problem.trimmed] = 0.0
     rss = float(np.dot(residual, residual))
@@ -324,12 +408,12 @@ def _with_statistics(estimate: Estimate, problem: _Problem, residual: Image, lev
     variance = rss / dof * np.diag(problem.inverse_hessian)[:2]
     # Translation parameters are in units of half a side: back to full-resolution pixels. The estimate uses
     # only the rows used (every other one on large levels), so sigma^2 H^-1 over them is its std.
-    std_px = np.sqrt(variance) * problem.to_pixels[0, 0] * 2.0**level.index
+    std_px = np.sqrt(variance) * problem.terms.to_pixels[0, 0] * 2.0**level.index
     rms = np.sqrt(rss / max(problem.n_used, 1)) * estimate.gain
     return replace(estimate, residual_rms=float(rms), shift_std_px=(float(std_px[0]), float(std_px[1])))
 
 
-def solve_level(level: Level, estimate: Estimate, settings: Settings) -> Estimate:
+def solve_level(level: Level, estimate: Estimate, terms: Sequence[Terms], settings: Settings) -> Estimate:
     """Refine `estimate` (in the level's pixels) on one level, trimming flaws once it has settled.
 
     Parameters
@@ -338,6 +422,8 @@ def solve_level(level: Level, estimate: Estimate, settings: Settings) -> Estimat
         Smoothed reference and inspection of shape (M, N) and (P, Q), and the level's mask.
     estimate : Estimate
         Start; its matrix is in this level's pixels.
+    terms : sequence of Terms
+        The reference's precomputed terms per level, finest first (``terms[level.index]`` is used).
     settings : Settings
         Model, photometric flag, iteration budget, tolerance and deadline.
 
@@ -346,8 +432,9 @@ def solve_level(level: Level, estimate: Estimate, settings: Settings) -> Estimat
     Estimate
         With ``reason`` of this level, iterations accumulated, residual RMS and translation std.
     """
-    problem = _build(level, estimate.matrix, settings)
+    level_terms = terms[level.index]
+    problem = _build(level, level_terms, estimate.matrix)
     if problem is None:
         return replace(estimate, reason="diverged")
-    estimate, problem, residual = _iterate(level, problem, estimate, settings)
+    estimate, problem, residual = _iterate(level, level_terms, problem, estimate, settings)
     return _with_statistics(estimate, problem, residual, level)

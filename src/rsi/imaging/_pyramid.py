@@ -101,24 +101,31 @@ def _half(image: Image) -> Image:
     return np.asarray(cv2.pyrDown(image), dtype=np.float32)
 
 
-def build_levels(
-    reference: Image, inspection: Image, mask: NDArray[np.bool_] | None, count: int
-) -> list[Level]:
-    """Return `count` smoothed levels, finest first.
+def reference_pyramid(
+    reference: Image, mask: NDArray[np.bool_] | None, count: int
+) -> tuple[list[Image], list[NDArray[np.bool_] | None]]:
+    """Return `count` smoothed levels of the reference and their masks, finest first.
 
     Only the full resolution is smoothed explicitly; each coarser level is cv2.pyrDown of the smoothed level
     above, whose own 5-tap Gaussian leaves it about as smooth, so four more filter passes are saved.
     """
-    reference, inspection = smooth(reference), smooth(inspection)
-    level_mask = None if mask is None else _shrink_mask(mask)
-    levels = [Level(0, reference, inspection, level_mask)]
-    for index in range(1, count):
-        reference, inspection = _half(reference), _half(inspection)
-        if level_mask is not None:
-            # A coarse pixel is usable only if every fine pixel under it is.
-            level_mask = np.asarray(cv2.pyrDown(level_mask.astype(np.float32)) > 0.999)
-        levels.append(Level(index, reference, inspection, level_mask))
-    return levels
+    images, masks = [smooth(reference)], [None if mask is None else _shrink_mask(mask)]
+    for _ in range(1, count):
+        images.append(_half(images[-1]))
+        previous = masks[-1]
+        # A coarse pixel is usable only if every fine pixel under it is.
+        masks.append(
+            None if previous is None else np.asarray(cv2.pyrDown(previous.astype(np.float32)) > 0.999)
+        )
+    return images, masks
+
+
+def inspection_pyramid(inspection: Image, count: int) -> list[Image]:
+    """Return `count` smoothed levels of the inspection, finest first, as :func:`reference_pyramid`."""
+    images = [smooth(inspection)]
+    for _ in range(1, count):
+        images.append(_half(images[-1]))
+    return images
 
 
 def _windowed(image: Image, shape: tuple[int, int]) -> Image:

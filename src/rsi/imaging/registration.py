@@ -3,7 +3,9 @@
 The viewpoint of an inspection image never repeats the reference's exactly; left uncorrected, the
 mis-registration shows up as false edges in the difference image. :func:`register` finds the warp, gain and
 bias that best map the reference onto the inspection by Gauss-Newton least squares, coarse to fine, and
-reports the residual mis-registration that the detector must then treat as noise (seed §2.4).
+reports the residual mis-registration that the detector must then treat as noise (seed §2.4). A robot keeps
+its references: :func:`prepare_reference` computes once what depends on the reference alone, and
+:func:`register` accepts the result in place of the reference image.
 """
 
 from __future__ import annotations
@@ -17,11 +19,18 @@ from numpy.typing import NDArray
 
 from rsi._validate import as_image, as_mask, choice, in_range, positive_int
 from rsi.errors import InputError
-from rsi.imaging._gauss_newton import Settings, solve_level
-from rsi.imaging._pyramid import Estimate, build_levels, coarse_to_fine, level_count
+from rsi.imaging._gauss_newton import Settings, Terms, reference_terms, solve_level
+from rsi.imaging._pyramid import (
+    Estimate,
+    Level,
+    coarse_to_fine,
+    inspection_pyramid,
+    level_count,
+    reference_pyramid,
+)
 from rsi.imaging._warps import WARP_MODELS, Image, Matrix, is_translation, sample
 
-__all__ = ["MODELS", "Registration", "register"]
+__all__ = ["MODELS", "PreparedReference", "Registration", "prepare_reference", "register"]
 
 MODELS = ("translation", "euclidean", "similarity", "affine", "homography")
 
@@ -120,6 +129,125 @@ class Registration:
         return warped, valid
 
 
+@dataclass(frozen=True)
+class PreparedReference:
+    """What registering to one reference needs from the reference alone, computed once.
+
+    Seed §2.3: "terms involving the Jacobian matrix ... can be pre-computed resulting in significant run-time
+    computational savings". Made by :func:`prepare_reference`; pass it to :func:`register` in place of the
+    reference image to register many inspections to one stored reference. Its arrays are read-only.
+
+    Attributes
+    ----------
+    model : str
+        The motion model it was prepared for, one of :data:`MODELS`.
+    photometric : bool
+        Whether gain and bias are fitted.
+    masked : bool
+        Whether a mask was given.
+    images : tuple of ndarray, float32
+        The smoothed pyramid, finest (M, N) first.
+    masks : tuple of (ndarray of bool or None)
+        The usable pixels of each level (None without a mask).
+    terms : tuple of Terms
+        Per level, the steepest-descent images on its whole frame and their Hessian.
+    """
+
+    model: str
+    photometric: bool
+    masked: bool
+    images: tuple[Image, ...]
+    masks: tuple[NDArray[np.bool_] | None, ...]
+    terms: tuple[Terms, ...]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(M, N) of the reference."""
+        rows, cols = self.images[0].shape
+        return rows, cols
+
+
+def prepare_reference(
+    reference: NDArray[np.generic],
+    *,
+    model: str = "translation",
+    photometric: bool = True,
+    mask: NDArray[np.generic] | None = None,
+) -> PreparedReference:
+    """Precompute the reference side of :func:`register`: its pyramid, Jacobian and Hessian per level.
+
+    Parameters
+    ----------
+    reference : ndarray of shape (M, N)
+        Reference image (float32, float64, integer or bool; finite).
+    model : str
+        Motion model, one of :data:`MODELS`.
+    photometric : bool
+        Also fit ``inspection ~= gain * reference + bias``.
+    mask : ndarray of shape (M, N), bool, optional
+        Reference pixels that may be used (True = use).
+
+    Returns
+    -------
+    PreparedReference
+        ``register(prepared, inspection)`` gives the same registration as
+        ``register(reference, inspection, model=model, photometric=photometric, mask=mask)``, which itself
+        prepares the reference on every call.
+
+    Raises
+    ------
+    InputError
+        For an argument of the wrong type, shape, dtype or range.
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.ndimage as ndi
+    >>> reference = ndi.gaussian_filter(np.random.default_rng(0).random((128, 128)), 2.0)
+    >>> prepared = prepare_reference(reference)
+    >>> inspection = ndi.shift(reference, (-2.2, 3.7), mode="reflect")
+    >>> [round(v, 1) for v in register(prepared, inspection).translation_xy]
+    [3.7, -2.2]
+    """
+    image = _as_float32(reference, "reference")
+    return _prepare(image, model, photometric, mask, level_count(image.shape))
+
+
+def _prepare(image: Image, model: str, photometric: object, mask: object, count: int) -> PreparedReference:
+    model = choice(model, "model", MODELS)
+    if not isinstance(photometric, (bool, np.bool_)):
+        raise InputError(f"photometric must be True or False; got {photometric!r}.")
+    user_mask = None if mask is None else as_mask(mask, "mask", image.shape)
+    images, masks = reference_pyramid(image, user_mask, count)
+    for level in images:
+        level.setflags(write=False)
+    terms = tuple(
+        reference_terms(level, level_mask, WARP_MODELS[model], bool(photometric))
+        for level, level_mask in zip(images, masks, strict=True)
+    )
+    return PreparedReference(
+        model, bool(photometric), user_mask is not None, tuple(images), tuple(masks), terms
+    )
+
+
+def _check_prepared(prepared: PreparedReference, model: object, photometric: object, mask: object) -> None:
+    """A prepared reference fixes the model, the photometric fit and the mask: the call may not differ."""
+    if model is not None and choice(model, "model", MODELS) != prepared.model:
+        raise InputError(
+            f"model={model!r} differs from the prepared reference's model={prepared.model!r}. Omit model, or "
+            f"prepare the reference with prepare_reference(reference, model={model!r})."
+        )
+    if photometric is not None and photometric is not prepared.photometric:
+        raise InputError(
+            f"photometric={photometric!r} differs from the prepared reference's "
+            f"photometric={prepared.photometric!r}. Omit photometric, or prepare the reference with it."
+        )
+    if mask is not None:
+        raise InputError(
+            "mask cannot be passed with a prepared reference: its mask is fixed when it is prepared. Pass it "
+            "to prepare_reference(reference, mask=...) instead."
+        )
+
+
 def _preimage_inside(
     inverse: Matrix, shape: tuple[int, int], source_shape: tuple[int, ...]
 ) -> NDArray[np.bool_]:
@@ -185,11 +313,11 @@ def _start(initial: object, photometric: bool) -> Estimate | None:
 
 
 def register(
-    reference: NDArray[np.generic],
+    reference: NDArray[np.generic] | PreparedReference,
     inspection: NDArray[np.generic],
     *,
-    model: str = "translation",
-    photometric: bool = True,
+    model: str | None = None,
+    photometric: bool | None = None,
     mask: NDArray[np.generic] | None = None,
     max_iterations: int = 50,
     tolerance: float = 1e-3,
@@ -200,16 +328,19 @@ def register(
 
     Parameters
     ----------
-    reference : ndarray of shape (M, N)
-        Reference image (float32, float64, integer or bool; finite).
+    reference : ndarray of shape (M, N) or PreparedReference
+        Reference image (float32, float64, integer or bool; finite), or one made by
+        :func:`prepare_reference`, which saves its share of the work on every call (the result is the same).
     inspection : ndarray of shape (P, Q)
         Inspection image; its shape may differ from the reference's.
-    model : str
-        Motion model, one of :data:`MODELS`.
-    photometric : bool
-        Also fit ``inspection ~= gain * reference + bias``.
+    model : str, optional
+        Motion model, one of :data:`MODELS`; "translation" by default, or the prepared reference's model
+        (another one raises).
+    photometric : bool, optional
+        Also fit ``inspection ~= gain * reference + bias``; True by default, or the prepared reference's
+        choice (another one raises).
     mask : ndarray of shape (M, N), bool, optional
-        Reference pixels that may be used (True = use).
+        Reference pixels that may be used (True = use); not with a prepared reference, which holds its own.
     max_iterations : int
         Gauss-Newton steps allowed per pyramid level (the refit after trimming flaws shares them).
     tolerance : float
@@ -253,31 +384,40 @@ def register(
     [3.7, -2.2]
     """
     started = time.perf_counter()
-    reference_image = _as_float32(reference, "reference")
     inspection_image = _as_float32(inspection, "inspection")
-    model = choice(model, "model", MODELS)
-    if not isinstance(photometric, (bool, np.bool_)):
-        raise InputError(f"photometric must be True or False; got {photometric!r}.")
+    if isinstance(reference, PreparedReference):
+        _check_prepared(reference, model, photometric, mask)
+        prepared = reference
+    else:
+        reference_image = _as_float32(reference, "reference")
+        count = level_count(reference_image.shape, inspection_image.shape)
+        # One code path: the cold call prepares the reference, only the levels it needs.
+        prepared = _prepare(
+            reference_image,
+            "translation" if model is None else model,
+            True if photometric is None else photometric,
+            mask,
+            count,
+        )
     settings = Settings(
-        model=WARP_MODELS[model],
-        photometric=bool(photometric),
+        model=WARP_MODELS[prepared.model],
+        photometric=prepared.photometric,
         max_iterations=positive_int(max_iterations, "max_iterations"),
         tolerance_px=in_range(tolerance, "tolerance", low=0.0, low_inclusive=False),
         deadline=None
         if deadline_s is None
         else started + in_range(deadline_s, "deadline_s", low=0.0, low_inclusive=False),
     )
-    user_mask = None if mask is None else as_mask(mask, "mask", reference_image.shape)
     start = _start(initial, settings.photometric)
-    levels = build_levels(
-        reference_image,
-        inspection_image,
-        user_mask,
-        level_count(reference_image.shape, inspection_image.shape),
-    )
-    estimate = coarse_to_fine(levels, partial(solve_level, settings=settings), start)
+    count = min(len(prepared.images), level_count(prepared.shape, inspection_image.shape))
+    inspections = inspection_pyramid(inspection_image, count)
+    levels = [
+        Level(index, prepared.images[index], inspections[index], prepared.masks[index])
+        for index in range(count)
+    ]
+    estimate = coarse_to_fine(levels, partial(solve_level, terms=prepared.terms, settings=settings), start)
     return Registration(
-        model=model,
+        model=prepared.model,
         matrix=estimate.matrix,
         gain=float(estimate.gain),
         bias=float(estimate.bias),

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rsi.report.figures import encode_png
 from rsi.report.writers import csv_text, to_json, write_files
 
 if TYPE_CHECKING:
@@ -112,3 +113,9 @@ def write_sun_report(out_dir: Path | str, path: SunPath, *, title: str) -> dict[
         "sun_path.json": to_json(summary).encode(),
     }
     return write_files(out_dir, contents)
+
+
+def write_overview(out_dir: Path | str, picture_rgb: np.ndarray) -> dict[str, Path]:
+    """Write overview.png: the whole mock-up from the overview camera with numbered anomaly markers."""
+    bgr = np.ascontiguousarray(np.asarray(picture_rgb, dtype=np.uint8)[..., ::-1])
+    return write_files(out_dir, {"overview.png": encode_png(bgr)})
