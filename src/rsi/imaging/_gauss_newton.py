@@ -228,7 +228,7 @@ def _build(level: Level, terms: Terms, matrix: Matrix) -> _Problem | None:
     band = jacobian.reshape(jacobian.shape[0], end - first, width)
     above, below = terms.jacobian[:, : first * width], terms.jacobian[:, end * width :]
     left, right = (np.reshape(side, (side.shape[0], -1)) for side in (band[:, :, :col0], band[:, :, col1:]))
-    # One gram of the four strips together: a tenth of the pixels at most, and few small calls.
+    # One gram of the four strips together: a few per cent of the pixels for usual shifts, few small calls.
     hessian = terms.hessian - _gram(np.concatenate((above, below, left, right), axis=1))
     used = None
     if inside is not None:
