@@ -14,7 +14,7 @@ import argparse
 
 import numpy as np
 
-from rsi.datasets.synthetic import textured_surface
+from rsi.datasets.synthetic import pure_noise_pairs
 from rsi.detection.detect import detect
 from rsi.detection.roc import threshold_for
 
@@ -24,17 +24,6 @@ RATES = (1e-3, 1e-4, 1e-5)
 SHAPE = (1024, 1024)
 SIGMA = 0.01
 CROSS = np.array([[0.0, 1.0, 0.0], [1.0, 2.0, 1.0], [0.0, 1.0, 0.0]])
-
-
-def noise_pairs(images: int, *, shot: bool, seed: int = 11) -> list[tuple[np.ndarray, np.ndarray]]:
-    rng = np.random.default_rng(seed)
-    surface = textured_surface(SHAPE, rng=rng).astype(np.float32)
-    std = np.sqrt(0.003**2 + 4e-4 * surface).astype(np.float32) if shot else np.float32(SIGMA)
-    pairs = []
-    for _ in range(images):
-        noise = rng.standard_normal((2, *SHAPE), dtype=np.float32)
-        pairs.append((surface + std * noise[0], surface + std * noise[1]))
-    return pairs
 
 
 def measured_rates(pairs: list, model: str, method: str, noise_sigma: float | None) -> list[float]:
@@ -59,7 +48,8 @@ def main() -> None:
     print(f"{'noise':10} {'method':8} {'model':8} " + " ".join(f"{rate:>9g}" for rate in RATES))
     worst = 1.0
     for label, shot, sigma in (("known", False, SIGMA), ("estimated", True, None)):
-        pairs = noise_pairs(args.images, shot=shot)
+        noise = {"read_sigma": 0.003, "shot_variance_per_unit": 4e-4} if shot else {"read_sigma": SIGMA}
+        pairs = pure_noise_pairs(SHAPE, args.images, rng=11, **noise)
         for method in METHODS:
             for model in MODELS:
                 ratios = [

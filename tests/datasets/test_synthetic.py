@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from rsi.datasets.synthetic import flaw_pattern, synthetic_pair, textured_surface
+from rsi.datasets.synthetic import flaw_pattern, pure_noise_pairs, synthetic_pair, textured_surface
 from rsi.errors import InputError
 from rsi.imaging.registration import register
 
@@ -72,3 +72,30 @@ def test_pair_noise_and_flaws() -> None:
 def test_bad_arguments_are_named(call: object, argument: str) -> None:
     with pytest.raises(InputError, match=argument):
         call()  # type: ignore[operator]
+
+
+def test_pure_noise_pairs_have_the_asked_noise_and_no_flaw() -> None:
+    pairs = pure_noise_pairs((256, 256), 3, read_sigma=0.02, rng=4)
+    assert len(pairs) == 3
+    for reference, inspection in pairs:
+        assert reference.dtype == np.float32
+        # seed §2.4: the difference of two independent noise fields has twice one field's variance
+        assert np.std(inspection - reference) == pytest.approx(0.02 * np.sqrt(2.0), rel=0.02)
+    again = pure_noise_pairs((256, 256), 3, read_sigma=0.02, rng=4)
+    np.testing.assert_array_equal(pairs[2][1], again[2][1])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "argument"),
+    [
+        ({"count": 0}, "count"),
+        ({"read_sigma": -0.1}, "read_sigma"),
+        ({"shot_variance_per_unit": -1.0}, "shot_variance_per_unit"),
+        ({"shape": (1, 5)}, "shape"),
+    ],
+)
+def test_pure_noise_pairs_reject_bad_settings(kwargs: dict[str, object], argument: str) -> None:
+    settings: dict[str, object] = {"shape": (8, 8), "count": 1, "read_sigma": 0.01}
+    settings.update(kwargs)
+    with pytest.raises(InputError, match=argument):
+        pure_noise_pairs(**settings)  # type: ignore[arg-type]

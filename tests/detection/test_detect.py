@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from rsi.datasets.synthetic import flaw_pattern, synthetic_pair, textured_surface
+from rsi.datasets.synthetic import flaw_pattern, pure_noise_pairs, synthetic_pair, textured_surface
 from rsi.detection.detect import detect
 from rsi.detection.noise import interpolation_factor
 from rsi.detection.roc import theoretical_roc, threshold_for
@@ -37,14 +37,9 @@ class NoisePairs:
 
 
 def _noise_pairs(seed: int, shot: bool) -> NoisePairs:
-    rng = np.random.default_rng(seed)
-    surface = textured_surface(SHAPE, rng=rng).astype(np.float32)
     # Read + shot noise (variance grows with intensity) for the self-calibrated case, which must find it.
-    std = np.sqrt(0.003**2 + 4e-4 * surface).astype(np.float32) if shot else np.float32(SIGMA)
-    pairs = []
-    for _ in range(IMAGES):
-        noise = rng.standard_normal((2, *SHAPE), dtype=np.float32)
-        pairs.append((surface + std * noise[0], surface + std * noise[1]))
+    noise = {"read_sigma": 0.003, "shot_variance_per_unit": 4e-4} if shot else {"read_sigma": SIGMA}
+    pairs = pure_noise_pairs(SHAPE, IMAGES, rng=seed, **noise)
     return NoisePairs(tuple(pairs), None if shot else SIGMA)
 
 

@@ -263,3 +263,47 @@ def synthetic_pair(
     return SyntheticPair(
         reference, inspection, flaws.truth_mask, flaws.centres_rc, (dx, dy), gain_value, bias_value, sigma
     )
+
+
+def pure_noise_pairs(
+    shape: tuple[int, int],
+    count: int,
+    *,
+    read_sigma: float,
+    shot_variance_per_unit: float = 0.0,
+    rng: np.random.Generator | int | None = None,
+) -> list[tuple[NDArray[np.float32], NDArray[np.float32]]]:
+    """Aligned pairs of one texture with independent noise and no flaw: every detection is a false alarm.
+
+    The calibration set of seed §2.4's P_F analysis. Noise variance per pixel is
+    ``read_sigma**2 + shot_variance_per_unit * surface`` (read plus shot noise when the second term is > 0).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(M, N)`` of every image.
+    count : int
+        Number of pairs, >= 1.
+    read_sigma : float
+        Signal-independent noise std, >= 0.
+    shot_variance_per_unit : float
+        Noise variance added per unit of surface intensity, >= 0.
+    rng : Generator, int or None
+        Randomness (texture and noise).
+
+    Returns
+    -------
+    list of (reference, inspection) float32 pairs
+    """
+    size = _shape(shape)
+    pairs_wanted = positive_int(count, "count")
+    read = in_range(read_sigma, "read_sigma", low=0.0)
+    shot = in_range(shot_variance_per_unit, "shot_variance_per_unit", low=0.0)
+    generator = as_rng(rng)
+    surface = textured_surface(size, rng=generator).astype(np.float32)
+    std = np.sqrt(read**2 + shot * surface).astype(np.float32)
+    pairs = []
+    for _ in range(pairs_wanted):
+        noise = generator.standard_normal((2, *size), dtype=np.float32)
+        pairs.append((surface + std * noise[0], surface + std * noise[1]))
+    return pairs
