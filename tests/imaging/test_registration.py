@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -10,9 +12,9 @@ import scipy.ndimage as ndi
 from numpy.typing import NDArray
 
 from rsi.errors import InputError
-from rsi.imaging import _gauss_newton, _pyramid
+from rsi.imaging import _gauss_newton, _pyramid, _warps
 from rsi.imaging._warps import map_points, sample
-from rsi.imaging.registration import MODELS, Registration, prepare_reference, register
+from rsi.imaging.registration import MODELS, PreparedReference, Registration, prepare_reference, register
 
 SIDE_PX = 256
 SUBPIXEL_PX = 0.02  # stated accuracy on clean synthetic pairs, seed §2.3 residual mis-registration
@@ -452,3 +454,67 @@ def test_prepared_reference_accepts_its_own_settings_repeated() -> None:
     prepared = prepare_reference(reference, model="similarity", photometric=False)
     same = register(prepared, inspection, model="similarity", photometric=False)
     np.testing.assert_allclose(same.matrix, register(prepared, inspection).matrix, atol=0.0)
+
+
+def _outcome(result: Registration) -> tuple[object, ...]:
+    return (result.matrix.tobytes(), result.gain, result.bias, result.iterations, result.residual_rms)
+
+
+def test_consecutive_calls_share_no_memory_with_their_results() -> None:
+    # Cold calls and inspection pyramids use this thread's reusable scratch buffers (page faults, seed §2.1):
+    # nothing returned may live in them, or the next call would overwrite it.
+    reference, other = texture(side_px=512, seed=4), texture(side_px=512, seed=5)
+    prepared = prepare_reference(reference)
+    kept = [array.copy() for array in (*prepared.images, *(terms.jacobian for terms in prepared.terms))]
+    first = register(reference, 1.1 * shifted(reference, (3.5, 2.5)) + 0.03)
+    first_outcome = _outcome(first)
+    second = register(other, shifted(other, (-7.2, 4.1)))
+    warm = register(prepared, shifted(reference, (1.5, -0.5)))
+    assert _outcome(first) == first_outcome
+    np.testing.assert_allclose(second.translation_xy, (-7.2, 4.1), atol=SUBPIXEL_PX)
+    np.testing.assert_allclose(warm.translation_xy, (1.5, -0.5), atol=SUBPIXEL_PX)
+    owned = [*prepared.images, *(terms.jacobian for terms in prepared.terms)]
+    for before, after in zip(kept, owned, strict=True):
+        np.testing.assert_array_equal(after, before)
+    buffers = list(_warps._WORKSPACE.buffers.values())
+    assert buffers  # the calls above did use the workspace
+    for array in (first.matrix, second.matrix, warm.matrix, *owned):
+        assert not any(np.shares_memory(array, buffer) for buffer in buffers)
+    assert not np.shares_memory(first.matrix, second.matrix)
+
+
+def test_workspace_keeps_one_buffer_per_role() -> None:
+    reference = texture(side_px=512, seed=4)
+    for side in (512, 300, 512):
+        register(reference[:side, :side], shifted(reference, (2.5, 1.5))[:side, :side])
+        roles = set(_warps._WORKSPACE.buffers)
+    register(reference, shifted(reference, (2.5, 1.5)))
+    assert set(_warps._WORKSPACE.buffers) == roles
+
+
+def test_two_threads_registering_at_once_get_the_serial_answers() -> None:
+    # Each thread has its own scratch buffers: concurrent calls must not see each other's temporaries.
+    pairs = []
+    for seed, side, shift_xy in ((4, 512, (9.6, -8.3)), (5, 512, (-3.3, 2.7)), (6, 256, (25.3, -31.1))):
+        reference = texture(side_px=side, seed=seed)
+        inspection = 1.1 * shifted(reference, shift_xy) + 0.03
+        inspection[40:50, 60:70] += 0.5  # a flaw: trimming runs too
+        pairs.append((reference, inspection))
+    # And one stored reference that both threads read at once.
+    shared = prepare_reference(pairs[0][0])
+    cases: list[tuple[NDArray[np.float32] | PreparedReference, NDArray[np.float32]]] = [
+        *pairs,
+        (shared, pairs[0][1]),
+    ]
+    expected = [_outcome(register(reference, inspection)) for reference, inspection in cases]
+    start = threading.Barrier(2)
+
+    def work(order: int) -> list[tuple[object, ...]]:
+        start.wait()
+        chosen = list(range(len(cases)))[:: 1 if order == 0 else -1]
+        got = {index: _outcome(register(*cases[index])) for _ in range(3) for index in chosen}
+        return [got[index] for index in range(len(cases))]
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        results = list(pool.map(work, (0, 1)))
+    assert results == [expected, expected]

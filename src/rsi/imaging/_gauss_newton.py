@@ -25,13 +25,16 @@ from numpy.typing import NDArray
 
 from rsi.imaging._pyramid import Estimate, Level
 from rsi.imaging._warps import (
+    Allocate,
     Image,
     Matrix,
     Region,
     WarpModel,
     corner_motion_px,
     normaliser,
+    owned,
     sample,
+    scratch,
     valid_region,
 )
 
@@ -136,13 +139,29 @@ def _row_step(shape: tuple[int, ...]) -> int:
     return _ROW_STEP if shape[0] >= _ROW_STEP_MIN_ROWS else 1
 
 
+def _zero_edges(planes: Image, last: int) -> None:
+    """Zero what lies on the image's edge, where central differences are undefined: no pixel there is used."""
+    planes[:, 0] = planes[:, last + 1 :] = planes[:, :, 0] = planes[:, :, -1] = 0.0
+
+
 def reference_terms(
-    reference: Image, mask: NDArray[np.bool_] | None, model: WarpModel, photometric: bool
+    reference: Image,
+    mask: NDArray[np.bool_] | None,
+    model: WarpModel,
+    photometric: bool,
+    *,
+    allocate: Allocate = owned,
+    role: str = "jacobian",
 ) -> Terms:
-    """Steepest-descent images and Hessian of one smoothed reference level (`mask` True = usable)."""
+    """Steepest-descent images and Hessian of one smoothed reference level (`mask` True = usable).
+
+    The Jacobian is a new array, or the `role` :func:`~rsi.imaging._warps.scratch` buffer (`allocate`) for a
+    reference used in one call only.
+    """
     rows, cols = reference.shape
     row_step, from_pixels, n_params = _row_step(reference.shape), normaliser((rows, cols)), model.n_params
-    jacobian = np.zeros((n_params + 2 * photometric, len(range(0, rows, row_step)), cols), np.float32)
+    shape = (n_params + 2 * photometric, len(range(0, rows, row_step)), cols)
+    jacobian = allocate(role, shape, np.float32)
     # Used rows 1 .. last (reference rows row_step .. last * row_step) have both neighbours.
     last = (rows - 2) // row_step
     if last >= 1 and cols >= 3:
@@ -153,6 +172,7 @@ def reference_terms(
         below = reference[row_step + 1 : last * row_step + 2 : row_step, 1:-1]
         above = reference[row_step - 1 : last * row_step : row_step, 1:-1]
         cv2.addWeighted(below, scale, above, -scale, 0.0, dst=jacobian[1, 1 : last + 1, 1:-1])
+    _zero_edges(jacobian[:2], last)
     if n_params > 2:
         u = (np.arange(cols) * from_pixels[0, 0] + from_pixels[0, 2]).astype(np.float32)
         v = (np.arange(0, rows, row_step) * from_pixels[1, 1] + from_pixels[1, 2]).astype(np.float32)
@@ -160,9 +180,7 @@ def reference_terms(
     if photometric:
         jacobian[n_params] = reference[::row_step]
         jacobian[n_params + 1] = 1.0
-        edge = jacobian[n_params:]
-        # The same pixels as the gradients: no pixel on the image's edge is ever used.
-        edge[:, 0] = edge[:, last + 1 :] = edge[:, :, 0] = edge[:, :, -1] = 0.0
+        _zero_edges(jacobian[n_params:], last)
     if mask is not None:
         np.multiply(jacobian, mask[::row_step], out=jacobian)
     flat = jacobian.reshape(jacobian.shape[0], -1)
@@ -229,7 +247,9 @@ def _build(level: Level, terms: Terms, matrix: Matrix) -> _Problem | None:
     above, below = terms.jacobian[:, : first * width], terms.jacobian[:, end * width :]
     left, right = (np.reshape(side, (side.shape[0], -1)) for side in (band[:, :, :col0], band[:, :, col1:]))
     # One gram of the four strips together: a few per cent of the pixels for usual shifts, few small calls.
-    hessian = terms.hessian - _gram(np.concatenate((above, below, left, right), axis=1))
+    strips = (above, below, left, right)
+    columns = scratch("strips", (jacobian.shape[0], sum(strip.shape[1] for strip in strips)), np.float32)
+    hessian = terms.hessian - _gram(np.concatenate(strips, axis=1, out=columns))
     used = None
     if inside is not None:
         used = inside[first * step - row0 :: step]
@@ -253,8 +273,15 @@ def _build(level: Level, terms: Terms, matrix: Matrix) -> _Problem | None:
         trimmed=None,
         n_used=n_used,
         chosen_at=matrix,
-        buffer=np.zeros((end - first, width), dtype=np.float32),
+        buffer=_residual_buffer((end - first, width), col0, col1),
     )
+
+
+def _residual_buffer(shape: tuple[int, int], col0: int, col1: int) -> Image:
+    """This thread's residual buffer, zero beside columns col0 .. col1 - 1 (which every residual fills)."""
+    buffer = scratch("residual", shape, np.float32)
+    buffer[:, :col0] = buffer[:, col1:] = 0.0
+    return buffer
 
 
 def _residual(level: Level, problem: _Problem, estimate: Estimate, photometric: bool) -> Image:
@@ -325,7 +352,8 @@ def _trim(
     if sigma <= 0:
         return None
     spread = _TRIM_SIGMAS * sigma
-    outliers = cv2.inRange(box, centre - spread, centre + spread) == 0
+    inside = cv2.inRange(box, centre - spread, centre + spread, dst=scratch("inside", box.shape, np.uint8))
+    outliers = np.equal(inside, 0, out=scratch("outliers", box.shape, np.bool_))
     if problem.weights is not None:
         outliers &= problem.weights > 0
     index = _band_index(np.flatnonzero(outliers), col1 - col0, col0, problem.terms.width)

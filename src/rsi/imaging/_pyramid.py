@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi.imaging._warps import Image, Matrix, rescale
+from rsi.imaging._warps import Allocate, Image, Matrix, owned, rescale, scratch
 
 # The coarsest level keeps at least this many pixels per side: phase correlation there must still see the
 # texture, and a shift of up to half this side (times 2**level) is captured. At 128 the benchmark's largest
@@ -86,10 +86,10 @@ def level_count(*shapes: tuple[int, int]) -> int:
     return count
 
 
-def smooth(image: Image) -> Image:
+def smooth(image: Image, out: Image | None = None) -> Image:
     """5x5 Gaussian, as ECC's gaussFiltSize: it makes bilinear resampling sub-pixel accurate."""
     size = (_SMOOTHING_SIZE_PX, _SMOOTHING_SIZE_PX)
-    return np.asarray(cv2.GaussianBlur(image, size, 0.0), dtype=np.float32)
+    return np.asarray(cv2.GaussianBlur(image, size, 0.0, dst=out), dtype=np.float32)
 
 
 def _shrink_mask(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -97,21 +97,30 @@ def _shrink_mask(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     return np.asarray(cv2.erode(mask.astype(np.uint8), kernel), dtype=bool)
 
 
-def _half(image: Image) -> Image:
-    return np.asarray(cv2.pyrDown(image), dtype=np.float32)
+def _pyramid(image: Image, count: int, allocate: Allocate, role: str) -> list[Image]:
+    """`count` levels: `image` smoothed, then cv2.pyrDown of the level above, in arrays from `allocate`."""
+    images = [smooth(image, out=allocate(f"{role}0", image.shape, np.float32))]
+    for index in range(1, count):
+        rows, cols = images[-1].shape
+        out = allocate(f"{role}{index}", ((rows + 1) // 2, (cols + 1) // 2), np.float32)
+        images.append(np.asarray(cv2.pyrDown(images[-1], dst=out), dtype=np.float32))
+    return images
 
 
 def reference_pyramid(
-    reference: Image, mask: NDArray[np.bool_] | None, count: int
+    reference: Image, mask: NDArray[np.bool_] | None, count: int, allocate: Allocate = owned
 ) -> tuple[list[Image], list[NDArray[np.bool_] | None]]:
     """Return `count` smoothed levels of the reference and their masks, finest first.
 
     Only the full resolution is smoothed explicitly; each coarser level is cv2.pyrDown of the smoothed level
-    above, whose own 5-tap Gaussian leaves it about as smooth, so four more filter passes are saved.
+    above, whose own 5-tap Gaussian leaves it about as smooth, so four more filter passes are saved. The
+    levels are new arrays, or :func:`~rsi.imaging._warps.scratch` buffers for a reference used in one call.
     """
-    images, masks = [smooth(reference)], [None if mask is None else _shrink_mask(mask)]
+    images, masks = (
+        _pyramid(reference, count, allocate, "reference"),
+        [None if mask is None else _shrink_mask(mask)],
+    )
     for _ in range(1, count):
-        images.append(_half(images[-1]))
         previous = masks[-1]
         # A coarse pixel is usable only if every fine pixel under it is.
         masks.append(
@@ -121,11 +130,11 @@ def reference_pyramid(
 
 
 def inspection_pyramid(inspection: Image, count: int) -> list[Image]:
-    """Return `count` smoothed levels of the inspection, finest first, as :func:`reference_pyramid`."""
-    images = [smooth(inspection)]
-    for _ in range(1, count):
-        images.append(_half(images[-1]))
-    return images
+    """Return `count` smoothed levels of the inspection, finest first, as :func:`reference_pyramid`.
+
+    They are this thread's :func:`~rsi.imaging._warps.scratch` buffers: valid until its next registration.
+    """
+    return _pyramid(inspection, count, scratch, "inspection")
 
 
 def _windowed(image: Image, shape: tuple[int, int]) -> Image:

@@ -9,8 +9,11 @@ image is as well conditioned as that of a 64-pixel one.
 
 from __future__ import annotations
 
+import math
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol, TypeVar
 
 import cv2
 import numpy as np
@@ -21,6 +24,49 @@ Image = NDArray[np.float32]
 Region = tuple[int, int, int, int]  # (row0, row1, col0, col1), half-open, in reference pixels
 
 _POLY_SHIFT_BITS = 8
+_Scalar = TypeVar("_Scalar", bound=np.generic)
+_ALIGNMENT = 64
+
+
+class _Workspace(threading.local):
+    """One thread's reusable buffers, one flat byte buffer per role (grown, never shrunk)."""
+
+    def __init__(self) -> None:
+        self.buffers: dict[str, NDArray[np.uint8]] = {}
+
+
+_WORKSPACE = _Workspace()
+
+
+def scratch(role: str, shape: tuple[int, ...], dtype: type[_Scalar]) -> NDArray[_Scalar]:
+    """An uninitialised array for a temporary of one call that never reaches the caller.
+
+    A cold 1024x1024 registration needs about 20 MB of temporaries (pyramids, the 8 MB Jacobian, residual
+    buffers). Freshly allocated, glibc hands such buffers back to the system on free, and every call then
+    pays thousands of page faults: on a small flight computer (seed §2.1) they cost as much as the arithmetic
+    (docs/registration.md). Each thread therefore keeps one buffer per `role`, reused by its next call: at
+    most the temporaries of the largest call so far, per thread, none shared between threads. Two arrays
+    alive at once must have different roles, and nothing made here may be returned to the caller.
+    """
+    size = math.prod(shape) * np.dtype(dtype).itemsize
+    buffer = _WORKSPACE.buffers.get(role)
+    if buffer is None or buffer.size < size:
+        # Cache-line aligned, as OpenCV aligns its own buffers (its vector loads are slower across lines).
+        padded = np.empty(size + _ALIGNMENT, dtype=np.uint8)
+        start = -padded.ctypes.data % _ALIGNMENT
+        buffer = _WORKSPACE.buffers[role] = padded[start : start + size]
+    return buffer[:size].view(dtype).reshape(shape)
+
+
+def owned(role: str, shape: tuple[int, ...], dtype: type[_Scalar]) -> NDArray[_Scalar]:
+    """A new, uninitialised array: for what the caller keeps (the :func:`scratch` signature, role unused)."""
+    return np.empty(shape, dtype=dtype)
+
+
+class Allocate(Protocol):
+    """:func:`scratch` (temporaries of one call) or :func:`owned` (arrays the caller keeps)."""
+
+    def __call__(self, role: str, shape: tuple[int, ...], dtype: type[_Scalar]) -> NDArray[_Scalar]: ...
 
 
 def _translation(gu: Image, gv: Image, u: Image, v: Image) -> list[Image]:
@@ -191,7 +237,7 @@ def _skipped_rows(
     columns = slice(col, col + width + 1)
     upper = image[row:last_row:row_step, columns]
     lower = image[row + 1 : last_row + 1 : row_step, columns]
-    vertical = cv2.addWeighted(upper, 1.0 - fy, lower, fy, 0.0)
+    vertical = cv2.addWeighted(upper, 1.0 - fy, lower, fy, 0.0, dst=scratch("rows", upper.shape, np.float32))
     return np.asarray(
         cv2.addWeighted(vertical[:, :width], 1.0 - fx, vertical[:, 1:], fx, 0.0, dst=out), dtype=np.float32
     )

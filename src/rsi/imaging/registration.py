@@ -28,7 +28,7 @@ from rsi.imaging._pyramid import (
     level_count,
     reference_pyramid,
 )
-from rsi.imaging._warps import WARP_MODELS, Image, Matrix, is_translation, sample
+from rsi.imaging._warps import WARP_MODELS, Allocate, Image, Matrix, is_translation, owned, sample, scratch
 
 __all__ = ["MODELS", "PreparedReference", "Registration", "prepare_reference", "register"]
 
@@ -209,20 +209,30 @@ def prepare_reference(
     [3.7, -2.2]
     """
     image = _as_float32(reference, "reference")
-    return _prepare(image, model, photometric, mask, level_count(image.shape))
+    return _prepare(image, model, photometric, mask, level_count(image.shape), allocate=owned)
 
 
-def _prepare(image: Image, model: str, photometric: object, mask: object, count: int) -> PreparedReference:
+def _prepare(
+    image: Image, model: str, photometric: object, mask: object, count: int, *, allocate: Allocate
+) -> PreparedReference:
+    """Prepare the reference in arrays from `allocate`: owned ones, or scratch for one cold call."""
     model = choice(model, "model", MODELS)
     if not isinstance(photometric, (bool, np.bool_)):
         raise InputError(f"photometric must be True or False; got {photometric!r}.")
     user_mask = None if mask is None else as_mask(mask, "mask", image.shape)
-    images, masks = reference_pyramid(image, user_mask, count)
+    images, masks = reference_pyramid(image, user_mask, count, allocate)
     for level in images:
         level.setflags(write=False)
     terms = tuple(
-        reference_terms(level, level_mask, WARP_MODELS[model], bool(photometric))
-        for level, level_mask in zip(images, masks, strict=True)
+        reference_terms(
+            level,
+            level_mask,
+            WARP_MODELS[model],
+            bool(photometric),
+            allocate=allocate,
+            role=f"jacobian{index}",
+        )
+        for index, (level, level_mask) in enumerate(zip(images, masks, strict=True))
     )
     return PreparedReference(
         model, bool(photometric), user_mask is not None, tuple(images), tuple(masks), terms
@@ -391,13 +401,15 @@ def register(
     else:
         reference_image = _as_float32(reference, "reference")
         count = level_count(reference_image.shape, inspection_image.shape)
-        # One code path: the cold call prepares the reference, only the levels it needs.
+        # One code path: the cold call prepares the reference, only the levels it needs, in this thread's
+        # scratch buffers (it never leaves the call: the pages of the last call are reused, not faulted).
         prepared = _prepare(
             reference_image,
             "translation" if model is None else model,
             True if photometric is None else photometric,
             mask,
             count,
+            allocate=scratch,
         )
     settings = Settings(
         model=WARP_MODELS[prepared.model],
