@@ -46,7 +46,8 @@ def as_image(image: object, name: str, *, allow_nan: bool = False) -> FloatArray
             f"{name} has dtype={image.dtype}, which is not supported. "
             "Try 'float32', 'float64', an unsigned integer or bool image."
         )
-    if not allow_nan and not np.isfinite(result).all():
+    # min and max propagate NaN and reach +-inf without a full-size temporary (page faults on hot paths).
+    if not allow_nan and not (np.isfinite(result.min()) and np.isfinite(result.max())):
         bad = int(np.count_nonzero(~np.isfinite(result)))
         raise InputError(
             f"{name} contains {bad} NaN or inf pixel(s). Replace them (e.g. np.nan_to_num) "
