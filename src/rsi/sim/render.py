@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi.errors import RsiError
+from rsi.errors import InputError, RsiError
 
 F32 = NDArray[np.float32]
 BoolArray = NDArray[np.bool_]
@@ -173,7 +173,13 @@ class SceneRenderer:
 
     def _update(self, data: Any, camera: str, state: str, lights: tuple[int, ...] | None) -> None:
         mujoco = self._mujoco
-        self._camera.fixedcamid = mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+        camera_id = -1
+        if isinstance(camera, str):
+            camera_id = mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+        if camera_id < 0:  # MuJoCo would abort the whole process on an out-of-range camera id
+            names = ", ".join(repr(self._model.camera(k).name) for k in range(self._model.ncam))
+            raise InputError(f"camera={camera!r} is not a camera of the scene. Choose one of {names}.")
+        self._camera.fixedcamid = camera_id
         anomalous = state == "inspection"
         self._option.geomgroup[:] = [1, 0, 0, int(anomalous), int(not anomalous), 0]
         if lights is not None:

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import shutil
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -90,10 +93,11 @@ class View:
         Reflectance-weighted ambient illuminance given to the camera model.
     strobe_lux_s : ndarray of shape (M, N), float32
         Reflectance-weighted strobe exposure given to the camera model.
-    depth_m : ndarray of shape (M, N), float32
-        Distance along the viewing axis (the far plane where nothing is hit).
+    depth_m : ndarray of shape (M, N), float32, or None
+        Distance along the viewing axis (the far plane where nothing is hit); None from ``truth=False``.
     flaw_masks : dict of int to ndarray of shape (M, N), bool
-        Index into ``World.anomalies.anomalies`` -> pixels showing that anomaly; only visible ones.
+        Index into ``World.anomalies.anomalies`` -> pixels showing that anomaly; only visible ones (empty
+        for the reference state and from ``truth=False``).
     pose : CameraPose
         The camera actually used (the vista plus this visit's error).
     pose_error_px : (float, float)
@@ -108,7 +112,7 @@ class View:
     basis: dict[str, F32]
     ambient_lux: F32
     strobe_lux_s: F32
-    depth_m: F32
+    depth_m: F32 | None
     flaw_masks: dict[int, BoolArray]
     pose: CameraPose
     pose_error_px: tuple[float, float]
@@ -214,6 +218,8 @@ class World:
         # 1/rho^2 fall-off, with the level SUN_LEVEL at the spot centre
         self.model.light_attenuation[light] = (0.0, 0.0, 1.0 / configuration.rho_m**2)
         self.lamp = configuration
+        # the renderer reads the light's world pose from data, which only kinematics updates from the mocap
+        self._mujoco.mj_forward(self.model, self.data)
 
     def aim_lamp(
         self, spot_world_m: object, *, light_from: object, intensity_lux: float = LAB_LAMP_LUX
@@ -225,6 +231,7 @@ class World:
         """Open the ORU A door by `angle_rad` in [0, 1.92] (0 = closed): shows connectors and cold plate."""
         angle = v.in_range(angle_rad, "angle_rad", low=0.0, high=1.92)
         self.data.qpos[self.model.jnt_qposadr[self._id("joint", "A_door_hinge")]] = angle
+        self._mujoco.mj_forward(self.model, self.data)  # the door's geoms follow qpos only after kinematics
 
     @property
     def door_angle_rad(self) -> float:
@@ -300,6 +307,7 @@ class World:
         stereo: bool = False,
         lit_field: str = "odd",
         exposure_s: float | None = None,
+        truth: bool = True,
     ) -> View:
         """Visit a vista point and take a frame (seed §2.1-2.3).
 
@@ -322,6 +330,10 @@ class World:
         exposure_s : float or None
             Shutter; None keeps the orbit's ambient-to-strobe ratio under the lamp's intensity
             (seed §2.1, :func:`rsi.sim.orbit.compensating_exposure`).
+        truth : bool
+            Also render depth and the segmentation the flaw masks come from: one extra pass, two when the
+            anomalies removed pristine geoms (~0.05 s each at 1024x1024 on the CPU). False gives the frame
+            alone (``depth_m`` None, ``flaw_masks`` empty) and draws the same visit and noise.
 
         Returns
         -------
@@ -331,6 +343,8 @@ class World:
         shape = _size(size)
         v.choice(state, "state", STATES)
         v.choice(lit_field, "lit_field", ("odd", "even"))
+        if not isinstance(truth, bool):
+            raise InputError(f"truth must be True or False; got {truth!r}.")
         intensity = self.lamp_task.intensity_lux
         seconds = (
             compensating_exposure(intensity).lab_exposure_s
@@ -356,9 +370,12 @@ class World:
             "intensity": intensity,
         }
         frame, basis, ambient, strobe = self._frame("isee", shape, **settings)
-        renderer = self._renderer(shape)
-        depth, segments = renderer.depth_and_segments(self.data, "isee", state=state)
-        masks = self._truth(pose, depth, segments, state) if state == "inspection" else {}
+        depth: F32 | None = None
+        masks: dict[int, BoolArray] = {}
+        if truth:
+            depth, segments = self._renderer(shape).depth_and_segments(self.data, "isee", state=state)
+            if state == "inspection":
+                masks = self._truth(pose, depth, segments, state)
         pair = None
         if stereo:
             pair = (
@@ -531,6 +548,31 @@ def load(
     return World(mockup, anomalies, seed=int(seed), repeatability=repeatability, camera=camera)
 
 
+def _output_folder(out_dir: object) -> tuple[Path, Path | None]:
+    """`out_dir` as a folder that can be written, checked before anything is rendered.
+
+    Returns the folder and the outermost folder this call will have to create (None if it exists).
+    """
+    if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir):
+        raise InputError(f"out_dir must be a folder path (str or pathlib.Path); got {out_dir!r}.")
+    folder = Path(out_dir)
+    existing, missing = folder, None
+    while not existing.exists() and existing.parent != existing:
+        existing, missing = existing.parent, existing
+    if not existing.is_dir():
+        where = "is a file" if existing == folder else f"lies under {str(existing)!r}, which is a file"
+        raise InputError(
+            f"out_dir={str(folder)!r} {where}, not a folder; nothing was written. "
+            "Choose an existing folder or a path where one can be created."
+        )
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(
+            f"out_dir={str(folder)!r} cannot be written: {str(existing)!r} is not writable by this user; "
+            "nothing was written. Choose a folder you can write to."
+        )
+    return folder, missing
+
+
 def render_vista_to_folder(
     world: World,
     vista: str,
@@ -540,18 +582,28 @@ def render_vista_to_folder(
     state: str = "inspection",
 ) -> dict[str, Path]:
     """Visit `vista` and write the frame (PNG), ambient/strobe exposures (float TIFF), depth (float TIFF),
-    the flaw mask (PNG) and the truth (JSON) into `out_dir` atomically.
+    the flaw mask (PNG) and the truth (JSON) into `out_dir`, all or nothing.
+
+    Every file is first written into a hidden staging folder inside `out_dir` and moved into place only
+    when all were written; on a failure the staging folder, and any folder this call created, is removed.
 
     Returns
     -------
     dict of str to Path
         ``frame``, ``ambient``, ``strobe``, ``depth``, ``mask``, ``truth``.
+
+    Raises
+    ------
+    InputError
+        Naming the argument: an unknown vista or state, a bad size, or an `out_dir` that is a file, lies
+        under a file, is not writable, or holds a folder where an output file must go.
     """
     from rsi._files import atomic_write_bytes
     from rsi.imaging.io import write_image
 
-    view = world.render(vista, size=size, state=state)
-    folder = Path(out_dir)
+    world.vista(vista)
+    v.choice(state, "state", STATES)
+    folder, created = _output_folder(out_dir)
     stem = f"{vista}_{state}"
     paths = {
         "frame": folder / f"{stem}_frame.png",
@@ -561,11 +613,14 @@ def render_vista_to_folder(
         "mask": folder / f"{stem}_flaw_mask.png",
         "truth": folder / f"{stem}_truth.json",
     }
-    write_image(paths["frame"], view.frame.raw)
-    write_image(paths["ambient"], view.ambient_lux)
-    write_image(paths["strobe"], view.strobe_lux_s)
-    write_image(paths["depth"], view.depth_m)
-    write_image(paths["mask"], (view.flaw_mask * np.uint8(255)).astype(np.uint8))
+    for path in paths.values():
+        if path.is_dir():
+            raise InputError(
+                f"out_dir={str(folder)!r} holds a folder {path.name!r} where an output file must go; nothing "
+                "was written. Move that folder or choose another out_dir."
+            )
+    view = world.render(vista, size=size, state=state)
+    assert view.depth_m is not None  # rendered with truth
     visible = {
         str(k): [int(n) for n in np.argwhere(mask).mean(axis=0)[::-1]] for k, mask in view.flaw_masks.items()
     }
@@ -582,5 +637,31 @@ def render_vista_to_folder(
         "visible_anomaly_centres_xy": visible,
         "anomalies": world.anomalies.to_dict(),
     }
-    atomic_write_bytes(paths["truth"], json.dumps(truth, indent=2).encode("utf-8"))
+    images = {
+        "frame": view.frame.raw,
+        "ambient": view.ambient_lux,
+        "strobe": view.strobe_lux_s,
+        "depth": view.depth_m,
+        "mask": (view.flaw_mask * np.uint8(255)).astype(np.uint8),
+    }
+    staging: Path | None = None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(dir=folder, prefix=f".{stem}."))
+        for key, image in images.items():
+            write_image(staging / paths[key].name, image)
+        atomic_write_bytes(staging / paths["truth"].name, json.dumps(truth, indent=2).encode("utf-8"))
+        for path in paths.values():
+            os.replace(staging / path.name, path)
+    except (OSError, InputError) as error:
+        if created is not None:
+            shutil.rmtree(created, ignore_errors=True)
+        reason = error.strerror if isinstance(error, OSError) and error.strerror else str(error)
+        raise InputError(
+            f"out_dir={str(folder)!r} cannot be written ({reason}); nothing was written. "
+            "Choose a folder you can write to, on a disk with room."
+        ) from error
+    finally:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
     return paths
