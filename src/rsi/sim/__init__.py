@@ -8,6 +8,7 @@
 - :mod:`rsi.sim.scene`            MJCF of the mock-up (MuJoCo)
 - :mod:`rsi.sim.render`           OpenGL backend, basis images, depth and segmentation (MuJoCo)
 - :mod:`rsi.sim.world`            the World: state, read-outs, frames, fields
+- :mod:`rsi.sim.arm`              the K1207-style arm on its rail with the ISEE (in the World: ``arm=True``)
 
 The front door is :func:`load`. Importing ``rsi.sim`` does not import MuJoCo: it loads on first use.
 """

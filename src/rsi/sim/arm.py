@@ -68,6 +68,12 @@ LIMITS = JointLimits(
     max_rate=np.array([0.25, 1.0, 1.0, 1.2, 1.2, 1.5, 1.5, 1.5]),
 )
 MODES = ("kinematic", "servo")
+JAW_NAMES = ("jaw_left", "jaw_right")
+CAMERAS = ("left", "right")
+WORLD_ARM_PREFIX = "arm_"  # names of the arm's elements inside a larger model (rsi.sim.load(arm=True))
+# What a host world does not take from the arm's own model: its floor and room light (the truss world is a
+# dark room with its own calibrated lights; rsi.sim.scene).
+_STANDALONE_ONLY = {"geom": ("floor",), "light": ("room",)}
 
 
 # --------------------------------------------------------------------------------------- obstacles
@@ -393,6 +399,38 @@ def arm_spec(obstacles: Sequence[Obstacle] = ()) -> Any:
     return spec
 
 
+def attach_arm(spec: Any, *, home_tool_tip_m: object, prefix: str = WORLD_ARM_PREFIX) -> None:
+    """Put the arm, its rail and the ISEE into another model's spec (an MjSpec attach, no copy of the MJCF).
+
+    The whole arm (rail beam, carriage and chain, actuators, rangefinders, F/T) is translated so that its
+    home tool tip lands on `home_tool_tip_m`; the rail stays along world x and the home tool axis along
+    world +y. Names get `prefix` (bind with ``Arm.bind(model, data, prefix=prefix)``). The arm's floor
+    and room light are left out, and the host takes the arm's integrator (``implicitfast``, needed by the
+    light chain under physics: ARCHITECTURE, MuJoCo facts).
+
+    Parameters
+    ----------
+    spec : mujoco.MjSpec
+        The host model, edited in place.
+    home_tool_tip_m : (float, float, float)
+        World position of the tool tip at :data:`HOME_Q` (rail at mid-travel), m.
+    prefix : str
+        Prefix of every name the arm brings.
+    """
+    target = np.asarray(home_tool_tip_m, dtype=np.float64)
+    if target.shape != (3,) or not np.all(np.isfinite(target)):
+        raise InputError(f"home_tool_tip_m must be 3 finite numbers (x, y, z m); got {home_tool_tip_m!r}.")
+    child = arm_spec()
+    spec.option.integrator = child.option.integrator
+    spec.option.timestep = child.option.timestep
+    frame = spec.worldbody.add_frame()
+    frame.pos = target - _home_tool_frame()[0]
+    spec.attach(child, frame=frame, prefix=prefix)
+    for kind, names in _STANDALONE_ONLY.items():
+        for name in names:
+            spec.delete(getattr(spec, kind)(prefix + name))
+
+
 # --------------------------------------------------------------------------------------------- Arm
 
 
@@ -455,10 +493,82 @@ class Arm:
         position_gain: float | None = None,
     ) -> None:
         self._mujoco: Any = import_mujoco()
-        self.mode = v.choice(mode, "mode", MODES)
+        v.choice(mode, "mode", MODES)
         self.obstacles = tuple(obstacles)
-        self.model: Any = arm_spec(self.obstacles).compile()
-        self.data: Any = self._mujoco.MjData(self.model)
+        model = arm_spec(self.obstacles).compile()
+        self._bind(
+            model,
+            self._mujoco.MjData(model),
+            prefix="",
+            owns_data=True,
+            mode=mode,
+            settings=settings,
+            position_gain=position_gain,
+        )
+
+    @classmethod
+    def bind(
+        cls,
+        model: Any,
+        data: Any,
+        *,
+        prefix: str = WORLD_ARM_PREFIX,
+        mode: str = "kinematic",
+        settings: RedundancySettings | None = None,
+        position_gain: float | None = None,
+    ) -> Arm:
+        """An Arm driving the arm inside a larger model (one built with :func:`attach_arm`).
+
+        The arm's joints, sites, sensors, cameras and actuators are found by their names with `prefix`;
+        everything else in `model` and `data` (a truss, a door, mocap bodies) is left alone, and
+        :meth:`reset` sets only the arm's own state. The other parameters are those of :class:`Arm`.
+
+        Parameters
+        ----------
+        model : mujoco.MjModel
+        data : mujoco.MjData
+            Of `model`; shared, not copied: the arm's steps move the same world.
+        prefix : str
+            Name prefix the arm was attached with (:data:`WORLD_ARM_PREFIX` in :func:`rsi.sim.load`).
+
+        Returns
+        -------
+        Arm
+            At the home pose.
+        """
+        arm = cls.__new__(cls)
+        arm._mujoco = import_mujoco()
+        v.choice(mode, "mode", MODES)
+        if not isinstance(prefix, str):
+            raise InputError(f"prefix must be a str; got {prefix!r}.")
+        arm.obstacles = ()
+        arm._bind(
+            model,
+            data,
+            prefix=prefix,
+            owns_data=False,
+            mode=mode,
+            settings=settings,
+            position_gain=position_gain,
+        )
+        return arm
+
+    def _bind(
+        self,
+        model: Any,
+        data: Any,
+        *,
+        prefix: str,
+        owns_data: bool,
+        mode: str,
+        settings: RedundancySettings | None,
+        position_gain: float | None,
+    ) -> None:
+        self.mode = v.choice(mode, "mode", MODES)
+        self.model: Any = model
+        self.data: Any = data
+        self.prefix = prefix
+        self._owns_data = owns_data
         self.settings = settings or RedundancySettings(joint_weights=np.array([4.0, 1, 1, 1, 1, 1, 1, 1]))
         default_gain = 1.0 if self.mode == "kinematic" else 0.5
         self.position_gain = v.in_range(
@@ -468,23 +578,34 @@ class Arm:
             high=1.0,
             low_inclusive=False,
         )
-        ids = self._mujoco.mj_name2id
         obj = self._mujoco.mjtObj
-        self._joint_ids = [ids(self.model, obj.mjOBJ_JOINT, name) for name in JOINT_NAMES]
-        self._qpos = np.array([self.model.jnt_qposadr[j] for j in self._joint_ids])
-        self._dof = np.array([self.model.jnt_dofadr[j] for j in self._joint_ids])
-        self._site = {
-            name: ids(self.model, obj.mjOBJ_SITE, name)
-            for name in ("tool", "shoulder", "elbow", "wrist", "ft", "range_left", "range_right")
-        }
+
+        def ids(kind: Any, names: Sequence[str]) -> list[int]:
+            found = [int(self._mujoco.mj_name2id(model, kind, prefix + name)) for name in names]
+            missing = [prefix + name for name, k in zip(names, found, strict=True) if k < 0]
+            if missing:
+                raise InputError(
+                    f"model has no arm element named {missing[0]!r} (prefix={prefix!r}); build it with "
+                    "attach_arm(spec, prefix=...) and pass the same prefix."
+                )
+            return found
+
+        self._joint_ids = ids(obj.mjOBJ_JOINT, JOINT_NAMES)
+        self._qpos = np.array([model.jnt_qposadr[j] for j in self._joint_ids])
+        self._dof = np.array([model.jnt_dofadr[j] for j in self._joint_ids])
+        jaws = ids(obj.mjOBJ_JOINT, JAW_NAMES)
+        self._jaw_qpos = np.array([model.jnt_qposadr[j] for j in jaws])
+        self._jaw_dof = np.array([model.jnt_dofadr[j] for j in jaws])
+        self._ctrl = np.array(ids(obj.mjOBJ_ACTUATOR, (*JOINT_NAMES, *JAW_NAMES)))
+        site_names = ("tool", "shoulder", "elbow", "wrist", "ft", "range_left", "range_right")
+        self._site = dict(zip(site_names, ids(obj.mjOBJ_SITE, site_names), strict=True))
+        self._camera = dict(
+            zip(CAMERAS, ids(obj.mjOBJ_CAMERA, tuple(f"isee_{c}" for c in CAMERAS)), strict=True)
+        )
         self._range_adr = [
-            int(self.model.sensor_adr[ids(self.model, obj.mjOBJ_SENSOR, name)])
-            for name in ("range_left", "range_right")
+            int(model.sensor_adr[k]) for k in ids(obj.mjOBJ_SENSOR, ("range_left", "range_right"))
         ]
-        self._ft_adr = [
-            int(self.model.sensor_adr[ids(self.model, obj.mjOBJ_SENSOR, name)])
-            for name in ("ft_force", "ft_torque")
-        ]
+        self._ft_adr = [int(model.sensor_adr[k]) for k in ids(obj.mjOBJ_SENSOR, ("ft_force", "ft_torque"))]
         self.time_s = 0.0
         self.reset(HOME_Q)
 
@@ -508,15 +629,15 @@ class Arm:
                 f"joint_positions={q} lie outside the limits lower={LIMITS.lower}, upper={LIMITS.upper}."
             )
         opening = v.in_range(jaw_opening_m, "jaw_opening_m", low=0.0, high=0.08)
-        self._mujoco.mj_resetData(self.model, self.data)
+        if self._owns_data:
+            self._mujoco.mj_resetData(self.model, self.data)
+        else:  # in a shared world only the arm's own state is reset (not the door, lamp or time)
+            self.data.qvel[self._dof] = 0.0
+            self.data.qvel[self._jaw_dof] = 0.0
         self.data.qpos[self._qpos] = q
-        jaw = [
-            self.model.jnt_qposadr[self._mujoco.mj_name2id(self.model, self._mujoco.mjtObj.mjOBJ_JOINT, n)]
-            for n in ("jaw_left", "jaw_right")
-        ]
-        self.data.qpos[jaw] = opening / 2
-        self.data.ctrl[:8] = q
-        self.data.ctrl[8:10] = opening / 2
+        self.data.qpos[self._jaw_qpos] = opening / 2
+        self.data.ctrl[self._ctrl[:8]] = q
+        self.data.ctrl[self._ctrl[8:]] = opening / 2
         self._target_q = q.copy()
         self._mujoco.mj_forward(self.model, self.data)
         self.time_s = 0.0
@@ -545,6 +666,22 @@ class Arm:
         """Tool tip position (m, world) and rotation (3x3, columns = tool x, y, z in world)."""
         site = self._site["tool"]
         return self.data.site_xpos[site].copy(), self.data.site_xmat[site].reshape(3, 3).copy()
+
+    def camera_pose(self, camera: str = "left") -> tuple[FloatArray, FloatArray]:
+        """Position (m, world) and rotation (3x3, columns: image right, image up, backward) of an ISEE camera.
+
+        Parameters
+        ----------
+        camera : {"left", "right"}
+            ``isee_left`` or ``isee_right`` (baseline :data:`STEREO_BASELINE_M`); both look along the tool
+            axis.
+        """
+        index = self._camera[v.choice(camera, "camera", CAMERAS)]
+        return self.data.cam_xpos[index].copy(), self.data.cam_xmat[index].reshape(3, 3).copy()
+
+    def camera_name(self, camera: str = "left") -> str:
+        """The model's name of an ISEE camera (with this arm's prefix), for a renderer."""
+        return f"{self.prefix}isee_{v.choice(camera, 'camera', CAMERAS)}"
 
     def site_position_m(self, name: str) -> FloatArray:
         """World position of a named site (tool, shoulder, elbow, wrist, ft, range_left, range_right)."""
@@ -700,13 +837,14 @@ class Arm:
 
     def _servo(self, dq: FloatArray, dt: float) -> None:
         steps = max(1, round(dt / float(self.model.opt.timestep)))
-        gains = self.model.actuator_gainprm[:8, 0]
-        kv = -self.model.actuator_biasprm[:8, 2]
+        joints = self._ctrl[:8]
+        gains = self.model.actuator_gainprm[joints, 0]
+        kv = -self.model.actuator_biasprm[joints, 2]
         start = self._target_q.copy()
         for index in range(1, steps + 1):
             target = np.clip(start + dq * dt * index / steps, LIMITS.lower, LIMITS.upper)
             # velocity feed-forward: kp (u - q) - kv qdot = kp (target - q) + kv (dq - qdot)
-            self.data.ctrl[:8] = target + kv / gains * dq
+            self.data.ctrl[joints] = target + kv / gains * dq
             self._mujoco.mj_step(self.model, self.data)
         self._target_q = np.clip(start + dq * dt, LIMITS.lower, LIMITS.upper)
         self._mujoco.mj_forward(self.model, self.data)

@@ -185,6 +185,7 @@ def _truss() -> list[Part]:
 _FRONT = (0.0, -1.0, 0.0)
 _UP = (0.0, 0.0, 1.0)
 _MOUNT_Y_M = -BAY_M / 2 - STRUT_RADIUS_M  # ORU plates sit against the front struts
+A_FACE_Y_M = _MOUNT_Y_M - 0.16  # front face of the A electrical ORU (its pocket is 20 mm deep)
 
 
 def _screw_sites(
@@ -198,7 +199,7 @@ def _screw_sites(
 
 def _oru_a() -> tuple[list[Part], list[Site], list[Patch], Vector3]:
     """Electrical ORU (A): body, door pocket with connectors and cold plate, Kapton circles."""
-    back, front, face = _MOUNT_Y_M, _MOUNT_Y_M - 0.14, _MOUNT_Y_M - 0.16  # pocket 20 mm deep
+    back, front, face = _MOUNT_Y_M, _MOUNT_Y_M - 0.14, A_FACE_Y_M  # pocket 20 mm deep
     cx, cz = 0.3, TRUSS_Z0_M + BAY_M / 2
     parts = [Part("A_body", "A", "box", (0.17, 0.07, 0.14), vector3(cx, (back + front) / 2, cz), "aluminium")]
     # the pocket's rim on the left half; the right half is filled flush with the face
@@ -440,7 +441,7 @@ def truss_mockup() -> Mockup:
     d_parts, leaks, d_patches = _oru_d()
     parts += a_parts + b_parts + c_parts + d_parts
     cz = TRUSS_Z0_M + BAY_M / 2
-    a_face, plate_face = _MOUNT_Y_M - 0.16, _MOUNT_Y_M - 0.02
+    a_face, plate_face = A_FACE_Y_M, _MOUNT_Y_M - 0.02
     screws = (
         _screw_sites("A", (0.155, 0.445), a_face, (cz - 0.125, cz + 0.125), "aluminium")
         + _screw_sites("B", (0.72, 1.08), plate_face, (cz - 0.12, cz + 0.12), "aluminium")

@@ -151,9 +151,11 @@ class SceneRenderer:
     model : mujoco.MjModel
     height, width : int
         Image size in pixels, at most the model's offscreen buffer (2048).
+    show_rangefinders : bool
+        Draw the rangefinders' rays (MuJoCo's default). False (default): camera images show only the scene.
     """
 
-    def __init__(self, model: Any, height: int, width: int) -> None:
+    def __init__(self, model: Any, height: int, width: int, *, show_rangefinders: bool = False) -> None:
         mujoco = import_mujoco()
         self._mujoco = mujoco
         self._model = model
@@ -164,8 +166,8 @@ class SceneRenderer:
         self._mjr.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._scene = mujoco.MjvScene(model, maxgeom=4000)
         self._option = mujoco.MjvOption()
-        # rangefinder rays would otherwise be drawn into the camera images
-        self._option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = False
+        # rangefinder rays would otherwise be drawn into the camera images (ARCHITECTURE: MuJoCo facts)
+        self._option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = bool(show_rangefinders)
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._rect = mujoco.MjrRect(0, 0, width, height)

@@ -398,8 +398,10 @@ def _spot(name: str, pos: tuple[float, float, float], level: float, cutoff_deg: 
     )
 
 
-def build_model(mockup: Mockup, anomalies: AnomalySet) -> tuple[mujoco.MjModel, SceneIndex]:
-    """Compile the mock-up with its anomalies into a MuJoCo model.
+def build_model(
+    mockup: Mockup, anomalies: AnomalySet, *, arm_home_tool_tip_m: object = None
+) -> tuple[mujoco.MjModel, SceneIndex]:
+    """Compile the mock-up with its anomalies into a MuJoCo model, optionally with the arm on its rail.
 
     Parameters
     ----------
@@ -407,6 +409,10 @@ def build_model(mockup: Mockup, anomalies: AnomalySet) -> tuple[mujoco.MjModel, 
         The geometry.
     anomalies : AnomalySet
         The anomalies to plant.
+    arm_home_tool_tip_m : (float, float, float), optional
+        Put the K1207-style arm with the ISEE in the same world (:func:`rsi.sim.arm.attach_arm`, names
+        prefixed :data:`rsi.sim.arm.WORLD_ARM_PREFIX`), its home tool tip here. None (default): no arm,
+        and the model is compiled straight from the MJCF text as always.
 
     Returns
     -------
@@ -417,4 +423,10 @@ def build_model(mockup: Mockup, anomalies: AnomalySet) -> tuple[mujoco.MjModel, 
 
     mujoco_module: Any = import_mujoco()
     xml, assets, index = scene_mjcf(mockup, anomalies)
-    return mujoco_module.MjModel.from_xml_string(xml, assets), index
+    if arm_home_tool_tip_m is None:
+        return mujoco_module.MjModel.from_xml_string(xml, assets), index
+    from rsi.sim.arm import attach_arm
+
+    spec = mujoco_module.MjSpec.from_string(xml, assets=assets)
+    attach_arm(spec, home_tool_tip_m=arm_home_tool_tip_m)
+    return spec.compile(), index

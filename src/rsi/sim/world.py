@@ -25,7 +25,17 @@ from rsi.errors import InputError
 from rsi.imaging.camera import DEFAULT_CAMERA, CameraModel, Frame, expose
 from rsi.sim import fields
 from rsi.sim.anomalies import AnomalySet, AnomalySettings, seed_anomalies
-from rsi.sim.mockup import Mockup, Vista, truss_mockup
+from rsi.sim.arm import RANGEFINDER_RECESS_M, WORLD_ARM_PREFIX, Arm
+from rsi.sim.mockup import (
+    A_FACE_Y_M,
+    BAY_M,
+    BAYS,
+    TRUSS_Z0_M,
+    VISTA_STANDOFF_M,
+    Mockup,
+    Vista,
+    truss_mockup,
+)
 from rsi.sim.orbit import (
     LAB_SUN_FRACTION,
     SCENE_AREA_M2,
@@ -64,6 +74,15 @@ LAB_LAMP_LUX = LAB_SUN_FRACTION * SUN_ILLUMINANCE_LUX  # seed §4.1: 1.5 % of su
 STROBE_LUX_S = STROBE_LM_S / SCENE_AREA_M2  # seed §2.1: 1.3 lm s over 0.1 m^2 at the inspection standoff
 HALOGEN_LUX = 1500.0  # end-effector lamps' regulated illuminance at the standoff (rsi.sensors.LampController)
 DEFAULT_SIZE = (480, 640)  # the seed's video frame
+# Issue 4: the arm on its rail in the same world, rail along the truss (x) and centred on it. At home the
+# ISEE's cameras and rangefinders (on the housing face, RANGEFINDER_RECESS_M behind the jaw tips) stand the
+# vistas' 0.5 m off the front-most face (ORU A), looking at the B tank, whose front is as far forward.
+ARM_HOME_TOOL_TIP_M = (
+    BAY_M * BAYS / 2,
+    A_FACE_Y_M - (VISTA_STANDOFF_M - RANGEFINDER_RECESS_M),
+    TRUSS_Z0_M + BAY_M / 2,
+)
+TOOL_VIEW = "tool"  # View.vista of a frame from the arm's ISEE camera
 _TRUTH_DEPTH_TOLERANCE_M = 5e-3
 _MARKER_COLOURS = {
     "hot_spot": (255, 64, 32),
@@ -149,8 +168,11 @@ class World:
         seed: int,
         repeatability: str = "lab",
         camera: CameraModel = DEFAULT_CAMERA,
+        arm: bool = False,
     ) -> None:
         self._mujoco: Any = import_mujoco()
+        if not isinstance(arm, bool):
+            raise InputError(f"arm must be True or False; got {arm!r}.")
         self.mockup = mockup
         self.anomalies = anomalies
         self.repeatability = v.choice(repeatability, "repeatability", REPEATABILITY_PX)
@@ -159,10 +181,13 @@ class World:
         poses, noise = np.random.SeedSequence([seed, 1]).spawn(2)
         self._pose_rng = np.random.default_rng(poses)
         self._noise_rng = np.random.default_rng(noise)
-        model, index = build_model(mockup, anomalies)
+        model, index = build_model(
+            mockup, anomalies, arm_home_tool_tip_m=ARM_HOME_TOOL_TIP_M if arm else None
+        )
         self.model: Any = model
         self.index: SceneIndex = index
         self.data: Any = self._mujoco.MjData(model)
+        self._arm = Arm.bind(model, self.data, prefix=WORLD_ARM_PREFIX) if arm else None
         self.time_s = 0.0
         self.halogen_on = False
         self._renderers: dict[tuple[int, int], SceneRenderer] = {}
@@ -179,6 +204,20 @@ class World:
     def _id(self, kind: str, name: str) -> int:
         obj = getattr(self._mujoco.mjtObj, f"mjOBJ_{kind.upper()}")
         return int(self._mujoco.mj_name2id(self.model, obj, name))
+
+    @property
+    def arm(self) -> Arm:
+        """The K1207-style arm on its rail carrying the ISEE, in this world's model and data (issue 4).
+
+        The same :class:`rsi.sim.arm.Arm` as standalone (``reset``, ``tool_pose``, ``jacobian``,
+        ``rangefinder_distances_m``, ``step_velocity``, ...), kinematic mode; its rangefinders see the
+        mock-up. Only in a world from ``load(..., arm=True)``.
+        """
+        if self._arm is None:
+            raise InputError(
+                "this world has no arm; build it with rsi.sim.load('truss', seed=..., arm=True)."
+            )
+        return self._arm
 
     @property
     def vistas(self) -> tuple[str, ...]:
@@ -340,17 +379,7 @@ class World:
         View
         """
         point = self.vista(vista)
-        shape = _size(size)
-        v.choice(state, "state", STATES)
-        v.choice(lit_field, "lit_field", ("odd", "even"))
-        if not isinstance(truth, bool):
-            raise InputError(f"truth must be True or False; got {truth!r}.")
-        intensity = self.lamp_task.intensity_lux
-        seconds = (
-            compensating_exposure(intensity).lab_exposure_s
-            if exposure_s is None
-            else v.in_range(exposure_s, "exposure_s", low=0.0, low_inclusive=False)
-        )
+        shape, settings = self._shot_settings(size, state, lit_field, exposure_s, truth)
         forward, up = np.asarray(point.forward), np.asarray(point.up)
         rotation = _rotation(forward, up)
         fovy = math.radians(CAMERA_FOVY_DEG)
@@ -363,38 +392,99 @@ class World:
         position = np.asarray(point.position_m) + offset_m[0] * rotation[:, 0] + offset_m[1] * rotation[:, 1]
         self.place_camera(position, forward, up)
         pose = CameraPose(position, rotation, fovy, shape)
+        return self._view(
+            vista,
+            pose,
+            ("isee", "isee_left", "isee_right"),
+            (float(-offset_px[0]), float(offset_px[1])),
+            stereo=stereo,
+            truth=truth,
+            **settings,
+        )
+
+    def render_from_tool(
+        self,
+        *,
+        size: tuple[int, int] = DEFAULT_SIZE,
+        state: str = "inspection",
+        stereo: bool = False,
+        lit_field: str = "odd",
+        exposure_s: float | None = None,
+        truth: bool = True,
+    ) -> View:
+        """Take a frame with the arm's ISEE cameras from where the arm now holds them (issue 4).
+
+        The same pipeline as :meth:`render` (light basis, camera model, depth and truth); the frame is the
+        left ISEE camera's (the stereo pair is left and right). The ISEE's calibrated strobe and halogen
+        lamps and its view-axis rangefinder (``readouts()["standoff_m"]``) move with it. No visit error
+        is drawn: the pose is the arm's (``pose_error_px`` is (0, 0), ``vista`` is ``"tool"``). The
+        rangefinder rays are not drawn (seed §2: the frame is what the camera sees). Needs
+        ``load(..., arm=True)``; parameters as for :meth:`render`.
+
+        Returns
+        -------
+        View
+        """
+        arm = self.arm
+        shape, settings = self._shot_settings(size, state, lit_field, exposure_s, truth)
+        left, rotation = arm.camera_pose("left")
+        forward, up = -rotation[:, 2], rotation[:, 1]
+        # the ISEE's calibrated lamps, strobe and view-axis rangefinder ride the camera body, placed on the
+        # left camera (midway between the cameras it would sit on the gripper's jaw and range 0)
+        self.place_camera(left, forward, up)
+        pose = CameraPose(left, _rotation(forward, up), math.radians(CAMERA_FOVY_DEG), shape)
+        cameras = (arm.camera_name("left"), arm.camera_name("left"), arm.camera_name("right"))
+        return self._view(TOOL_VIEW, pose, cameras, (0.0, 0.0), stereo=stereo, truth=truth, **settings)
+
+    def _shot_settings(
+        self, size: object, state: str, lit_field: str, exposure_s: float | None, truth: object
+    ) -> tuple[tuple[int, int], dict[str, Any]]:
+        """Validated frame size and the settings of :meth:`_frame` (render units, lamp intensity, shutter)."""
+        shape = _size(size)
+        v.choice(state, "state", STATES)
+        v.choice(lit_field, "lit_field", ("odd", "even"))
+        if not isinstance(truth, bool):
+            raise InputError(f"truth must be True or False; got {truth!r}.")
+        intensity = self.lamp_task.intensity_lux
+        seconds = (
+            compensating_exposure(intensity).lab_exposure_s
+            if exposure_s is None
+            else v.in_range(exposure_s, "exposure_s", low=0.0, low_inclusive=False)
+        )
         settings: dict[str, Any] = {
             "state": state,
             "lit_field": lit_field,
             "seconds": seconds,
             "intensity": intensity,
         }
-        frame, basis, ambient, strobe = self._frame("isee", shape, **settings)
+        return shape, settings
+
+    def _view(
+        self,
+        vista: str,
+        pose: CameraPose,
+        cameras: tuple[str, str, str],
+        pose_error_px: tuple[float, float],
+        *,
+        stereo: bool,
+        truth: bool,
+        **settings: Any,
+    ) -> View:
+        """Frame, basis, depth and truth from `cameras` (main, left, right) at `pose`: the shared driver."""
+        shape = pose.shape
+        main, left, right = cameras
+        frame, basis, ambient, strobe = self._frame(main, shape, **settings)
+        state = settings["state"]
         depth: F32 | None = None
         masks: dict[int, BoolArray] = {}
         if truth:
-            depth, segments = self._renderer(shape).depth_and_segments(self.data, "isee", state=state)
+            depth, segments = self._renderer(shape).depth_and_segments(self.data, main, state=state)
             if state == "inspection":
-                masks = self._truth(pose, depth, segments, state)
+                masks = self._truth(pose, depth, segments, state, camera=main)
         pair = None
         if stereo:
-            pair = (
-                self._frame("isee_left", shape, **settings)[0],
-                self._frame("isee_right", shape, **settings)[0],
-            )
-        return View(
-            vista,
-            state,
-            frame,
-            basis,
-            ambient,
-            strobe,
-            depth,
-            masks,
-            pose,
-            (float(-offset_px[0]), float(offset_px[1])),
-            pair,
-        )
+            pair = (self._frame(left, shape, **settings)[0], self._frame(right, shape, **settings)[0])
+        return View(vista, state, frame, basis, ambient, strobe, depth, masks, pose, pose_error_px, pair)
 
     def _frame(
         self,
@@ -426,14 +516,14 @@ class World:
         return frame, basis, ambient, strobe
 
     def _truth(
-        self, pose: CameraPose, depth: F32, segments: NDArray[np.int32], state: str
+        self, pose: CameraPose, depth: F32, segments: NDArray[np.int32], state: str, *, camera: str = "isee"
     ) -> dict[int, BoolArray]:
         """Pixels of each anomaly: its geoms in the frame, and where it replaced pristine geoms (seed §4)."""
         masks: dict[int, BoolArray] = {}
         renderer = self._renderer(pose.shape)
         pristine = None
         if self.index.pristine_geoms:
-            pristine = renderer.depth_and_segments(self.data, "isee", state="reference")[1]
+            pristine = renderer.depth_and_segments(self.data, camera, state="reference")[1]
         for index, names in self.index.flaw_geoms.items():
             ids = [self._id("geom", name) for name in names]
             mask = np.isin(segments, ids)
@@ -519,6 +609,7 @@ def load(
     repeatability: str = "lab",
     settings: AnomalySettings | None = None,
     camera: CameraModel = DEFAULT_CAMERA,
+    arm: bool = False,
 ) -> World:
     """Build a seeded world (seed §4): the mock-up with anomalies drawn from `seed`.
 
@@ -534,6 +625,11 @@ def load(
         Anomaly counts and ranges (defaults of :class:`rsi.sim.anomalies.AnomalySettings`).
     camera : CameraModel
         The inspection camera (seed §2.1).
+    arm : bool
+        Also put the K1207-style arm on its rail, carrying the ISEE, in the same MuJoCo world (issue 4):
+        rail along the truss at x = 0.9 +- 1 m, home tool tip at :data:`ARM_HOME_TOOL_TIP_M`. Reach it as
+        :attr:`World.arm`; frames from its camera with :meth:`World.render_from_tool`. False (default)
+        builds exactly the model, and the frames, of a world without it.
 
     Returns
     -------
@@ -545,7 +641,7 @@ def load(
     mockup = truss_mockup()
     streams = np.random.SeedSequence([int(seed), 0])
     anomalies = seed_anomalies(mockup.candidates, rng=np.random.default_rng(streams), settings=settings)
-    return World(mockup, anomalies, seed=int(seed), repeatability=repeatability, camera=camera)
+    return World(mockup, anomalies, seed=int(seed), repeatability=repeatability, camera=camera, arm=arm)
 
 
 def _output_folder(out_dir: object) -> tuple[Path, Path | None]:
