@@ -1,9 +1,10 @@
-"""Shared test set-up: fixed hypothesis seeds, and a DeepPCB-layout tree with known content."""
+"""Shared test set-up: fixed hypothesis seeds, a DeepPCB-layout tree, one run of the proximity demo."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -13,6 +14,9 @@ from hypothesis import settings
 # Seeds fixed: hypothesis draws the same examples on every run (and no timing deadline on a loaded CI box).
 settings.register_profile("rsi", derandomize=True, deadline=None, print_blob=True)
 settings.load_profile("rsi")
+
+if TYPE_CHECKING:
+    from rsi.sim.isee_demo import ProximityDemoResult
 
 TreeWriter = Callable[..., Path]
 
@@ -73,3 +77,17 @@ def defect_tree(tmp_path: Path) -> Path:
             reference[:, :4] = 0  # a crop-frame stripe in the template only: border_px ignores it
         pairs[f"0004100{index}"] = (reference, inspection, "\n".join(boxes))
     return write_deeppcb_tree(tmp_path / "deeppcb", pairs)
+
+
+@pytest.fixture(scope="session")
+def proximity_progress() -> list[tuple[str, int, int]]:
+    """The progress calls of the shared proximity-demo run (filled by :func:`proximity_demo`)."""
+    return []
+
+
+@pytest.fixture(scope="session")
+def proximity_demo(proximity_progress: list[tuple[str, int, int]]) -> ProximityDemoResult:
+    """One run of the ISEE proximity demo (seed 0, about 5 s), shared by the sim, report and CLI tests."""
+    from rsi.sim.isee_demo import simulate_proximity_demo
+
+    return simulate_proximity_demo(seed=0, progress=lambda *call: proximity_progress.append(call))

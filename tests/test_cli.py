@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -21,6 +22,7 @@ from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.imaging.io import write_image
 from rsi.imaging.registration import MODELS
 from rsi.mission.pair import score_flaws
+from rsi.sim.isee_demo import DemoFigures, ProximityDemoResult
 
 runner = CliRunner()
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -251,7 +253,7 @@ def test_a_bug_exits_internal_with_one_line(
 
 def test_help_documents_every_exit_code() -> None:
     assert set(cli.EXIT_CODES) == {0, 2, 3, 4, 5}
-    for args in ((), ("inspect",), ("eval", "deeppcb")):
+    for args in ((), ("inspect",), ("eval", "deeppcb"), ("isee", "proximity-demo")):
         result = invoke(*args, "--help")
         assert result.exit_code == 0
         text = " ".join(result.stdout.split())
@@ -296,3 +298,60 @@ def test_sim_unknown_vista_is_an_invalid_value(command: str, tmp_path: Path) -> 
     result = invoke("sim", command, "--vista", "Z_roof", "--out", tmp_path)
     assert result.exit_code == cli.EXIT_INVALID_VALUE
     assert "vista='Z_roof' is not known" in result.stderr
+
+
+ISSUE_4_LIMITS = {  # issue 4's acceptance, as written there
+    "servo_settle_error_m": 0.005,
+    "servo_settle_time_s": 2.0,
+    "servo_overshoot_m": 0.010,
+    "following_error_m": 0.015,
+    "contour_rms_error_m": 0.005,
+    "arm_tracking_error_m": 0.001,
+    "lamp_illumination_error": 0.01,
+}
+
+
+def test_isee_proximity_demo_json_is_the_figures_and_they_pass(
+    tmp_path: Path, proximity_demo: ProximityDemoResult
+) -> None:
+    result = invoke("isee", "proximity-demo", "--seed", "0", "--out", tmp_path, "--json")
+    assert result.exit_code == 0, result.output
+    figures = last_json_line(result)
+    assert list(figures) == [field.name for field in dataclasses.fields(DemoFigures)]
+    assert figures["min_distance_full_push_m"] >= figures["avoidance_near_edge_m"] - 0.010
+    for name, limit in ISSUE_4_LIMITS.items():
+        assert figures[name] <= limit, name
+    # the same seed gives the same figures (the shared in-process run of the library)
+    assert figures == proximity_demo.figures.to_dict()
+    assert json.loads((tmp_path / "figures.json").read_text()) == figures
+    for name in ("fig3_readings_vs_position.png", "fig6_avoidance_velocity.png", "fig7_servo_velocity.png"):
+        assert (tmp_path / name).read_bytes().startswith(PNG_SIGNATURE)
+
+
+def test_isee_proximity_demo_prints_the_acceptance_table(
+    tmp_path: Path, proximity_demo: ProximityDemoResult, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rsi.report.isee
+    import rsi.sim.isee_demo
+
+    # the table is a view of the record: reuse the shared run (the --json test runs the whole command)
+    monkeypatch.setattr(rsi.sim.isee_demo, "simulate_proximity_demo", lambda **_: proximity_demo)
+    files = {name: tmp_path / name for name in (*rsi.report.isee.PICTURES, "figures.json")}
+    monkeypatch.setattr(rsi.report.isee, "write_proximity_report", lambda *_: files)
+    result = invoke("isee", "proximity-demo", "--out", tmp_path)
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    for name in ISSUE_4_LIMITS:
+        (row,) = [line for line in lines if f" {name} " in line]
+        assert row.rstrip(" │|").endswith("pass"), row
+    assert "8/8 acceptance checks pass. Wrote 10 files" in result.stdout
+
+
+@pytest.mark.parametrize("seed", ["-1", "seven"])
+def test_isee_proximity_demo_bad_seed(seed: str, tmp_path: Path) -> None:
+    result = invoke("isee", "proximity-demo", "--seed", seed, "--out", tmp_path)
+    expected = cli.EXIT_INVALID_VALUE if seed == "-1" else cli.EXIT_USAGE
+    assert result.exit_code == expected, result.output
+    if expected == cli.EXIT_INVALID_VALUE:
+        assert result.stderr.strip() == "rsi: error: seed must be a non-negative integer; got -1."
+    assert not any(tmp_path.iterdir())

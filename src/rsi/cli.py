@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from rsi.detection.detect import Flaw
     from rsi.detection.roc import RocCurve
     from rsi.mission.pair import DemoResult, PairResult
+    from rsi.sim.isee_demo import Check
 
 EXIT_OK = 0
 EXIT_USAGE = 2
@@ -494,3 +495,56 @@ def sim_sun(
             f"the lab reproduces {100 * reproduced:.0f}% of the sunlit samples."
         )
         console.print(f"Wrote {', '.join(str(path) for path in files.values())}")
+
+
+isee_app = typer.Typer(
+    help="The Integrated Sensor End-Effector (seed §3): proximity loop, sensors and lamps on the arm.",
+    epilog=_EPILOG,
+    no_args_is_help=True,
+)
+app.add_typer(isee_app, name="isee")
+
+
+@isee_app.command("proximity-demo", epilog=_EPILOG)
+def isee_proximity_demo(
+    *,
+    seed: Annotated[int, typer.Option(help="Seed of every noise source (sensors, lamp supply); >= 0.")] = 0,
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for the plots, figures.json and scenarios.json.")
+    ] = Path("rsi-proximity"),
+    as_json: Annotated[
+        bool, typer.Option("--json", help="End with one JSON object of the figures on the last stdout line.")
+    ] = False,
+) -> None:
+    """Close the 44 Hz proximity loop on the arm (seed §3.1) and draw Figs 3, 6, 7 and time plots."""
+    with _errors():
+        from rsi.report.isee import write_proximity_report
+        from rsi.sim.isee_demo import acceptance, simulate_proximity_demo
+
+        with _progress_bar("proximity demo") as update:
+            result = simulate_proximity_demo(seed=seed, progress=update)
+            files = write_proximity_report(out, result)
+        if as_json:
+            _print_json(result.figures.to_dict())
+            return
+        _print_acceptance(result.figures.to_dict(), acceptance(result.figures), files, out)
+
+
+def _print_acceptance(
+    figures: Mapping[str, float], checks: Sequence[Check], files: Mapping[str, Path], out: Path
+) -> None:
+    from rich.table import Table
+
+    by_figure = {check.figure: check for check in checks}
+    table = Table(title="Proximity demo: issue 4 acceptance figures")
+    for column in ("figure", "value", "acceptance", "result"):
+        table.add_column(column, justify="right" if column == "value" else "left")
+    for name, value in figures.items():
+        check = by_figure.get(name)
+        limit = f"{check.relation} {check.limit:.4g}" if check else ""
+        verdict = ("pass" if check.passed else "FAIL") if check else ""
+        table.add_row(name, _readable(value), limit, verdict)
+    console = _stdout()
+    console.print(table)
+    passed = sum(check.passed for check in checks)
+    console.print(f"{passed}/{len(checks)} acceptance checks pass. Wrote {len(files)} files to {out}/.")

@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
+import dataclasses
 
 import numpy as np
 import pytest
@@ -12,66 +11,75 @@ from rsi.errors import InputError
 from rsi.sensors.proximity import ProximitySensor
 from rsi.sim import isee_demo as demo
 from rsi.sim.arm import Arm, Wall
+from rsi.sim.isee_demo import ProximityDemoResult
 
 LAW = demo.DEMO_LAW
 
 
-@pytest.fixture(scope="module")
-def demo_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[demo.DemoFigures, Path]:
-    out = tmp_path_factory.mktemp("proximity_demo")
-    messages: list[str] = []
-    figures = demo.run_proximity_demo(out, seed=0, progress=messages.append)
-    assert len(messages) >= 6
-    return figures, out
+def test_progress_reports_each_stage(
+    proximity_demo: ProximityDemoResult, proximity_progress: list[tuple[str, int, int]]
+) -> None:
+    assert [done for _, done, _ in proximity_progress] == list(range(7))
+    assert {total for _, _, total in proximity_progress} == {6}
 
 
-def test_full_push_stops_in_region_c_without_oscillation(demo_run: tuple[demo.DemoFigures, Path]) -> None:
-    figures, _ = demo_run
+def test_full_push_stops_in_region_c_without_oscillation(proximity_demo: ProximityDemoResult) -> None:
+    figures = proximity_demo.figures
     assert figures.avoidance_near_edge_m == LAW.avoidance_start_m
     assert figures.min_distance_full_push_m >= figures.avoidance_near_edge_m - 0.010
     assert figures.push_oscillation_m <= 0.002  # sensor noise only, no limit cycle
 
 
-def test_servo_from_0_6_m_settles(demo_run: tuple[demo.DemoFigures, Path]) -> None:
-    figures, _ = demo_run
+def test_servo_from_0_6_m_settles(proximity_demo: ProximityDemoResult) -> None:
+    figures = proximity_demo.figures
     assert figures.servo_settle_error_m <= 0.005
     assert figures.servo_settle_time_s <= 2.0
     assert figures.servo_overshoot_m <= 0.010
 
 
-def test_following_contour_arm_and_lamp(demo_run: tuple[demo.DemoFigures, Path]) -> None:
-    figures, out = demo_run
+def test_following_contour_arm_and_lamp(proximity_demo: ProximityDemoResult) -> None:
+    figures = proximity_demo.figures
     assert figures.following_error_m <= 0.015
     assert figures.contour_rms_error_m <= 0.005
     assert figures.arm_tracking_error_m <= 0.001
     assert figures.lamp_illumination_error <= 0.01
-    details = json.loads((out / "scenarios.json").read_text())
-    assert details["additional_task_error_deg"] <= 1.0
-    for surface in details["surfaces"].values():
+    assert proximity_demo.additional_task_error_deg <= 1.0
+    assert set(proximity_demo.surfaces) == {"follow_stepped", "follow_curved"}
+    for surface in proximity_demo.surfaces.values():
         # region B/C keep a protrusion coming into view from pushing the arm toward the wall
-        assert surface["closest_m"] >= LAW.avoidance_start_m
+        assert surface.closest_m >= LAW.avoidance_start_m
 
 
-def test_files_written(demo_run: tuple[demo.DemoFigures, Path]) -> None:
-    figures, out = demo_run
-    assert json.loads((out / "figures.json").read_text()) == figures.to_dict()
-    for name in (
-        "fig3_readings_vs_position",
-        "fig6_avoidance_velocity",
-        "fig7_servo_velocity",
-        "a_full_push",
-        "b_servo",
-        "c_follow_stepped",
-        "c_follow_curved",
-        "d_contour",
-        "f_lamp",
-    ):
-        assert (out / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+def test_figures_are_the_worst_of_the_surfaces(proximity_demo: ProximityDemoResult) -> None:
+    surfaces = proximity_demo.surfaces.values()
+    assert proximity_demo.figures.following_error_m == max(each.following_error_m for each in surfaces)
+    assert proximity_demo.figures.contour_rms_error_m == max(each.contour_rms_error_m for each in surfaces)
+    for contour in proximity_demo.contours:
+        surface = proximity_demo.surfaces[contour.name]
+        assert surface.contour_points == contour.error_m.size > 100
+        assert surface.contour_rms_error_m == pytest.approx(np.sqrt(np.mean(contour.error_m**2)))
 
 
-def test_same_seed_same_figures(demo_run: tuple[demo.DemoFigures, Path], tmp_path: Path) -> None:
-    figures, _ = demo_run
-    assert demo.run_proximity_demo(tmp_path, seed=0) == figures
+def test_acceptance_checks_every_issue_threshold(proximity_demo: ProximityDemoResult) -> None:
+    checks = {check.figure: check for check in demo.acceptance(proximity_demo.figures)}
+    assert set(checks) == {"min_distance_full_push_m", *demo.ACCEPTANCE_LIMITS}
+    assert all(check.passed for check in checks.values())
+    assert checks["min_distance_full_push_m"].limit == pytest.approx(LAW.avoidance_start_m - 0.010)
+    failing = dataclasses.replace(proximity_demo.figures, servo_settle_time_s=float("inf"))
+    verdicts = {check.figure: check.passed for check in demo.acceptance(failing)}
+    assert [name for name, passed in verdicts.items() if not passed] == ["servo_settle_time_s"]
+
+
+def test_figs_6_7_responses_follow_the_law(proximity_demo: ProximityDemoResult) -> None:
+    for response in (proximity_demo.avoidance_response, proximity_demo.servo_response):
+        seen = np.isfinite(response.measured_m)
+        assert seen.any() and not seen.all()  # the sweep ends out of range
+        law_at = np.interp(response.measured_m[seen], response.law_distance_m, response.law_velocity_m_s)
+        # x_ps is the law of the proximity it was computed from (piecewise linear: interpolation is exact
+        # up to the curve's sampling near a breakpoint)
+        np.testing.assert_allclose(response.commanded_m_s[seen], law_at, atol=0.02)
+    assert proximity_demo.avoidance_response.mode == "avoidance"
+    assert proximity_demo.servo_response.mode == "servo"
 
 
 def test_seed_changes_the_noise() -> None:
@@ -83,8 +91,8 @@ def test_seed_changes_the_noise() -> None:
     assert not np.array_equal(first.reading_m, other.reading_m)
 
 
-def test_figs_6_7_sweep_is_open_loop() -> None:
-    trace = demo.reading_sweep(rng=0).trace
+def test_figs_6_7_sweep_is_open_loop(proximity_demo: ProximityDemoResult) -> None:
+    trace = proximity_demo.sweep.trace
     # seed §3.1: for Figs 6-7 x_ps was computed but not added; the arm follows the trajectory alone
     np.testing.assert_allclose(trace.command_m_s, -demo.SWEEP_SPEED_M_S)
     assert trace.proximity_m_s.min() < -LAW.joystick_speed_m_s
@@ -137,7 +145,7 @@ def test_contour_pairs_readings_with_delayed_poses() -> None:
     assert np.abs(lagging[:, 2] - 1.0).max() > 5e-3
 
 
-def test_bad_input_names_the_argument(tmp_path: Path) -> None:
+def test_bad_input_names_the_argument(proximity_demo: ProximityDemoResult) -> None:
     arm = Arm([Wall(0.4)])
     with pytest.raises(InputError, match="duration_s"):
         demo.run_closed_loop(arm, duration_s=0.0)
@@ -151,7 +159,11 @@ def test_bad_input_names_the_argument(tmp_path: Path) -> None:
         demo.follow_surface("wavy")
     with pytest.raises(InputError, match="speed_m_s"):
         demo.follow_surface("curved", speed_m_s=0.0)
-    with pytest.raises(InputError, match="seed"):
-        demo.run_proximity_demo(tmp_path, seed=-1)
+    for seed in (-1, 1.5, True):
+        with pytest.raises(InputError, match="seed"):
+            demo.simulate_proximity_demo(seed=seed)  # type: ignore[arg-type]
+    trace = proximity_demo.servo.trace
     with pytest.raises(InputError, match="delay_s"):
-        demo.reconstruct_contour(demo.servo_approach(rng=0).trace, delay_s=-0.1)
+        demo.reconstruct_contour(trace, delay_s=-0.1)
+    with pytest.raises(InputError, match="mode"):
+        demo.law_response(trace, LAW, "hover")

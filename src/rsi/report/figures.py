@@ -227,8 +227,6 @@ def roc_png(curves: Sequence[RocCurve], *, title: str = "ROC") -> bytes:
     bytes
         The PNG file contents.
     """
-    import io
-
     # A bare Figure renders through the Agg canvas: no pyplot, so no GUI backend and no global figure state
     # (safe in the web console's threads too).
     from matplotlib.figure import Figure
@@ -242,6 +240,13 @@ def roc_png(curves: Sequence[RocCurve], *, title: str = "ROC") -> bytes:
     axes.set_xlim(left=_P_FALSE_ALARM_FLOOR / 2.0)
     axes.grid(True, which="both", alpha=0.3)
     axes.legend(loc="lower right", fontsize="small")
+    return figure_png(figure)
+
+
+def figure_png(figure: Any) -> bytes:
+    """Render a matplotlib ``Figure`` (bare, on the Agg canvas) to PNG bytes, trimmed to its contents."""
+    import io
+
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", bbox_inches="tight")
     return buffer.getvalue()

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import io
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rsi.report.figures import encode_png
+from rsi.report.figures import encode_png, figure_png
 from rsi.report.writers import csv_text, to_json, write_files
 
 if TYPE_CHECKING:
@@ -83,9 +82,7 @@ def sun_path_png(path: SunPath, *, title: str) -> bytes:
         _shade(axes, minutes, np.asarray(path.clipped) & np.asarray(path.sunlit), "red", "not reproduced")
         axes.grid(True, alpha=0.3)
         axes.legend(loc="upper right", fontsize="small")
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", bbox_inches="tight")
-    return buffer.getvalue()
+    return figure_png(figure)
 
 
 def _shade(axes: Any, minutes: np.ndarray, where: np.ndarray, colour: str, label: str) -> None:

@@ -10,7 +10,8 @@ One loop, run once per sensor sample (seed §3.1: 44 Hz on a 68040)::
 The plant is the 7-DOF arm of :mod:`rsi.sim.arm` (its two rangefinders sit on the ISEE's face, recessed
 0.11 m behind the jaw tips, seed §3.1), driven through ``Arm.step_velocity`` in the tool frame: z along the
 sensor axis, x along the sensors' baseline (the operator's sideways joystick). The scenarios
-(:func:`run_proximity_demo`):
+(:func:`simulate_proximity_demo`, which returns a :class:`ProximityDemoResult` and writes nothing; the
+plots and JSON files are drawn by :func:`rsi.report.isee.write_proximity_report`):
 
 a. full joystick push toward a wall in avoidance mode: the arm must stop in region C (non-override);
 b. servo from 0.6 m to the standoff: settle time, settle error, overshoot;
@@ -25,20 +26,16 @@ Fig. 3's arm-position axis is shifted so the wall lies at -0.81 m, as in the see
 
 from __future__ import annotations
 
-import io
-import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
-from rsi._files import atomic_write_bytes
-from rsi.control.blending import blend_commands
+from rsi.control.blending import blend_commands, proximity_term
 from rsi.control.proximity_law import ProximityLaw, proximity_velocity
 from rsi.errors import InputError
 from rsi.sensors.lamps import LampController, simulate_lamp
@@ -46,7 +43,8 @@ from rsi.sensors.proximity import LowPassFilter, ProximityChannel, ProximitySens
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-Progress = Callable[[str], None]
+Progress = Callable[[str, int, int], None]
+"""Called as ``progress(stage, completed, total)`` (the CLI's progress bar)."""
 
 SAMPLE_RATE_HZ = 44.0  # seed §3.1: the sensors were read through an A/D at 44 Hz
 GRIPPER_LENGTH_M = 0.11  # seed §3.1: sensors recessed behind a parallel-jaw gripper 11 cm long
@@ -80,7 +78,7 @@ ARM_PATH = "circle"
 
 @dataclass(frozen=True)
 class DemoFigures:
-    """The acceptance figures of issue 4 (seed §3, §3.1), from :func:`run_proximity_demo`.
+    """The acceptance figures of issue 4 (seed §3, §3.1), from :func:`simulate_proximity_demo`.
 
     Attributes
     ----------
@@ -567,209 +565,288 @@ def _discontinuities(scenario: Scenario) -> BoolArray:
     return jumps
 
 
-def _contour_errors(scenario: Scenario, delay_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """(tangential, rebuilt depth, depth error) of the scan phase's contour points."""
+@dataclass(frozen=True)
+class ContourScan:
+    """Scenario d on one surface: the profile rebuilt from poses and readings, and the true one.
+
+    Attributes
+    ----------
+    name : str
+        The scenario's name (``"follow_stepped"``, ``"follow_curved"``).
+    tangential_m, depth_m : ndarray of shape (K,)
+        Rebuilt points during the scan: offset along the scan and depth from the home tool tip.
+    error_m : ndarray of shape (K,)
+        Rebuilt minus true depth at each point.
+    profile_tangential_m, profile_depth_m : ndarray of shape (P,)
+        The true profile sampled over the scanned span.
+    """
+
+    name: str
+    tangential_m: FloatArray
+    depth_m: FloatArray
+    error_m: FloatArray
+    profile_tangential_m: FloatArray
+    profile_depth_m: FloatArray
+
+
+@dataclass(frozen=True)
+class LawResponse:
+    """Seed Fig. 6 (avoidance) or 7 (servo): commanded x_ps against the proximity it was computed from.
+
+    Attributes
+    ----------
+    mode : {"avoidance", "servo"}
+    measured_m : ndarray of shape (T,)
+        The proximity the law acted on (nearer reading when avoiding, mean of both when servoing); NaN
+        where no sensor had a return.
+    commanded_m_s : ndarray of shape (T,)
+        x_ps at each sample (positive toward the surface).
+    law_distance_m, law_velocity_m_s : ndarray of shape (C,)
+        The law's own curve.
+    breakpoints_m : tuple of float
+        The law's region edges.
+    """
+
+    mode: str
+    measured_m: FloatArray
+    commanded_m_s: FloatArray
+    law_distance_m: FloatArray
+    law_velocity_m_s: FloatArray
+    breakpoints_m: tuple[float, ...]
+
+
+def contour_scan(scenario: Scenario, *, delay_s: float, profile_samples: int = 2000) -> ContourScan:
+    """Scenario d on one scan: the profile rebuilt by :func:`reconstruct_contour` against the true one.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A contour-following run (:func:`follow_surface`); only its scan phase is used.
+    delay_s : float
+        The filter's lag, >= 0 s (:attr:`LowPassFilter.dc_delay_s`).
+    profile_samples : int
+        Samples of the true profile over the scanned span (for plotting).
+
+    Returns
+    -------
+    ContourScan
+    """
     points, sample_time = reconstruct_contour(scenario.trace, delay_s=delay_s)
     keep = sample_time >= scenario.scan_start_s
     tangential = scenario.tangential_m(points[keep])
     depth = scenario.depth_m(points[keep])
     truth = np.asarray(scenario.obstacle.surface_distance_m(tangential), dtype=np.float64)
-    return tangential, depth, depth - truth
-
-
-# ------------------------------------------------------------------------------------------- plots
-
-
-def _png(figure: Any) -> bytes:
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", bbox_inches="tight")
-    return buffer.getvalue()
-
-
-def _new_figure(rows: int = 1, *, height: float = 4.0) -> tuple[Any, Any]:
-    # A bare Figure renders through the Agg canvas: no pyplot, no GUI backend, no global state.
-    from matplotlib.figure import Figure
-
-    figure = Figure(figsize=(7.0, height), dpi=100)
-    axes = figure.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
-    for each in axes:
-        each.grid(True, alpha=0.3)
-    return figure, axes
-
-
-def _fig3_png(sweep: Scenario) -> bytes:
-    trace = sweep.trace
-    wall_depth = float(sweep.obstacle.distance_m)
-    # seed Fig. 3: arm position on an axis where the environment surface is at about -0.81 m
-    position = SURFACE_Z_M + wall_depth - sweep.depth_m(trace.origin_m.mean(axis=1))
-    figure, (axes,) = _new_figure()
-    for index, label in enumerate(("left", "right")):
-        shown = np.where(trace.out_of_range[:, index], np.nan, trace.reading_m[:, index])
-        axes.plot(position, shown, ".", markersize=2.5, label=f"{label} sensor, filtered")
-    axes.plot(position, position - SURFACE_Z_M, "k--", linewidth=0.8, label="true distance")
-    axes.set(
-        xlabel="arm position, m (surface at -0.81 m)",
-        ylabel="filtered reading, m",
-        title="Fig. 3: filtered proximity readings versus arm position",
+    profile = np.linspace(tangential.min(), tangential.max(), profile_samples)
+    return ContourScan(
+        name=scenario.name,
+        tangential_m=tangential,
+        depth_m=depth,
+        error_m=depth - truth,
+        profile_tangential_m=profile,
+        profile_depth_m=np.asarray(scenario.obstacle.surface_distance_m(profile), dtype=np.float64),
     )
-    axes.legend(fontsize="small")
-    return _png(figure)
 
 
-def _law_png(sweep: Scenario, law: ProximityLaw, mode: str) -> bytes:
-    from rsi.control.blending import proximity_term
+def law_response(trace: LoopTrace, law: ProximityLaw, mode: str, *, curve_samples: int = 400) -> LawResponse:
+    """Seed Figs 6-7: x_ps computed from a trace's readings against the proximity the law acted on.
 
-    trace = sweep.trace
+    Parameters
+    ----------
+    trace : LoopTrace
+        Usually the open-loop sweep (:func:`reading_sweep`), where x_ps was computed but not applied.
+    law : ProximityLaw
+    mode : {"avoidance", "servo"}
+    curve_samples : int
+        Samples of the law's own curve, from 0 to 5 cm past the sensors' maximum distance.
+
+    Returns
+    -------
+    LawResponse
+    """
+    v.choice(mode, "mode", ("avoidance", "servo"))
     commanded, nearest, _ = proximity_term(trace.reading_m, law, mode=mode)
+    # rsi.control.blending acts on the nearer reading when avoiding and on the mean of the two when servoing
     measured = (
         nearest if mode == "avoidance" else np.where(np.isfinite(nearest), trace.reading_m.mean(1), np.inf)
     )
-    curve_m = np.linspace(0.0, law.max_distance_m + 0.05, 400)
-    figure, (axes,) = _new_figure()
-    axes.plot(
-        curve_m, proximity_velocity(curve_m, law, mode=mode).velocity_m_s, "k-", linewidth=0.8, label="law"
+    curve_m = np.linspace(0.0, law.max_distance_m + 0.05, curve_samples)
+    return LawResponse(
+        mode=mode,
+        measured_m=np.where(np.isfinite(measured), measured, np.nan),
+        commanded_m_s=np.asarray(commanded, dtype=np.float64),
+        law_distance_m=curve_m,
+        law_velocity_m_s=np.asarray(proximity_velocity(curve_m, law, mode=mode).velocity_m_s, np.float64),
+        breakpoints_m=tuple(float(edge) for edge in law.breakpoints_m),
     )
-    axes.plot(
-        np.where(np.isfinite(measured), measured, np.nan),
-        commanded,
-        ".",
-        markersize=3,
-        label="commanded x_ps",
-    )
-    for edge in law.breakpoints_m:
-        axes.axvline(edge, color="grey", linewidth=0.5, linestyle=":")
-    number, what = ("6", "repulsion (avoidance)") if mode == "avoidance" else ("7", "distance servo")
-    axes.set(
-        xlabel="measured proximity, m",
-        ylabel="commanded velocity x_ps, m/s",
-        title=f"Fig. {number}: commanded {what} velocity versus measured proximity",
-    )
-    axes.legend(fontsize="small")
-    return _png(figure)
-
-
-def _time_png(scenario: Scenario, law: ProximityLaw, title: str) -> bytes:
-    trace = scenario.trace
-    figure, (distance, velocity) = _new_figure(2, height=6.0)
-    for index, label in enumerate(("left", "right")):
-        distance.plot(trace.time_s, trace.true_m[:, index], linewidth=1.0, label=f"{label} true")
-        distance.plot(trace.time_s, trace.reading_m[:, index], ".", markersize=2, label=f"{label} filtered")
-    distance.axhline(law.standoff_m, color="green", linestyle="--", linewidth=0.8, label="standoff")
-    distance.axhline(law.hold_distance_m, color="orange", linestyle="--", linewidth=0.8, label="C|D (hold)")
-    distance.axhline(law.avoidance_start_m, color="red", linestyle="--", linewidth=0.8, label="B|C")
-    distance.set(ylabel="distance, m", title=title, ylim=(0.0, law.max_distance_m + 0.05))
-    distance.legend(fontsize="x-small", ncol=3)
-    velocity.plot(trace.time_s, trace.command_m_s, label="commanded (sum, Fig. 4)")
-    velocity.plot(trace.time_s, trace.proximity_m_s, label="proximity term x_ps")
-    velocity.set(xlabel="time, s", ylabel="velocity, m/s (+ toward surface)")
-    velocity.legend(fontsize="x-small")
-    return _png(figure)
-
-
-def _contour_png(scenarios: list[Scenario], delay_s: float) -> bytes:
-    figure, axes = _new_figure(len(scenarios), height=3.2 * len(scenarios))
-    for each, scenario in zip(axes, scenarios, strict=True):
-        tangential, depth, _ = _contour_errors(scenario, delay_s)
-        profile = np.linspace(tangential.min(), tangential.max(), 2000)
-        each.plot(
-            profile, scenario.obstacle.surface_distance_m(profile), "k-", linewidth=0.8, label="true surface"
-        )
-        each.plot(tangential, depth, ".", markersize=2, label="rebuilt: arm pose + filtered reading")
-        each.invert_yaxis()
-        each.set(ylabel="depth from home tip, m", title=f"contour: {scenario.name}")
-        each.legend(fontsize="x-small")
-    axes[-1].set(xlabel="along the scan, m")
-    return _png(figure)
-
-
-def _lamp_png(time_s: FloatArray, error: FloatArray) -> bytes:
-    figure, (axes,) = _new_figure()
-    axes.plot(time_s, 100.0 * error, linewidth=0.8)
-    axes.axvline(LAMP_SETTLE_S, color="grey", linestyle=":", label="settled")
-    axes.axhline(1.0, color="red", linestyle="--", linewidth=0.8, label="+-1 %")
-    axes.axhline(-1.0, color="red", linestyle="--", linewidth=0.8)
-    axes.set(
-        xlabel="time, s",
-        ylabel="illumination error, %",
-        ylim=(-3, 3),
-        title="Regulated halogen lamps under supply wander, sag and ageing",
-    )
-    axes.legend(fontsize="small")
-    return _png(figure)
 
 
 # -------------------------------------------------------------------------------------- front door
 
 
-def _report(progress: Progress | None, message: str) -> None:
-    if progress is not None:
-        progress(message)
+@dataclass(frozen=True)
+class SurfaceFigures:
+    """Scenarios c-d on one surface (the ``surfaces`` entries of ``scenarios.json``).
+
+    Attributes
+    ----------
+    following_error_m : float
+        Largest |nearest distance - standoff| during the scan, outside the recovery windows.
+    step_transient_m : float
+        Largest |nearest distance - standoff| inside them (about the step height).
+    closest_m : float
+        Closest true distance of either sensor over the run.
+    contour_rms_error_m : float
+        RMS error of the rebuilt profile.
+    contour_points : int
+        How many rebuilt points the RMS is over.
+    """
+
+    following_error_m: float
+    step_transient_m: float
+    closest_m: float
+    contour_rms_error_m: float
+    contour_points: int
 
 
-def run_proximity_demo(
-    out_dir: str | Path, *, seed: int = 0, progress: Progress | None = None
-) -> DemoFigures:
-    """Run scenarios a-f of issue 4 on the arm and write the seed's Figs 3, 6, 7, time plots and figures.
+@dataclass(frozen=True)
+class ProximityDemoResult:
+    """Scenarios a-f of issue 4: the acceptance figures and every trace behind them, ready to draw.
+
+    Attributes
+    ----------
+    seed : int
+        Seed of every noise source.
+    law : ProximityLaw
+        The law the loops ran (:data:`DEMO_LAW`).
+    figures : DemoFigures
+        The acceptance figures.
+    push, servo : Scenario
+        Scenarios a (full joystick push, avoidance mode) and b (servo from 0.6 m).
+    follows : tuple of Scenario
+        Scenario c over the stepped and the curved surface, in that order.
+    contours : tuple of ContourScan
+        Scenario d on the same two scans, same order.
+    surfaces : dict of str to SurfaceFigures
+        Per-surface figures of c-d, keyed by the scenario's name.
+    sweep : Scenario
+        The open-loop linear trajectory away from the wall behind Figs 3, 6 and 7.
+    sweep_arm_position_m : ndarray of shape (T,)
+        Fig. 3's abscissa: the arm position during the sweep on the seed's axis.
+    surface_position_m : float
+        Where that axis puts the wall (:data:`SURFACE_Z_M`).
+    avoidance_response, servo_response : LawResponse
+        Figs 6 and 7.
+    lamp_time_s, lamp_error : ndarray of shape (L,)
+        Scenario f: time and relative illumination error of the regulated lamps.
+    lamp_settle_s : float
+        Start of the window the lamp figure is judged over.
+    recovery_s, filter_delay_s : float
+        The following error's recovery window; the filter lag the contour pairs readings with.
+    arm_path : str
+        Scenario e's path (:func:`rsi.sim.arm.track_path`).
+    additional_task_error_deg : float
+        Scenario e: largest error of the additional (arm-angle) task.
+    """
+
+    seed: int
+    law: ProximityLaw
+    figures: DemoFigures
+    push: Scenario
+    servo: Scenario
+    follows: tuple[Scenario, ...]
+    contours: tuple[ContourScan, ...]
+    surfaces: Mapping[str, SurfaceFigures]
+    sweep: Scenario
+    sweep_arm_position_m: FloatArray
+    surface_position_m: float
+    avoidance_response: LawResponse
+    servo_response: LawResponse
+    lamp_time_s: FloatArray
+    lamp_error: FloatArray
+    lamp_settle_s: float
+    recovery_s: float
+    filter_delay_s: float
+    arm_path: str
+    additional_task_error_deg: float
+
+
+_STAGES = (
+    "a: full joystick push toward a wall (avoidance)",
+    "b: servo from 0.6 m to the standoff",
+    "c: sideways over a stepped and a curved surface (servo)",
+    "Figs 3, 6, 7: linear trajectory away from the wall",
+    f"e: arm tracking ({ARM_PATH} path)",
+    "f: regulated lamps under supply and ageing disturbances",
+)
+
+
+def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) -> ProximityDemoResult:
+    """Run scenarios a-f of issue 4 on the arm and measure the acceptance figures; writes nothing.
 
     Parameters
     ----------
-    out_dir : str or Path
-        Folder for ``figures.json``, ``scenarios.json`` and the PNGs (created if missing).
     seed : int
-        Seeds every noise source (sensor noise, lamp supply); the same seed gives the same figures.
-    progress : callable of str, optional
-        Called with a short message as each scenario starts.
+        Seeds every noise source (sensor noise, lamp supply); the same seed gives the same result.
+    progress : callable, optional
+        Called as ``progress(stage, completed, total)`` as each stage starts, and once when all are done.
 
     Returns
     -------
-    DemoFigures
+    ProximityDemoResult
+        Draw it with :func:`rsi.report.isee.write_proximity_report`.
     """
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise InputError(f"seed must be a non-negative integer; got {seed!r}.")
     from rsi.sim.arm import track_path
 
-    out = Path(out_dir)
     law = DEMO_LAW
     streams = np.random.SeedSequence(int(seed)).spawn(6)
     delay_s = LowPassFilter(4.0, law.sample_rate_hz).dc_delay_s
     recover = round(RECOVERY_S * law.sample_rate_hz)
+    stage = iter(enumerate(_STAGES))
 
-    _report(progress, "a: full joystick push toward a wall (avoidance)")
+    def report() -> None:
+        if progress is not None:
+            index, name = next(stage, (len(_STAGES), "done"))
+            progress(name, index, len(_STAGES))
+
+    report()
     push = full_push(law, rng=np.random.default_rng(streams[0]))
-    _report(progress, "b: servo from 0.6 m to the standoff")
+    report()
     servo = servo_approach(law, rng=np.random.default_rng(streams[1]))
-    _report(progress, "c: sideways over a stepped and a curved surface (servo)")
-    follows = [
+    report()
+    follows = tuple(
         follow_surface(name, law, rng=np.random.default_rng(streams[2 + index]))
         for index, name in enumerate(("stepped", "curved"))
-    ]
-    _report(progress, "Figs 3, 6, 7: linear trajectory away from the wall")
+    )
+    report()
     sweep = reading_sweep(law, rng=np.random.default_rng(streams[4]))
-    _report(progress, f"e: arm tracking ({ARM_PATH} path)")
+    report()
     tracking = track_path(ARM_PATH)
-    _report(progress, "f: regulated lamps under supply and ageing disturbances")
+    report()
     lamp = simulate_lamp(LAMP_DURATION_S, rng=np.random.default_rng(streams[5]))
-    lamp_error = lamp.relative_error(LampController().setpoint_lux)
+    lamp_error = np.asarray(lamp.relative_error(LampController().setpoint_lux), dtype=np.float64)
+    report()
 
     settle_error, settle_time, overshoot = settle_figures(
         servo.trace.time_s, servo.trace.true_m.mean(axis=1), law.standoff_m
     )
-    per_surface: dict[str, dict[str, float]] = {}
-    for scenario in follows:
+    contours = tuple(contour_scan(scenario, delay_s=delay_s) for scenario in follows)
+    surfaces: dict[str, SurfaceFigures] = {}
+    for scenario, contour in zip(follows, contours, strict=True):
         scan = scenario.trace.time_s >= scenario.scan_start_s
         steady, transient = following_error_m(
             scenario.trace.nearest_true_m[scan] - law.standoff_m,
             _discontinuities(scenario)[scan],
             samples_to_recover=recover,
         )
-        _, _, contour_error = _contour_errors(scenario, delay_s)
-        per_surface[scenario.name] = {
-            "following_error_m": steady,
-            "step_transient_m": transient,
-            "closest_m": float(scenario.trace.true_m.min()),
-            "contour_rms_error_m": float(np.sqrt(np.mean(contour_error**2))),
-            "contour_points": int(contour_error.size),
-        }
+        surfaces[scenario.name] = SurfaceFigures(
+            following_error_m=steady,
+            step_transient_m=transient,
+            closest_m=float(scenario.trace.true_m.min()),
+            contour_rms_error_m=float(np.sqrt(np.mean(contour.error_m**2))),
+            contour_points=int(contour.error_m.size),
+        )
     last_second = push.trace.time_s >= push.trace.time_s[-1] - 1.0
     figures = DemoFigures(
         min_distance_full_push_m=float(push.trace.true_m.min()),
@@ -778,52 +855,104 @@ def run_proximity_demo(
         servo_settle_error_m=settle_error,
         servo_settle_time_s=settle_time,
         servo_overshoot_m=overshoot,
-        following_error_m=max(each["following_error_m"] for each in per_surface.values()),
-        contour_rms_error_m=max(each["contour_rms_error_m"] for each in per_surface.values()),
+        following_error_m=max(each.following_error_m for each in surfaces.values()),
+        contour_rms_error_m=max(each.contour_rms_error_m for each in surfaces.values()),
         arm_tracking_error_m=float(tracking.arm_tracking_error_m),
         lamp_illumination_error=float(np.abs(lamp_error[lamp.time_s >= LAMP_SETTLE_S]).max()),
     )
+    # seed Fig. 3: arm position on an axis where the environment surface is at about -0.81 m
+    wall_depth_m = float(sweep.obstacle.distance_m)
+    arm_position_m = SURFACE_Z_M + wall_depth_m - sweep.depth_m(sweep.trace.origin_m.mean(axis=1))
+    return ProximityDemoResult(
+        seed=int(seed),
+        law=law,
+        figures=figures,
+        push=push,
+        servo=servo,
+        follows=follows,
+        contours=contours,
+        surfaces=surfaces,
+        sweep=sweep,
+        sweep_arm_position_m=arm_position_m,
+        surface_position_m=SURFACE_Z_M,
+        avoidance_response=law_response(sweep.trace, law, "avoidance"),
+        servo_response=law_response(sweep.trace, law, "servo"),
+        lamp_time_s=np.asarray(lamp.time_s, dtype=np.float64),
+        lamp_error=lamp_error,
+        lamp_settle_s=LAMP_SETTLE_S,
+        recovery_s=RECOVERY_S,
+        filter_delay_s=delay_s,
+        arm_path=ARM_PATH,
+        additional_task_error_deg=float(tracking.additional_task_error_deg),
+    )
 
-    _report(progress, f"writing plots and figures to {out}")
-    pictures = {
-        "fig3_readings_vs_position.png": _fig3_png(sweep),
-        "fig6_avoidance_velocity.png": _law_png(sweep, law, "avoidance"),
-        "fig7_servo_velocity.png": _law_png(sweep, law, "servo"),
-        "a_full_push.png": _time_png(push, law, "a: full joystick push toward a wall, avoidance mode"),
-        "b_servo.png": _time_png(servo, law, "b: distance servo from 0.6 m"),
-        "c_follow_stepped.png": _time_png(follows[0], law, "c: sideways over a stepped surface, servo mode"),
-        "c_follow_curved.png": _time_png(follows[1], law, "c: sideways over a curved surface, servo mode"),
-        "d_contour.png": _contour_png(follows, delay_s),
-        "f_lamp.png": _lamp_png(lamp.time_s, lamp_error),
+
+# ------------------------------------------------------------------------------------------ acceptance
+
+PUSH_MARGIN_M = 0.010  # issue 4: the full push stays beyond region C's near edge minus 10 mm
+ACCEPTANCE_LIMITS: Mapping[str, tuple[str, float]] = {
+    "servo_settle_error_m": ("<=", 0.005),
+    "servo_settle_time_s": ("<=", 2.0),
+    "servo_overshoot_m": ("<=", 0.010),
+    "following_error_m": ("<=", 0.015),
+    "contour_rms_error_m": ("<=", 0.005),
+    "arm_tracking_error_m": ("<=", 0.001),
+    "lamp_illumination_error": ("<=", 0.01),
+}
+"""Issue 4's fixed limits; ``min_distance_full_push_m``'s depends on the law (:func:`acceptance`)."""
+
+
+@dataclass(frozen=True)
+class Check:
+    """One acceptance figure against its limit: ``value relation limit`` holds when `passed`."""
+
+    figure: str
+    value: float
+    relation: str
+    limit: float
+    passed: bool
+
+
+def acceptance(figures: DemoFigures) -> tuple[Check, ...]:
+    """Issue 4's acceptance checks on the demo's figures, in the figures' order.
+
+    The full push must stay beyond region C's near edge minus :data:`PUSH_MARGIN_M`; the others are
+    :data:`ACCEPTANCE_LIMITS`. A NaN figure fails.
+    """
+    limits = {
+        "min_distance_full_push_m": (">=", figures.avoidance_near_edge_m - PUSH_MARGIN_M),
+        **ACCEPTANCE_LIMITS,
     }
-    for name, data in pictures.items():
-        atomic_write_bytes(out / name, data)
-    details = {
-        "seed": int(seed),
-        "law": asdict(law) | {"standoff_m": law.standoff_m, "peak_distance_m": law.peak_distance_m},
-        "surfaces": per_surface,
-        "recovery_s": RECOVERY_S,
-        "filter_delay_s": delay_s,
-        "arm_path": ARM_PATH,
-        "additional_task_error_deg": float(tracking.additional_task_error_deg),
-    }
-    atomic_write_bytes(out / "scenarios.json", (json.dumps(details, indent=2) + "\n").encode())
-    atomic_write_bytes(out / "figures.json", (json.dumps(figures.to_dict(), indent=2) + "\n").encode())
-    return figures
+    checks = []
+    for name, value in figures.to_dict().items():
+        if name in limits:
+            relation, limit = limits[name]
+            passed = value >= limit if relation == ">=" else value <= limit
+            checks.append(Check(name, value, relation, limit, bool(passed)))
+    return tuple(checks)
 
 
 __all__: list[str] = [
+    "ACCEPTANCE_LIMITS",
     "DEMO_LAW",
+    "Check",
+    "ContourScan",
     "DemoFigures",
+    "LawResponse",
     "LoopTrace",
+    "ProximityDemoResult",
     "Scenario",
+    "SurfaceFigures",
+    "acceptance",
+    "contour_scan",
     "follow_surface",
     "following_error_m",
     "full_push",
+    "law_response",
     "reading_sweep",
     "reconstruct_contour",
     "run_closed_loop",
-    "run_proximity_demo",
     "servo_approach",
     "settle_figures",
+    "simulate_proximity_demo",
 ]
