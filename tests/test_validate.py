@@ -102,3 +102,25 @@ def test_unit_conversions_round_trip_and_hit_reference_points() -> None:
     # seed §3: the pyrometer covers 0-1000 degF
     assert kelvin_to_fahrenheit(fahrenheit_to_kelvin(1000.0)) == pytest.approx(1000.0)
     assert mm_to_m(m_to_mm(0.75)) == pytest.approx(0.75)
+
+
+def test_positive_rejects_zero_and_negative() -> None:
+    assert v.positive(0.5, "rate_hz") == 0.5
+    for bad in (0.0, -1.0):
+        with pytest.raises(InputError, match=r"rate_hz must be in \(0.0, inf\]"):
+            v.positive(bad, "rate_hz")
+
+
+def test_store_checked_writes_onto_a_frozen_dataclass() -> None:
+    from dataclasses import FrozenInstanceError, dataclass
+
+    @dataclass(frozen=True)
+    class Settings:
+        rate_hz: float
+
+        def __post_init__(self) -> None:
+            v.store_checked(self, {"rate_hz": v.positive(self.rate_hz, "rate_hz")})
+
+    assert isinstance(Settings(rate_hz=np.int64(44)).rate_hz, float)  # type: ignore[arg-type]
+    with pytest.raises(FrozenInstanceError):
+        Settings(rate_hz=44.0).rate_hz = 1.0  # type: ignore[misc]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -135,3 +135,14 @@ def as_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
     if isinstance(rng, np.random.Generator):
         return rng
     raise InputError(f"rng must be a numpy Generator, an int seed or None; got {rng!r}.")
+
+
+def positive(value: object, name: str) -> float:
+    """Return `value` as a float > 0 or raise naming it."""
+    return in_range(value, name, low=0.0, low_inclusive=False)
+
+
+def store_checked(instance: object, checked: Mapping[str, object]) -> None:
+    """Write checked (converted) field values onto a frozen dataclass from its ``__post_init__``."""
+    for name, value in checked.items():
+        object.__setattr__(instance, name, value)

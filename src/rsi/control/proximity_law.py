@@ -57,9 +57,6 @@ MODES: dict[str, Callable[[FloatArray], FloatArray]] = {
 _MAX_SLOPE_TIMES_STEP = 0.5
 
 
-def _positive(value: object, name: str) -> float:
-    return v.in_range(value, name, low=0.0, low_inclusive=False)
-
 
 @dataclass(frozen=True)
 class ProximityLaw:
@@ -102,7 +99,7 @@ class ProximityLaw:
 
     def __post_init__(self) -> None:
         checks = {
-            name: _positive(getattr(self, name), name)
+            name: v.positive(getattr(self, name), name)
             for name in (
                 "joystick_speed_m_s",
                 "retreat_speed_m_s",
@@ -116,8 +113,7 @@ class ProximityLaw:
                 "sample_rate_hz",
             )
         }
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
         self._check_speeds()
         self._check_breakpoints()
         self._check_slopes()

@@ -80,8 +80,7 @@ class CameraModel:
         checks["black_level_dn"] = v.in_range(
             self.black_level_dn, "black_level_dn", low=0.0, high=float(max_dn), high_inclusive=False
         )
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
     @property
     def max_dn(self) -> int:

@@ -55,8 +55,7 @@ class ForceTorqueSensor:
             "torque_noise_std_n_m": v.in_range(self.torque_noise_std_n_m, "torque_noise_std_n_m", low=0.0),
             "bias": tuple(float(value) for value in _as_wrenches(self.bias, "bias")),
         }
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
     @property
     def noise_std(self) -> FloatArray:

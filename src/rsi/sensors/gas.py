@@ -40,9 +40,6 @@ def _as_concentrations_ppm(concentration_ppm: object, name: str) -> FloatArray:
     return values
 
 
-def _positive(value: object, name: str) -> float:
-    return v.in_range(value, name, low=0.0, low_inclusive=False)
-
 
 @dataclass(frozen=True)
 class MosGasSensor:
@@ -79,7 +76,7 @@ class MosGasSensor:
 
     def __post_init__(self) -> None:
         checks = {
-            name: _positive(getattr(self, name), name)
+            name: v.positive(getattr(self, name), name)
             for name in (
                 "baseline_ohm",
                 "scale_ppm",
@@ -91,13 +88,12 @@ class MosGasSensor:
         }
         checks["drift_per_s"] = v.finite_number(self.drift_per_s, "drift_per_s")
         checks["noise_relative"] = v.in_range(self.noise_relative, "noise_relative", low=0.0)
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
     def resistance_ohm(self, concentration_ppm: object, *, baseline_ohm: float | None = None) -> FloatArray:
         """Steady-state resistance in ohms at `concentration_ppm` (noise-free)."""
         concentration = _as_concentrations_ppm(concentration_ppm, "concentration_ppm")
-        base = self.baseline_ohm if baseline_ohm is None else _positive(baseline_ohm, "baseline_ohm")
+        base = self.baseline_ohm if baseline_ohm is None else v.positive(baseline_ohm, "baseline_ohm")
         return np.asarray(base * (1.0 + concentration / self.scale_ppm) ** (-self.exponent), dtype=np.float64)
 
     def concentration_ppm(self, resistance_ohm: object, *, baseline_ohm: float | None = None) -> FloatArray:
@@ -108,7 +104,7 @@ class MosGasSensor:
         resistance = np.asarray(resistance_ohm, dtype=np.float64)
         if not np.isfinite(resistance).all() or (resistance <= 0).any():
             raise InputError(f"resistance_ohm must be finite and > 0 ohm; got {resistance_ohm!r}.")
-        base = self.baseline_ohm if baseline_ohm is None else _positive(baseline_ohm, "baseline_ohm")
+        base = self.baseline_ohm if baseline_ohm is None else v.positive(baseline_ohm, "baseline_ohm")
         ratio = (base / resistance) ** (1.0 / self.exponent)
         return np.asarray(self.scale_ppm * np.maximum(ratio - 1.0, 0.0), dtype=np.float64)
 

@@ -40,9 +40,6 @@ from rsi.errors import InputError
 FloatArray = NDArray[np.float64]
 
 
-def _positive(value: object, name: str) -> float:
-    return v.in_range(value, name, low=0.0, low_inclusive=False)
-
 
 @dataclass(frozen=True)
 class HalogenLamp:
@@ -70,14 +67,13 @@ class HalogenLamp:
 
     def __post_init__(self) -> None:
         checks = {
-            name: _positive(getattr(self, name), name)
+            name: v.positive(getattr(self, name), name)
             for name in ("rated_illuminance_lux", "rated_voltage_v", "light_exponent", "filament_time_s")
         }
         checks["supply_voltage_v"] = v.in_range(
             self.supply_voltage_v, "supply_voltage_v", low=checks["rated_voltage_v"]
         )
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
     def steady_illuminance_lux(
         self, duty: FloatArray, supply_v: FloatArray, efficacy: FloatArray
@@ -117,14 +113,13 @@ class LampController:
 
     def __post_init__(self) -> None:
         checks = {
-            name: _positive(getattr(self, name), name)
+            name: v.positive(getattr(self, name), name)
             for name in ("setpoint_lux", "proportional_gain", "integral_time_s", "sample_rate_hz")
         }
         checks["sensor_noise_relative"] = v.in_range(
             self.sensor_noise_relative, "sensor_noise_relative", low=0.0
         )
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
 
 @dataclass(frozen=True)
@@ -153,12 +148,11 @@ class LampDisturbance:
             "supply_noise_relative": v.in_range(
                 self.supply_noise_relative, "supply_noise_relative", low=0.0, high=0.5, high_inclusive=False
             ),
-            "supply_correlation_s": _positive(self.supply_correlation_s, "supply_correlation_s"),
+            "supply_correlation_s": v.positive(self.supply_correlation_s, "supply_correlation_s"),
             "supply_sag_per_s": v.in_range(self.supply_sag_per_s, "supply_sag_per_s", low=0.0),
             "ageing_per_s": v.in_range(self.ageing_per_s, "ageing_per_s", low=0.0),
         }
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
 
 @dataclass(frozen=True)
@@ -245,7 +239,7 @@ def simulate_lamp(
     lamp = HalogenLamp() if lamp is None else lamp
     controller = LampController() if controller is None else controller
     disturbance = LampDisturbance() if disturbance is None else disturbance
-    duration = _positive(duration_s, "duration_s")
+    duration = v.positive(duration_s, "duration_s")
     if disturbance.ageing_per_s * duration >= 1.0:
         raise InputError(
             f"duration_s={duration_s!r} with ageing_per_s={disturbance.ageing_per_s!r} burns the bulb out; "
@@ -303,14 +297,13 @@ class Strobe:
 
     def __post_init__(self) -> None:
         checks = {
-            "pulse_s": _positive(self.pulse_s, "pulse_s"),
-            "luminous_energy_lm_s": _positive(self.luminous_energy_lm_s, "luminous_energy_lm_s"),
+            "pulse_s": v.positive(self.pulse_s, "pulse_s"),
+            "luminous_energy_lm_s": v.positive(self.luminous_energy_lm_s, "luminous_energy_lm_s"),
             "mount_offset_m": v.in_range(self.mount_offset_m, "mount_offset_m", low=0.0),
             "setback_m": v.in_range(self.setback_m, "setback_m", low=0.0),
-            "max_jaw_opening_m": _positive(self.max_jaw_opening_m, "max_jaw_opening_m"),
+            "max_jaw_opening_m": v.positive(self.max_jaw_opening_m, "max_jaw_opening_m"),
         }
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
     def luminous_exposure_lux_s(self, exposure_s: float, scene_area_m2: float) -> float:
         """Strobe light per unit area captured by an exposure that starts with the flash (lux s).
@@ -318,8 +311,8 @@ class Strobe:
         The pulse is taken as rectangular: an exposure at least as long as the pulse captures all of it,
         which is why the strobe is unaffected by a 1/10000 s shutter (seed §2.1).
         """
-        exposure = _positive(exposure_s, "exposure_s")
-        area = _positive(scene_area_m2, "scene_area_m2")
+        exposure = v.positive(exposure_s, "exposure_s")
+        area = v.positive(scene_area_m2, "scene_area_m2")
         return self.luminous_energy_lm_s / area * min(1.0, exposure / self.pulse_s)
 
     def illumination_angle_rad(self, jaw_opening_m: object, standoff_m: object) -> FloatArray:

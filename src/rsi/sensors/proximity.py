@@ -134,8 +134,7 @@ class ProximitySensor:
         )
         if int(checks["adc_bits"]) > _MAX_ADC_BITS:
             raise InputError(f"adc_bits must be in 1..{_MAX_ADC_BITS}; got {self.adc_bits!r}.")
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
     @property
     def time_step_s(self) -> float:

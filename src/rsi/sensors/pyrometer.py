@@ -173,8 +173,7 @@ class Pyrometer:
         if not 0.0 < low_m < high_m:
             raise InputError(f"band_m must be (low, high) with 0 < low < high metres; got {self.band_m!r}.")
         checks["band_m"] = (low_m, high_m)
-        for name, value in checks.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checks)
 
     @property
     def span_k(self) -> tuple[float, float]:

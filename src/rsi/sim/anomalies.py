@@ -373,8 +373,7 @@ class AnomalySettings:
         checked["component_defects"] = _options(
             self.component_defects, "component_defects", COMPONENT_DEFECTS
         )
-        for name, value in checked.items():
-            object.__setattr__(self, name, value)
+        v.store_checked(self, checked)
 
 
 def _options(value: object, name: str, allowed: tuple[str, ...]) -> tuple[str, ...]:
