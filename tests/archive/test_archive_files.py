@@ -1,0 +1,166 @@
+"""The archive file: schema versions, migrations, corrupt or foreign files refused untouched, busy writers."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import pytest
+from sqlalchemy import Connection, text
+
+from rsi.archive import Archive, ArchiveError, ArchiveFileError, Finding, schema
+
+
+def make_archive(path: Path) -> None:
+    with Archive.open(path) as archive:
+        archive.add_vista("A_door")
+        run_id = archive.start_run()
+        archive.add_findings(run_id, [Finding("A_door", "impact", 0.9, position_m=(0.1, 0.2, 1.0))])
+        archive.finish_run(run_id)
+
+
+def set_version(path: Path, version: int) -> None:
+    with sqlite3.connect(path) as connection:
+        connection.execute("UPDATE rsi_archive SET schema_version = ?", (version,))
+    connection.close()
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    return {path.name: path.read_bytes() for path in sorted(folder.iterdir()) if path.is_file()}
+
+
+def test_a_new_archive_uses_wal_and_records_its_version(tmp_path: Path) -> None:
+    make_archive(tmp_path / "a.db")
+    connection = sqlite3.connect(tmp_path / "a.db")
+    try:
+        assert connection.execute("PRAGMA journal_mode").fetchone() == ("wal",)
+        version, created_by = connection.execute(
+            "SELECT schema_version, created_by FROM rsi_archive"
+        ).fetchone()
+    finally:
+        connection.close()
+    assert (version, created_by) == (schema.SCHEMA_VERSION, "rsi 0.1.0")
+
+
+def test_an_archive_from_a_newer_rsi_is_refused_untouched(tmp_path: Path) -> None:
+    path = tmp_path / "a.db"
+    make_archive(path)
+    set_version(path, schema.SCHEMA_VERSION + 1)
+    before = snapshot(tmp_path)
+    with pytest.raises(ArchiveFileError, match=f"{path} has schema version 2, newer .*Upgrade rsi"):
+        Archive.open(path)
+    assert snapshot(tmp_path) == before
+
+
+def test_an_older_archive_is_migrated_step_by_step(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / "a.db"
+    make_archive(path)
+
+    def add_operator(connection: Connection) -> None:
+        connection.execute(text("ALTER TABLE runs ADD COLUMN operator VARCHAR(64)"))
+
+    monkeypatch.setattr(schema, "SCHEMA_VERSION", 2)
+    monkeypatch.setitem(schema.MIGRATIONS, 1, add_operator)
+    with Archive.open(path) as archive:
+        assert archive.schema_version == 2
+        assert archive.runs()[0].finding_count == 1
+    connection = sqlite3.connect(path)
+    try:
+        assert connection.execute("SELECT schema_version FROM rsi_archive").fetchone() == (2,)
+        assert "operator" in {row[1] for row in connection.execute("PRAGMA table_info(runs)")}
+    finally:
+        connection.close()
+
+
+def test_an_older_archive_without_a_migration_is_refused_untouched(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "a.db"
+    make_archive(path)
+    before = snapshot(tmp_path)
+    monkeypatch.setattr(schema, "SCHEMA_VERSION", 3)
+    with pytest.raises(
+        ArchiveFileError, match=r"schema version 1 and this rsi has no migration from it to 3"
+    ):
+        Archive.open(path)
+    assert snapshot(tmp_path) == before
+
+
+def test_a_failed_migration_leaves_the_archive_as_it_was(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "a.db"
+    make_archive(path)
+
+    def half_done(connection: Connection) -> None:
+        connection.execute(text("ALTER TABLE runs ADD COLUMN operator VARCHAR(64)"))
+        raise RuntimeError("migration bug")
+
+    monkeypatch.setattr(schema, "SCHEMA_VERSION", 2)
+    monkeypatch.setitem(schema.MIGRATIONS, 1, half_done)
+    with pytest.raises(RuntimeError, match=r"migration bug"):
+        Archive.open(path)
+    monkeypatch.undo()
+    with Archive.open(path) as archive:
+        assert archive.schema_version == 1
+        assert archive.runs()[0].finding_count == 1
+
+
+def test_a_garbage_file_is_named_and_nothing_is_written(tmp_path: Path) -> None:
+    path = tmp_path / "archive.db"
+    garbage = bytes(range(256)) * 64
+    path.write_bytes(garbage)
+    with pytest.raises(ArchiveFileError, match=f"{path} is not a readable rsi archive.*not a database"):
+        Archive.open(path)
+    assert snapshot(tmp_path) == {"archive.db": garbage}
+    assert [entry.name for entry in tmp_path.iterdir()] == ["archive.db"]  # no images folder, no journal
+
+
+def test_another_programs_database_is_refused_untouched(tmp_path: Path) -> None:
+    path = tmp_path / "other.db"
+    connection = sqlite3.connect(path)
+    with connection:
+        connection.execute("CREATE TABLE parts (name TEXT)")
+    connection.close()
+    before = snapshot(tmp_path)
+    with pytest.raises(
+        ArchiveFileError, match=r"other.db is a database but not an rsi archive \(its tables: parts\)"
+    ):
+        Archive.open(path)
+    assert snapshot(tmp_path) == before
+
+
+def test_a_damaged_page_is_reported_naming_the_archive(tmp_path: Path) -> None:
+    path = tmp_path / "a.db"
+    with Archive.open(path) as archive:
+        archive.add_vista("A_door")
+        run_id = archive.start_run()
+        archive.add_findings(
+            run_id, [Finding("A_door", "impact", 0.9, position_m=(0.001 * i, 0.0, 1.0)) for i in range(400)]
+        )
+    data = bytearray(path.read_bytes())
+    assert len(data) > 6 * 4096
+    data[2 * 4096 : len(data) - 4096] = b"\xa5" * (len(data) - 3 * 4096)  # keep the header page
+    path.write_bytes(bytes(data))
+    with (
+        pytest.raises(ArchiveFileError, match=f"{path} is not a readable rsi archive.*malformed"),
+        Archive.open(path) as archive,
+    ):
+        archive.findings(run_id)
+
+
+def test_a_writer_locked_out_past_the_busy_timeout_gets_a_clear_error(tmp_path: Path) -> None:
+    path = tmp_path / "a.db"
+    make_archive(path)
+    blocker = sqlite3.connect(path, isolation_level=None)
+    try:
+        with Archive.open(path, busy_timeout_s=0.05) as archive:
+            blocker.execute("BEGIN IMMEDIATE")
+            with pytest.raises(ArchiveError, match=r"stayed locked by another writer .*busy_timeout_s"):
+                archive.start_run()
+            # WAL: reading goes on while another writer holds the lock.
+            assert archive.runs()[0].status == "finished"
+            blocker.execute("ROLLBACK")
+            assert archive.start_run() == 2
+    finally:
+        blocker.close()
