@@ -355,3 +355,49 @@ def test_isee_proximity_demo_bad_seed(seed: str, tmp_path: Path) -> None:
     if expected == cli.EXIT_INVALID_VALUE:
         assert result.stderr.strip() == "rsi: error: seed must be a non-negative integer; got -1."
     assert not any(tmp_path.iterdir())
+
+
+@pytest.fixture
+def small_archive(tmp_path: Path) -> Path:
+    from rsi.archive import Archive, Finding
+
+    path = tmp_path / "archive.db"
+    with Archive.open(path) as store:
+        store.add_vista("A_door")
+        store.store_reference("A_door", np.zeros((4, 4), np.uint8))
+        for seed, size_m in ((1, 0.001), (2, 0.0015)):
+            run = store.start_run(label=f"pass {seed}", seed=seed)
+            finding = Finding(
+                vista="A_door", kind="impact", confidence=0.9, position_m=(0.1, 0.2, 0.3), size_m=size_m
+            )
+            store.add_findings(run, [finding])
+            store.finish_run(run)
+    return path
+
+
+def test_archive_list_show_export(small_archive: Path, tmp_path: Path) -> None:
+    listed = invoke("archive", "list", "--archive", small_archive)
+    assert listed.exit_code == 0, listed.output
+    assert "pass 1" in listed.stdout and "pass 2" in listed.stdout
+    shown = invoke("archive", "show", "2", "--archive", small_archive)
+    assert shown.exit_code == 0, shown.output
+    assert "1.50" in shown.stdout  # the flaw grew from 1.0 to 1.5 mm and is linked to its first sighting
+    exported = invoke("archive", "export", "2", "--out", tmp_path / "export", "--archive", small_archive)
+    assert exported.exit_code == 0, exported.output
+    document = json.loads((tmp_path / "export" / "run-2.json").read_text())
+    assert len(document["findings"]) == 1
+
+
+@pytest.mark.parametrize(
+    ("case", "code"),
+    [("missing", cli.EXIT_FILE), ("corrupt", cli.EXIT_FILE), ("unknown run", cli.EXIT_INVALID_VALUE)],
+)
+def test_archive_bad_input_exit_codes(case: str, code: int, small_archive: Path, tmp_path: Path) -> None:
+    corrupt = tmp_path / "corrupt.db"
+    corrupt.write_bytes(b"not a database at all" * 100)
+    archive = {"missing": tmp_path / "none.db", "corrupt": corrupt, "unknown run": small_archive}[case]
+    result = invoke("archive", "show", "9", "--archive", archive)
+    assert result.exit_code == code, result.output
+    assert result.stderr.startswith("rsi: error: ")
+    if case == "corrupt":
+        assert corrupt.read_bytes() == b"not a database at all" * 100  # nothing stored is lost

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
 
-from rsi.errors import DatasetError, ImageFileError, InputError
+from rsi.errors import FileError, InputError
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -36,7 +36,7 @@ EXIT_CODES: Mapping[int, str] = {
     EXIT_OK: "success",
     EXIT_USAGE: "usage error: unknown command or option, bad choice, missing argument (typer)",
     EXIT_INVALID_VALUE: "invalid value (InputError): e.g. p-false-alarm outside (0, 0.5), even flaw size",
-    EXIT_FILE: "missing or unreadable file or folder (ImageFileError, DatasetError, OS error)",
+    EXIT_FILE: "missing, unreadable or corrupt file or folder (FileError, OS error)",
     EXIT_INTERNAL: "internal error: a bug; please report it with the command line",
 }
 _EPILOG = (
@@ -119,7 +119,7 @@ def _errors() -> Iterator[None]:
     """Map library errors to the documented exit codes (file errors first: they are InputErrors too)."""
     try:
         yield
-    except (ImageFileError, DatasetError, OSError) as error:
+    except (FileError, OSError) as error:
         _fail(EXIT_FILE, str(error) or type(error).__name__)
     except InputError as error:
         _fail(EXIT_INVALID_VALUE, str(error))
@@ -548,3 +548,76 @@ def _print_acceptance(
     console.print(table)
     passed = sum(check.passed for check in checks)
     console.print(f"{passed}/{len(checks)} acceptance checks pass. Wrote {len(files)} files to {out}/.")
+
+
+archive_app = typer.Typer(
+    help="The inspection archive: runs, findings and flaw history.", epilog=_EPILOG, no_args_is_help=True
+)
+app.add_typer(archive_app, name="archive")
+ArchiveOption = Annotated[
+    str, typer.Option("--archive", help="SQLite file or SQLAlchemy URL of the archive (it must exist).")
+]
+DEFAULT_ARCHIVE = "rsi-archive.db"
+
+
+@archive_app.command("list", epilog=_EPILOG)
+def archive_list(*, archive: ArchiveOption = DEFAULT_ARCHIVE) -> None:
+    """List the inspection runs, newest last."""
+    with _errors():
+        from rich.table import Table
+
+        from rsi.archive import Archive
+
+        with Archive.open(archive, create=False) as store:
+            runs = store.runs()
+        table = Table(title=f"Runs in {archive}")
+        for column in ("run", "label", "status", "seed", "started", "findings"):
+            table.add_column(column)
+        for run in runs:
+            seed = "" if run.seed is None else str(run.seed)
+            table.add_row(str(run.run_id), run.label, run.status, seed, f"{run.started_at:%Y-%m-%d %H:%M:%S}",
+                          str(run.finding_count))  # fmt: skip
+        _stdout().print(table)
+
+
+@archive_app.command("show", epilog=_EPILOG)
+def archive_show(
+    *,
+    run: Annotated[int, typer.Argument(help="Run number (see `rsi archive list`).")],
+    archive: ArchiveOption = DEFAULT_ARCHIVE,
+) -> None:
+    """Show one run's findings, each with its earlier sighting when it was seen before."""
+    with _errors():
+        from rich.table import Table
+
+        from rsi.archive import Archive
+
+        with Archive.open(archive, create=False) as store:
+            record, findings = store.run(run), store.findings(run)
+        table = Table(
+            title=f"Run {record.run_id} ({record.label}, {record.status}): {len(findings)} findings"
+        )
+        for column in ("finding", "vista", "kind", "confidence", "size mm", "seen before as"):
+            table.add_column(column)
+        for finding in findings:
+            size = "" if finding.size_m is None else f"{1000 * finding.size_m:.2f}"
+            before = "" if finding.previous_id is None else str(finding.previous_id)
+            confidence = f"{finding.confidence:.2f}"
+            table.add_row(str(finding.finding_id), finding.vista, finding.kind, confidence, size, before)
+        _stdout().print(table)
+
+
+@archive_app.command("export", epilog=_EPILOG)
+def archive_export(
+    *,
+    run: Annotated[int, typer.Argument(help="Run number (see `rsi archive list`).")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for the run's JSON and its images.")],
+    archive: ArchiveOption = DEFAULT_ARCHIVE,
+) -> None:
+    """Export one run (JSON with its findings and history links, plus the referenced images)."""
+    with _errors():
+        from rsi.archive import Archive
+
+        with Archive.open(archive, create=False) as store:
+            path = store.export_run(run, out)
+        _stdout().print(f"Wrote {path}")

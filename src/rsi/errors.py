@@ -14,7 +14,11 @@ class InputError(RsiError, ValueError):
     """An argument has the wrong type, shape, dtype, value or range."""
 
 
-class ImageFileError(InputError):
+class FileError(InputError):
+    """A file or folder is missing, unreadable, corrupt or of the wrong kind."""
+
+
+class ImageFileError(FileError):
     """An image file is missing, unreadable or of an unsupported kind."""
 
 
@@ -22,5 +26,5 @@ class ConvergenceError(RsiError):
     """An iterative method could not produce a usable answer (registration reports, it does not raise)."""
 
 
-class DatasetError(InputError):
+class DatasetError(FileError):
     """A dataset folder does not have the documented layout."""

@@ -43,7 +43,7 @@ from rsi.archive.records import (
     check_sha256,
     json_text,
 )
-from rsi.errors import InputError, RsiError
+from rsi.errors import FileError, InputError, RsiError
 
 _MAX_SEED = 2**63
 
@@ -52,7 +52,7 @@ class ArchiveError(RsiError):
     """The archive cannot do what was asked (e.g. the database stayed locked past the busy timeout)."""
 
 
-class ArchiveFileError(ArchiveError, InputError):
+class ArchiveFileError(ArchiveError, FileError):
     """The archive file is unusable: corrupt, another program's database, or a newer schema."""
 
 
@@ -182,7 +182,7 @@ class Archive:
                 raise InputError(f"archive path {path}: {path.parent} is a file, not a folder.")
             if not path.exists():
                 if not create:
-                    raise InputError(
+                    raise ArchiveFileError(
                         f"there is no archive at {path}; check the path, or open it with create=True."
                     )
                 path.parent.mkdir(parents=True, exist_ok=True)
