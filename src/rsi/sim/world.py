@@ -12,7 +12,7 @@ import math
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -223,6 +223,17 @@ class World:
     def vistas(self) -> tuple[str, ...]:
         """Names of the vista points."""
         return tuple(self.mockup.vistas)
+
+    def add_vista(self, point: Vista) -> None:
+        """Add a vista point to this world (a mission's plan may need views the mock-up does not list).
+
+        Raises InputError for a non-Vista or a name already taken (the mock-up's vistas are fixed).
+        """
+        if not isinstance(point, Vista):
+            raise InputError(f"point must be an rsi.sim.mockup.Vista; got {type(point).__name__}.")
+        if point.name in self.mockup.vistas:
+            raise InputError(f"vista {point.name!r} already exists in this world; choose another name.")
+        self.mockup = replace(self.mockup, vistas={**self.mockup.vistas, point.name: point})
 
     def vista(self, name: str) -> Vista:
         """The vista point called `name` (InputError listing the names otherwise)."""

@@ -1,0 +1,997 @@
+"""Seed §2-§4 together: one inspection mission over the truss mock-up, and its score against ground truth.
+
+A mission plans vista points that cover every component (the inside of the electrical ORU with its door
+open included), takes a *reference pass* on the pristine mock-up, then an *inspection pass* after the seeded
+anomalies appeared, and fuses what it sees and senses into findings:
+
+- **visual** (seed §2): each strobe/ambient interlaced frame is compensated (seed §2.2), registered to its
+  reference and tested by the calibrated likelihood-ratio test (seed §2.3-2.4); dark changes become impact
+  findings (small) or swapped-component findings (large), placed in the world through the frame's depth
+  and camera pose; every screw the frame sees is compared with its reference (a removed screw leaves a
+  dark hole where a bright head was);
+- **temperature** (seed §3-4): the pyrometer reads each black Kapton circle, with the emissivity of the
+  surface it actually sees (:func:`rsi.sim.fields.emissivity`) -> hot and cold spots;
+- **gas** (seed §3-4): the MOS sensor dwells at stations along the tubing -> the active leak, located
+  along the tubing;
+- **active inspection** (seed §2.5, first further-work item): a detection between a preliminary and the
+  confirming threshold triggers a second look (another visit: a new viewpoint error and new camera noise)
+  and the two looks' evidence is fused.
+
+:func:`score_mission` matches the findings to the world's ground truth per anomaly type. See docs/mission.md.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import special
+
+from rsi import _validate as v
+from rsi.errors import InputError
+
+if TYPE_CHECKING:
+    from rsi.archive import Archive
+    from rsi.imaging.compensation import Compensated
+    from rsi.mission.pair import PairResult
+    from rsi.sim.anomalies import Anomaly, AnomalySet, Site
+    from rsi.sim.mockup import Vista
+    from rsi.sim.world import View, World
+
+FloatArray = NDArray[np.float64]
+ProgressFn = Callable[[str, int, int], None]
+
+MISSION_SIZE = (480, 640)  # the seed's video frame (seed §2.1)
+# Calibrated per-pixel false-alarm probability: ~1.2e6 field pixels are tested per mission, so 1e-7 gives
+# ~0.1 expected false pixels per run under H0 (seed §2.4: the threshold follows from the P_F asked for).
+P_FALSE_ALARM = 1e-7
+# Preliminary threshold of active inspection (seed §2.5): a detection above this but below the confirming
+# threshold earns a second look.
+P_PRELIMINARY = 1e-4
+FLAW_MODEL = "uniform"
+FLAW_SIZE_PX = 3
+MISREGISTRATION_STD_PX = 0.3
+DOOR_OPEN_RAD = 1.4
+# A dark blob bigger than this (world area) is a changed component, not a ~1 mm impact.
+COMPONENT_AREA_M2 = 1.0e-4
+# A missing screw leaves a 3.6 mm hole where the 8 mm head was: the head disc loses this fraction of its
+# brightness or more; a present screw seen again changes by a few per cent (misregistration, noise).
+SCREW_DROP_THRESHOLD = 0.3
+SCREW_MATCH_M = 0.008  # a visual detection this close to a screw site is that screw's evidence
+THERMAL_THRESHOLD_K = 3.0  # pyrometer noise 0.1 K; a Peltier spot is 30 K (seed §4)
+GAS_THRESHOLD_PPM = 2.0  # MOS noise is ~0.02 ppm in clean air
+GAS_STANDOFF_M = 0.1
+GAS_STATION_SPACING_M = 0.01
+GAS_DWELL_S = 20.0
+GAS_SURVEY_START_S = 60.0  # after the visual pass; the leaks start within 30 s (seed §4)
+REPEATABILITY = ("lab", "space")
+_AMBIENT_K = 293.15
+
+
+@dataclass(frozen=True)
+class PlanPoint:
+    """One vista point of the mission plan.
+
+    Attributes
+    ----------
+    name : str
+        Unique name (the archive's vista name).
+    vista : str
+        The world's vista it is taken from.
+    door_angle_rad : float
+        Opening of the electrical ORU's door while the frame is taken.
+    """
+
+    name: str
+    vista: str
+    door_angle_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class MissionFinding:
+    """A fused finding of the inspection pass.
+
+    Attributes
+    ----------
+    kind : str
+        ``"impact"``, ``"missing_screw"``, ``"swapped_component"``, ``"hot_spot"``, ``"cold_spot"`` or
+        ``"gas_leak"``.
+    position_m : (float, float, float)
+        World position, metres.
+    size_m : float
+        Estimated size (impact diameter, screw head, component extent, Kapton circle, station spacing).
+    confidence : float
+        In [0, 1].
+    source : str
+        Plan point (visual), ``"pyrometer"`` or ``"gas"``.
+    score : float
+        The evidence: LRT peak (fused over both looks for a second look), head-disc brightness drop,
+        temperature difference (K) or peak concentration (ppm).
+    second_look : bool
+        Whether active inspection took a second look before this was reported.
+    bbox : (int, int, int, int) or None
+        Field-image box ``(row0, col0, row1, col1)`` for visual findings.
+    """
+
+    kind: str
+    position_m: tuple[float, float, float]
+    size_m: float
+    confidence: float
+    source: str
+    score: float
+    second_look: bool = False
+    bbox: tuple[int, int, int, int] | None = None
+
+
+@dataclass(frozen=True)
+class VisitRecord:
+    """What one plan point's inspection visit saw.
+
+    Attributes
+    ----------
+    point : str
+        Plan point name.
+    translation_xy : (float, float)
+        Registration of reference to inspection, field pixels.
+    detections : int
+        Flaws above the preliminary threshold.
+    second_looks : int
+        Detections that triggered a second look.
+    confirmed, rejected : int
+        Second looks that confirmed / rejected their detection.
+    visible : tuple of int
+        Indices of ground-truth anomalies visible in the frame (from the simulator's truth masks).
+    """
+
+    point: str
+    translation_xy: tuple[float, float]
+    detections: int
+    second_looks: int
+    confirmed: int
+    rejected: int
+    visible: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class MissionResult:
+    """Everything one mission produced.
+
+    Attributes
+    ----------
+    seed : int
+        The world's seed.
+    repeatability : str
+        Viewpoint repeatability of the visits.
+    active : bool
+        Whether active inspection was on.
+    size : (int, int)
+        Frame size.
+    plan : tuple of PlanPoint
+    findings : tuple of MissionFinding
+    visits : tuple of VisitRecord
+    truth : AnomalySet
+        The world's ground truth (for scoring and the report).
+    pyrometer_k : dict of str to float
+        Reading at each Kapton site.
+    gas_ppm : ndarray of shape (S,)
+        Concentration estimated at each gas station (end of its dwell).
+    gas_stations_m : ndarray of shape (S, 3)
+        Station positions.
+    run_id : int or None
+        The archive's run, when an archive was given.
+    timings_s : dict of str to float
+        ``reference``, ``inspection``, ``sensors``, ``total``.
+    """
+
+    seed: int
+    repeatability: str
+    active: bool
+    size: tuple[int, int]
+    plan: tuple[PlanPoint, ...]
+    findings: tuple[MissionFinding, ...]
+    visits: tuple[VisitRecord, ...]
+    truth: AnomalySet
+    pyrometer_k: dict[str, float]
+    gas_ppm: FloatArray
+    gas_stations_m: FloatArray
+    run_id: int | None
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------------------------------------- plan
+
+
+def _extra_vistas() -> tuple[Vista, ...]:
+    """Views the mock-up does not list: the solar panel is wider than one 0.5 m view (its corner screws lie
+    outside ``C_panel``), so two views with the image's rows along the truss cover it (seed §4 C)."""
+    from rsi.sim.mockup import VISTA_STANDOFF_M, truss_mockup, vista
+
+    centre = truss_mockup().vistas["C_panel"].target_m
+    return tuple(
+        vista(
+            name, (centre[0] + dx, centre[1], centre[2]), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0), VISTA_STANDOFF_M
+        )
+        for name, dx in (("C_panel_west", -0.11), ("C_panel_east", 0.11))
+    )
+
+
+PLAN: tuple[PlanPoint, ...] = (
+    PlanPoint("A_door", "A_door"),
+    PlanPoint("A_door_open", "A_door", DOOR_OPEN_RAD),
+    PlanPoint("A_kapton", "A_kapton"),
+    PlanPoint("B_tank", "B_tank"),
+    PlanPoint("C_panel_west", "C_panel_west"),
+    PlanPoint("C_panel_east", "C_panel_east"),
+    PlanPoint("D_tubing", "D_tubing"),
+)
+
+
+def plan_vistas(world: World) -> tuple[PlanPoint, ...]:
+    """Add the plan's extra vistas to `world` (once) and return the plan (every component covered)."""
+    for point in _extra_vistas():
+        if point.name not in world.vistas:
+            world.add_vista(point)
+    return PLAN
+
+
+# ------------------------------------------------------------------------------------------------ visual
+
+
+def _with_reference_interpolation(reference: Compensated, inspection: Compensated) -> tuple[Any, Any]:
+    """Both images with the ambient-interpolation variance of the reference, dilated by the repeatability.
+
+    Seed §2.2: under the same ambient the interpolation errors of reference and inspection are the same and
+    cancel. The inspection's own estimate would also count a new flaw's sharp edge as interpolation error
+    and hide the flaw behind it, so the flaw-free reference's map is used for both.
+    """
+    import cv2
+
+    shared = np.asarray(
+        cv2.dilate(reference.interpolation_variance, np.ones((5, 5), np.uint8)), dtype=np.float32
+    )
+
+    def rebuilt(image: Compensated) -> Compensated:
+        sensor = image.variance - image.interpolation_variance
+        return replace(image, variance=(sensor + shared).astype(np.float32), interpolation_variance=shared)
+
+    return rebuilt(reference), rebuilt(inspection)
+
+
+def _compare(reference: Compensated, view: View, p_false_alarm: float) -> PairResult:
+    from rsi.imaging.compensation import compensate_interlaced
+    from rsi.mission.pair import inspect_pair
+
+    ref, insp = _with_reference_interpolation(reference, compensate_interlaced(view.frame))
+    return inspect_pair(
+        ref,
+        insp,
+        flaw_model=FLAW_MODEL,
+        size=FLAW_SIZE_PX,
+        p_false_alarm=p_false_alarm,
+        polarity="dark",
+        misregistration_std_px=MISREGISTRATION_STD_PX,
+    )
+
+
+def _field_to_world(view: View, row: float, col: float) -> tuple[float, float, float] | None:
+    """World point seen at field pixel (row, col) from the frame's depth and camera pose (None: sky)."""
+    depth = view.depth_m
+    assert depth is not None
+    frame_row = min(round(2 * row + 1), depth.shape[0] - 1)  # seed §2.2: odd field row k = frame 2k+1
+    column = min(max(round(col), 0), depth.shape[1] - 1)
+    distance = float(depth[frame_row, column])
+    pose = view.pose
+    rows, cols = pose.shape
+    if not math.isfinite(distance) or distance > 10.0:
+        return None
+    local = np.array(
+        [
+            (column - (cols - 1) / 2) / pose.focal_px * distance,
+            -(frame_row - (rows - 1) / 2) / pose.focal_px * distance,
+            -distance,
+        ]
+    )
+    point = pose.position_m + pose.rotation @ local
+    return (float(point[0]), float(point[1]), float(point[2]))
+
+
+def _pixel_m(view: View, position: tuple[float, float, float]) -> float:
+    """Size of one frame pixel on the surface at `position`, metres."""
+    _, along = view.pose.project(np.asarray([position]))
+    return float(along[0]) / view.pose.focal_px
+
+
+def _to_field(view: View, points_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Field row, column and depth of world points in this view."""
+    xy, along = view.pose.project(points_m)
+    return (xy[:, 1] - 1.0) / 2.0, xy[:, 0], along
+
+
+def _visible(view: View, points_m: FloatArray, tolerance_m: float = 0.006) -> NDArray[np.bool_]:
+    """Which points the frame sees (inside, not hidden: the depth there agrees with the point's)."""
+    depth = view.depth_m
+    assert depth is not None
+    xy, along = view.pose.project(points_m)
+    rows, cols = depth.shape
+    seen = np.zeros(len(points_m), dtype=bool)
+    for k, ((x, y), distance) in enumerate(zip(xy, along, strict=True)):
+        col, row = round(x), round(y)
+        if 8 <= col < cols - 8 and 8 <= row < rows - 8 and distance > 0:
+            seen[k] = abs(float(depth[row, col]) - distance) < tolerance_m
+    return seen
+
+
+def _screw_drop(pair: PairResult, view: View, site: Site) -> float:
+    """Fraction of the screw head's brightness lost between reference and inspection (seed §4 screws)."""
+    detection = pair.detection
+    row, col, _ = _to_field(view, np.asarray([site.position_m]))
+    radius_px = 0.5 * site.size_m / _pixel_m(view, site.position_m)
+    rows, cols = np.indices(detection.difference.shape)
+    disc = ((rows - row[0]) * 2.0) ** 2 + (cols - col[0]) ** 2 <= radius_px**2
+    disc &= detection.valid
+    if disc.sum() < 3:
+        return 0.0
+    predicted = pair.inspection - detection.difference
+    brightness = float(np.mean(predicted[disc]))
+    if brightness <= 1.0:
+        return 0.0
+    return float(-np.mean(detection.difference[disc]) / brightness)
+
+
+def _confidence(margin: float) -> float:
+    """Confidence from a margin over the threshold in noise sigmas: Phi(margin), in [0.5, 1)."""
+    return float(0.5 * special.erfc(-margin / math.sqrt(2.0)))
+
+
+@dataclass
+class _Look:
+    """One dark blob of a visit, kept until it is classified."""
+
+    position_m: tuple[float, float, float]
+    area_m2: float
+    score: float
+    bbox: tuple[int, int, int, int]
+    second_look: bool
+
+
+def _blobs(pair: PairResult, view: View) -> list[_Look]:
+    looks: list[_Look] = []
+    for flaw in pair.flaws:
+        position = _field_to_world(view, flaw.row, flaw.col)
+        if position is None:
+            continue
+        pixel = _pixel_m(view, position)
+        looks.append(_Look(position, flaw.area_px * 2.0 * pixel * pixel, flaw.score, flaw.bbox, False))
+    return looks
+
+
+def _second_look_score(pair: PairResult, view: View, position: tuple[float, float, float]) -> float:
+    """Peak score of the second look within 2 px of where the first look's blob is (seed §2.5)."""
+    row, col, _ = _to_field(view, np.asarray([position]))
+    score = pair.detection.score
+    r, c = round(row[0]), round(col[0])
+    window = score[max(r - 2, 0) : r + 3, max(c - 2, 0) : c + 3]
+    return float(window.max()) if window.size else 0.0
+
+
+def _threshold(p_false_alarm: float) -> float:
+    from rsi.detection.flaw_models import flaw_kernel
+    from rsi.detection.roc import thresholds
+
+    weights = flaw_kernel(FLAW_MODEL, size=FLAW_SIZE_PX)
+    return float(thresholds(np.array([p_false_alarm]), polarity="dark", method="lrt", weights=weights)[0])
+
+
+# --------------------------------------------------------------------------------------------- sensors
+
+
+def _pyrometer_pass(world: World, rng: np.random.Generator) -> tuple[list[MissionFinding], dict[str, float]]:
+    """Read each Kapton circle with the pyrometer aimed from 0.5 m (seed §3-4) -> hot and cold spots."""
+    from rsi.sensors.pyrometer import Pyrometer, read_pyrometer
+    from rsi.sim.fields import emissivity
+
+    instrument = Pyrometer()
+    sites = world.mockup.candidates.peltier_sites
+    spot_radius_m = 0.5 * float(instrument.spot_diameter_m(0.5))
+    low, high = {"lab": (0.0, 1e-3), "space": (2e-3, 6e-3)}[world.repeatability]
+    findings: list[MissionFinding] = []
+    readings: dict[str, float] = {}
+    for site in sites:
+        normal = np.asarray(site.normal)
+        u = np.cross(normal, (0.0, 0.0, 1.0))
+        u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-9 else np.array([1.0, 0.0, 0.0])
+        w = np.cross(normal, u)
+        # the laser-sighted spot misses the circle's centre by the arm's repeatability
+        miss, angle = rng.uniform(low, high), rng.uniform(0.0, 2 * math.pi)
+        centre = np.asarray(site.position_m) + miss * (math.cos(angle) * u + math.sin(angle) * w)
+        radii, angles = np.meshgrid(np.linspace(0.0, spot_radius_m, 4), np.linspace(0, 2 * math.pi, 8))
+        points = centre + radii.reshape(-1, 1) * (
+            np.cos(angles).reshape(-1, 1) * u + np.sin(angles).reshape(-1, 1) * w
+        )
+        temperature = world.temperature_k(points)
+        eps = emissivity(points, site.surface, kapton_sites=sites)
+        # the optics average radiance over the spot, i.e. one reading of the mean scene
+        reading = read_pyrometer(float(np.mean(temperature)), float(np.mean(eps)), instrument, rng=rng)
+        temperature_k = float(reading.temperature_k)
+        readings[site.name] = temperature_k
+        delta = temperature_k - _AMBIENT_K
+        if abs(delta) > THERMAL_THRESHOLD_K:
+            findings.append(
+                MissionFinding(
+                    kind="hot_spot" if delta > 0 else "cold_spot",
+                    position_m=tuple(float(x) for x in centre),  # type: ignore[arg-type]
+                    size_m=site.size_m,
+                    confidence=_confidence((abs(delta) - THERMAL_THRESHOLD_K) / instrument.noise_std_k),
+                    source="pyrometer",
+                    score=delta,
+                )
+            )
+    return findings, readings
+
+
+def _gas_stations(world: World) -> FloatArray:
+    """Stations 0.1 m in front of the tubing's horizontal runs, where the leak holes are (seed §4 F)."""
+    leaks = world.mockup.candidates.leak_sites
+    front = np.asarray(leaks[0].normal)
+    heights = sorted({round(site.position_m[2], 4) for site in leaks})
+    xs = [site.position_m[0] for site in leaks]
+    # the whole run of each tube, one station per spacing, plus a margin of one jet half-width
+    low, high = min(xs) - 0.1, max(xs) + 0.1
+    count = round((high - low) / GAS_STATION_SPACING_M) + 1
+    y = leaks[0].position_m[1] + GAS_STANDOFF_M * front[1]
+    stations = [(x, y, z) for z in heights for x in np.linspace(low, high, count)]
+    return np.asarray(stations, dtype=np.float64)
+
+
+def _gas_pass(world: World, rng: np.random.Generator) -> tuple[list[MissionFinding], FloatArray, FloatArray]:
+    """Dwell the MOS sensor at each station (seed §3 H) and locate the leak along the tubing."""
+    from rsi.sensors.gas import MosGasSensor, read_gas
+
+    sensor = MosGasSensor()
+    stations = _gas_stations(world)
+    per_station = int(GAS_DWELL_S * sensor.sample_rate_hz)
+    samples = np.repeat(np.arange(len(stations)), per_station)
+    times = GAS_SURVEY_START_S + np.arange(samples.size) / sensor.sample_rate_hz
+    concentration = world.gas_concentration_ppm(stations[samples], times)
+    readings = read_gas(concentration, sensor, rng=rng)
+    tail = int(2.0 * sensor.sample_rate_hz)  # the last 2 s of each dwell, the sensor nearly settled
+    estimate = readings.estimated_ppm.reshape(len(stations), per_station)[:, -tail:].mean(axis=1)
+    findings: list[MissionFinding] = []
+    best = int(np.argmax(estimate))
+    if estimate[best] > GAS_THRESHOLD_PPM:
+        position = stations[best].copy()
+        # the jet is round: a parabola through the neighbours on the same run refines the peak
+        if 0 < best < len(stations) - 1 and stations[best - 1][2] == stations[best + 1][2] == position[2]:
+            left, mid, right = estimate[best - 1 : best + 2]
+            curvature = left - 2 * mid + right
+            if curvature < 0:
+                position[0] += 0.5 * (left - right) / curvature * GAS_STATION_SPACING_M
+        position[1] = world.mockup.candidates.leak_sites[0].position_m[1]  # on the tubing, not the station
+        findings.append(
+            MissionFinding(
+                kind="gas_leak",
+                position_m=(float(position[0]), float(position[1]), float(position[2])),
+                size_m=GAS_STATION_SPACING_M,
+                confidence=_confidence(float(estimate[best]) / GAS_THRESHOLD_PPM - 1.0),
+                source="gas",
+                score=float(estimate[best]),
+            )
+        )
+    return findings, stations, estimate
+
+
+# -------------------------------------------------------------------------------------------- mission
+
+
+def _check(seed: object, archive: object, repeatability: object, active: object, progress: object) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed must be an integer >= 0; got {seed!r}.")
+    v.choice(repeatability, "repeatability", REPEATABILITY)
+    if not isinstance(active, bool):
+        raise InputError(f"active must be True or False; got {active!r}.")
+    if progress is not None and not callable(progress):
+        raise InputError(
+            f"progress must be None or a callable progress(stage, done, total); got {progress!r}."
+        )
+    if archive is not None:
+        from rsi.archive import Archive
+
+        if not isinstance(archive, Archive):
+            raise InputError(
+                f"archive must be None or an rsi.archive.Archive; got {type(archive).__name__}. "
+                "Open one with rsi.archive.Archive.open(path)."
+            )
+    return int(seed)
+
+
+def _size(size: object) -> tuple[int, int]:
+    if not isinstance(size, tuple) or len(size) != 2:
+        raise InputError(f"size must be a (rows, cols) tuple; got {size!r}. Try size=(480, 640).")
+    rows, cols = (v.positive_int(side, "size", minimum=64) for side in size)
+    return (rows, cols)
+
+
+def run_mission(
+    seed: int,
+    *,
+    archive: Archive | None = None,
+    repeatability: str = "lab",
+    active: bool = True,
+    progress: ProgressFn | None = None,
+    size: tuple[int, int] = MISSION_SIZE,
+) -> MissionResult:
+    """Reference pass, inspection pass and sensor passes over the seeded mock-up (seed §2-§4).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the world (anomalies, viewpoint errors, camera and sensor noise), >= 0. The same seed gives
+        the same findings.
+    archive : Archive, optional
+        Receives the plan's vista points, the reference images (compensated, float32) and one finished
+        inspection run with its findings.
+    repeatability : {"lab", "space"}
+        Viewpoint repeatability of each visit (seed §2.3).
+    active : bool
+        Active inspection (seed §2.5): detections between the preliminary and confirming thresholds get a
+        second look and are confirmed or rejected on the fused evidence. False: one look, one threshold.
+    progress : callable, optional
+        ``progress(stage, done, total)`` after each visit and sensor pass.
+    size : (int, int)
+        Frame (rows, cols), each >= 64.
+
+    Returns
+    -------
+    MissionResult
+
+    Raises
+    ------
+    InputError
+        Naming the argument: a negative or non-integer seed, an unknown repeatability, a non-bool `active`,
+        a non-callable `progress`, a bad `size` or something that is not an Archive.
+    """
+    from rsi.imaging.compensation import compensate_interlaced
+    from rsi.sim.world import load
+
+    seed = _check(seed, archive, repeatability, active, progress)
+    shape = _size(size)
+    start_s = time.perf_counter()
+    world = load("truss", seed=seed, repeatability=repeatability)
+    plan = plan_vistas(world)
+    total = 2 * len(plan) + 2
+    done = 0
+
+    def report(stage: str) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(stage, done, total)
+
+    try:
+        # ---- reference pass: the pristine mock-up (seed §2.3: references taken once, revisited later)
+        references: dict[str, Compensated] = {}
+        for point in plan:
+            world.set_door(point.door_angle_rad)
+            view = world.render(point.vista, size=shape, state="reference", truth=False)
+            references[point.name] = compensate_interlaced(view.frame)
+            report(f"reference {point.name}")
+        reference_s = time.perf_counter() - start_s
+        run_id = _store_references(
+            archive,
+            world=world,
+            plan=plan,
+            references=references,
+            seed=seed,
+            repeatability=repeatability,
+            active=active,
+        )
+
+        # ---- inspection pass
+        confirm, preliminary = _threshold(P_FALSE_ALARM), _threshold(P_PRELIMINARY)
+        visual: list[MissionFinding] = []
+        visits: list[VisitRecord] = []
+        screws_done: set[str] = set()
+        for point in plan:
+            world.set_door(point.door_angle_rad)
+            found, record = _inspect_point(
+                world,
+                point=point,
+                reference=references[point.name],
+                shape=shape,
+                active=active,
+                confirm=confirm,
+                preliminary=preliminary,
+                screws_done=screws_done,
+            )
+            visual += found
+            visits.append(record)
+            report(f"inspection {point.name}")
+        world.set_door(0.0)
+        inspection_s = time.perf_counter() - start_s - reference_s
+
+        sensors_start = time.perf_counter()
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
+        thermal, readings = _pyrometer_pass(world, rng)
+        report("pyrometer")
+        gas, stations, gas_ppm = _gas_pass(world, rng)
+        report("gas")
+        findings = tuple(_merge_components(visual) + thermal + gas)
+        if archive is not None and run_id is not None:
+            _store_findings(archive, run_id, findings)
+            archive.finish_run(run_id)
+    finally:
+        world.close()
+    timings = {
+        "reference": reference_s,
+        "inspection": inspection_s,
+        "sensors": time.perf_counter() - sensors_start,
+        "total": time.perf_counter() - start_s,
+    }
+    return MissionResult(
+        seed=seed,
+        repeatability=repeatability,
+        active=active,
+        size=shape,
+        plan=plan,
+        findings=findings,
+        visits=tuple(visits),
+        truth=world.anomalies,
+        pyrometer_k=readings,
+        gas_ppm=gas_ppm,
+        gas_stations_m=stations,
+        run_id=run_id,
+        timings_s=timings,
+    )
+
+
+def _inspect_point(
+    world: World,
+    *,
+    point: PlanPoint,
+    reference: Compensated,
+    shape: tuple[int, int],
+    active: bool,
+    confirm: float,
+    preliminary: float,
+    screws_done: set[str],
+) -> tuple[list[MissionFinding], VisitRecord]:
+    """One visit: compare with the reference, check the screws, take second looks (seed §2.3-2.5)."""
+    view = world.render(point.vista, size=shape, state="inspection")
+    pair = _compare(reference, view, P_PRELIMINARY if active else P_FALSE_ALARM)
+    registration = pair.detection.registration
+    translation = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
+    findings: list[MissionFinding] = []
+
+    # screws the frame sees: a bright head turned into a dark hole (seed §4: screws randomly removed)
+    screws = [s for s in world.mockup.candidates.screw_sites if s.name not in screws_done]
+    seen = _visible(view, np.asarray([s.position_m for s in screws])) if screws else np.zeros(0, bool)
+    for site, visible in zip(screws, seen, strict=True):
+        if not visible:
+            continue
+        screws_done.add(site.name)
+        drop = _screw_drop(pair, view, site)
+        if drop > SCREW_DROP_THRESHOLD:
+            findings.append(
+                MissionFinding(
+                    kind="missing_screw",
+                    position_m=site.position_m,
+                    size_m=site.size_m,
+                    confidence=_confidence((drop - SCREW_DROP_THRESHOLD) / 0.05),
+                    source=point.name,
+                    score=drop,
+                )
+            )
+    screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
+
+    looks = _blobs(pair, view)
+    looks = [
+        look
+        for look in looks
+        if np.min(np.linalg.norm(screw_positions - np.asarray(look.position_m), axis=1)) > SCREW_MATCH_M
+    ]
+    doubtful = [look for look in looks if look.score <= confirm]
+    second_looks = confirmed = rejected = 0
+    if active and doubtful:
+        # seed §2.5 active inspection: another visit (new viewpoint error, new noise) of the same vista
+        second = world.render(point.vista, size=shape, state="inspection")
+        second_pair = _compare(reference, second, P_PRELIMINARY)
+        for look in doubtful:
+            second_looks += 1
+            again = _second_look_score(second_pair, second, look.position_m)
+            # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3
+            fused = (look.score + again) / math.sqrt(3.0)
+            if fused > confirm:
+                confirmed += 1
+                look.score = fused
+                look.second_look = True
+            else:
+                rejected += 1
+    kept = [look for look in looks if look.score > confirm]
+    for look in kept:
+        kind = "swapped_component" if look.area_m2 > COMPONENT_AREA_M2 else "impact"
+        findings.append(
+            MissionFinding(
+                kind=kind,
+                position_m=look.position_m,
+                size_m=2.0 * math.sqrt(look.area_m2 / math.pi),
+                confidence=_confidence(look.score - confirm),
+                source=point.name,
+                score=look.score,
+                second_look=look.second_look,
+                bbox=look.bbox,
+            )
+        )
+    record = VisitRecord(
+        point=point.name,
+        translation_xy=(translation[0], translation[1]),
+        detections=len(looks),
+        second_looks=second_looks,
+        confirmed=confirmed,
+        rejected=rejected,
+        visible=tuple(sorted(view.flaw_masks)),
+    )
+    return findings, record
+
+
+def _merge_components(findings: list[MissionFinding]) -> list[MissionFinding]:
+    """One swapped-component finding per component site: its blobs (from several views) merged."""
+    from rsi.sim.mockup import truss_mockup
+
+    sites = truss_mockup().candidates.component_sites
+    merged: dict[str, list[MissionFinding]] = {}
+    others: list[MissionFinding] = []
+    for finding in findings:
+        if finding.kind != "swapped_component":
+            others.append(finding)
+            continue
+        site = _component_of(finding.position_m, sites)
+        if site is None:
+            others.append(replace(finding, kind="impact"))
+            continue
+        merged.setdefault(site.name, []).append(finding)
+    for name, group in merged.items():
+        site = next(s for s in sites if s.name == name)
+        best = max(group, key=lambda f: f.score)
+        others.append(replace(best, position_m=site.position_m, size_m=site.size_m))
+    return others
+
+
+def _component_of(position: tuple[float, float, float], sites: tuple[Site, ...]) -> Site | None:
+    """The component site nearest to `position` within its half extent plus 5 cm."""
+    best, best_distance = None, math.inf
+    for site in sites:
+        distance = float(np.linalg.norm(np.asarray(position) - np.asarray(site.position_m)))
+        if distance < 0.5 * site.size_m + 0.05 and distance < best_distance:
+            best, best_distance = site, distance
+    return best
+
+
+def _store_references(
+    archive: Archive | None,
+    *,
+    world: World,
+    plan: tuple[PlanPoint, ...],
+    references: Mapping[str, Compensated],
+    seed: int,
+    repeatability: str,
+    active: bool,
+) -> int | None:
+    if archive is None:
+        return None
+    for point in plan:
+        archive.add_vista(replace(world.vista(point.vista), name=point.name), replace=True)
+        archive.store_reference(point.name, np.ascontiguousarray(references[point.name].image))
+    settings = {
+        "repeatability": repeatability,
+        "active": active,
+        "p_false_alarm": P_FALSE_ALARM,
+        "p_preliminary": P_PRELIMINARY,
+        "flaw_model": FLAW_MODEL,
+    }
+    return archive.start_run(label="mission inspection pass", seed=seed, settings=settings)
+
+
+def _store_findings(archive: Archive, run_id: int, findings: tuple[MissionFinding, ...]) -> None:
+    from rsi.archive import Finding
+
+    vista_of_sensor = {"pyrometer": "A_kapton", "gas": "D_tubing"}
+    archive.add_findings(
+        run_id,
+        [
+            Finding(
+                vista=vista_of_sensor.get(f.source, f.source),
+                kind=f.kind,
+                confidence=f.confidence,
+                position_m=f.position_m,
+                bbox=f.bbox,
+                size_m=f.size_m,
+                score=f.score,
+                extras={"source": f.source, "second_look": f.second_look},
+            )
+            for f in findings
+        ],
+    )
+
+
+# ------------------------------------------------------------------------------------------------ score
+
+SCORED_TYPES: tuple[str, ...] = ("impact", "missing_screw", "swapped_component", "thermal_spot", "gas_leak")
+IMPACT_MIN_SIZE_M = 1e-3  # issue 5: impacts of at least 1 mm count towards recall
+_MATCH_RADIUS_M = {
+    "impact": 0.01,
+    "missing_screw": 0.01,
+    "swapped_component": 0.05,
+    "hot_spot": 0.03,
+    "cold_spot": 0.03,
+    "gas_leak": 0.03,
+}
+_TYPE_OF = {"hot_spot": "thermal_spot", "cold_spot": "thermal_spot"}
+
+
+@dataclass(frozen=True)
+class Miss:
+    """An anomaly no finding matched, and why (from the visits' truth)."""
+
+    index: int
+    kind: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class TypeScore:
+    """Score of one anomaly type.
+
+    Attributes
+    ----------
+    truth : int
+        Anomalies of the type that count (impacts >= 1 mm).
+    found : int
+        Of those, matched by a finding of the same kind.
+    false_findings : int
+        Findings of the type that match no anomaly (impacts matching an impact < 1 mm are not false).
+    localisation_error_m : float
+        Mean distance of matched findings from the truth (nan when none).
+    """
+
+    truth: int
+    found: int
+    false_findings: int
+    localisation_error_m: float
+
+    @property
+    def recall(self) -> float:
+        """found / truth (1.0 when there is nothing to find)."""
+        return self.found / self.truth if self.truth else 1.0
+
+
+@dataclass(frozen=True)
+class MissionScore:
+    """A mission against its ground truth.
+
+    Attributes
+    ----------
+    per_type : dict of str to TypeScore
+        Keys :data:`SCORED_TYPES` (hot and cold spots together as ``thermal_spot``).
+    false_findings : int
+        Findings matching no anomaly, all types.
+    misses : tuple of Miss
+        Every counted anomaly not found, with the reason.
+    """
+
+    per_type: dict[str, TypeScore]
+    false_findings: int
+    misses: tuple[Miss, ...]
+
+
+def score_mission(result: MissionResult) -> MissionScore:
+    """Match a mission's findings to its world's ground truth, per anomaly type.
+
+    A finding matches an anomaly of the same kind within the kind's radius (1 cm for impacts and screws,
+    3 cm for thermal spots and leaks, 5 cm for a component's site); each anomaly and finding is used once,
+    nearest first.
+
+    Raises
+    ------
+    InputError
+        If `result` is not a MissionResult.
+    """
+    if not isinstance(result, MissionResult):
+        raise InputError(f"result must be a MissionResult from run_mission; got {type(result).__name__}.")
+    anomalies = result.truth.anomalies
+    pairs: list[tuple[float, int, int]] = []
+    for i, finding in enumerate(result.findings):
+        for k, anomaly in enumerate(anomalies):
+            if anomaly.kind != finding.kind:
+                continue
+            distance = float(np.linalg.norm(np.asarray(finding.position_m) - np.asarray(anomaly.position_m)))
+            if distance <= _MATCH_RADIUS_M[anomaly.kind]:
+                pairs.append((distance, i, k))
+    used_findings: dict[int, int] = {}
+    matched: dict[int, float] = {}
+    for distance, i, k in sorted(pairs):
+        if i in used_findings or k in matched:
+            continue
+        used_findings[i] = k
+        matched[k] = distance
+    per_type, misses = _tally(result, matched, used_findings)
+    scores = {
+        name: TypeScore(
+            truth=entry["truth"],
+            found=entry["found"],
+            false_findings=entry["false"],
+            localisation_error_m=float(np.mean(entry["errors"])) if entry["errors"] else math.nan,
+        )
+        for name, entry in per_type.items()
+    }
+    return MissionScore(
+        per_type=scores,
+        false_findings=sum(score.false_findings for score in scores.values()),
+        misses=tuple(misses),
+    )
+
+
+def _tally(
+    result: MissionResult, matched: dict[int, float], used_findings: dict[int, int]
+) -> tuple[dict[str, dict[str, Any]], list[Miss]]:
+    """Per type: anomalies that count, found, false findings and matched distances; and the misses."""
+    anomalies = result.truth.anomalies
+    per_type: dict[str, dict[str, Any]] = {
+        name: {"truth": 0, "found": 0, "false": 0, "errors": []} for name in SCORED_TYPES
+    }
+    misses: list[Miss] = []
+    for k, anomaly in enumerate(anomalies):
+        kind_type = _TYPE_OF.get(anomaly.kind, anomaly.kind)
+        if not _counts(anomaly):
+            continue
+        entry = per_type[kind_type]
+        entry["truth"] += 1
+        if k in matched:
+            entry["found"] += 1
+            entry["errors"].append(matched[k])
+        else:
+            misses.append(Miss(k, anomaly.kind, _why_missed(result, k, anomaly)))
+    for i, finding in enumerate(result.findings):
+        if i not in used_findings:
+            per_type[_TYPE_OF.get(finding.kind, finding.kind)]["false"] += 1
+    return per_type, misses
+
+
+def _counts(anomaly: Anomaly) -> bool:
+    return anomaly.kind != "impact" or anomaly.size_m >= IMPACT_MIN_SIZE_M
+
+
+def _why_missed(result: MissionResult, index: int, anomaly: Anomaly) -> str:
+    if anomaly.kind in ("hot_spot", "cold_spot", "gas_leak"):
+        return "sensor reading below its threshold or mislocated"
+    seen_in = [visit.point for visit in result.visits if index in visit.visible]
+    if not seen_in:
+        return "not visible in any planned frame"
+    wrong = [f for f in result.findings if _near(f, anomaly, 0.02) and f.kind != anomaly.kind]
+    if wrong:
+        return f"seen in {', '.join(seen_in)} but reported as {wrong[0].kind}"
+    return f"visible in {', '.join(seen_in)} but below the detection threshold"
+
+
+def _near(finding: MissionFinding, anomaly: Anomaly, radius_m: float) -> bool:
+    distance = np.linalg.norm(np.asarray(finding.position_m) - np.asarray(anomaly.position_m))
+    return bool(distance <= radius_m)
+
+
+__all__ = [
+    "PLAN",
+    "Miss",
+    "MissionFinding",
+    "MissionResult",
+    "MissionScore",
+    "PlanPoint",
+    "TypeScore",
+    "VisitRecord",
+    "plan_vistas",
+    "run_mission",
+    "score_mission",
+]

@@ -1,0 +1,136 @@
+"""The mission over the mock-up: determinism, each anomaly found or its miss explained, archive, bad input."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.archive import Archive
+from rsi.errors import InputError
+from rsi.mission.mission import (
+    PLAN,
+    SCORED_TYPES,
+    MissionResult,
+    MissionScore,
+    run_mission,
+    score_mission,
+)
+from rsi.sim.mockup import truss_mockup
+from rsi.sim.world import load
+
+SEED = 0
+SMALL = (240, 320)
+
+
+@pytest.fixture(scope="module")
+def archived(tmp_path_factory: pytest.TempPathFactory) -> tuple[MissionResult, Path]:
+    path = tmp_path_factory.mktemp("mission") / "archive.db"
+    stages: list[tuple[str, int, int]] = []
+    with Archive.open(path) as archive:
+        result = run_mission(SEED, archive=archive, size=SMALL, progress=lambda *stage: stages.append(stage))
+    assert [done for _, done, _ in stages] == list(range(1, 2 * len(PLAN) + 3))
+    return result, path
+
+
+def test_same_seed_same_findings(archived: tuple[MissionResult, Path]) -> None:
+    first, _ = archived
+    again = run_mission(SEED, size=SMALL)
+    assert again.findings == first.findings
+    assert np.array_equal(again.gas_ppm, first.gas_ppm)
+    assert again.pyrometer_k == first.pyrometer_k
+
+
+def test_every_anomaly_is_found_or_its_miss_explained(archived: tuple[MissionResult, Path]) -> None:
+    result, _ = archived
+    score = score_mission(result)
+    assert isinstance(score, MissionScore)
+    assert set(score.per_type) == set(SCORED_TYPES)
+    missed = {miss.index for miss in score.misses}
+    for kind, entry in score.per_type.items():
+        assert entry.found + sum(1 for m in score.misses if _type(m.kind) == kind) == entry.truth
+    for miss in score.misses:
+        assert miss.reason
+    # the sensors find the thermal spots and the leak (they do not depend on image size)
+    assert score.per_type["thermal_spot"].recall == 1.0
+    assert score.per_type["gas_leak"].recall == 1.0
+    assert score.per_type["gas_leak"].localisation_error_m < 0.01
+    for index, anomaly in enumerate(result.truth.anomalies):
+        if anomaly.kind in ("hot_spot", "cold_spot", "gas_leak"):
+            assert index not in missed
+
+
+def _type(kind: str) -> str:
+    return "thermal_spot" if kind in ("hot_spot", "cold_spot") else kind
+
+
+def test_archive_gets_references_and_a_finished_run(archived: tuple[MissionResult, Path]) -> None:
+    result, path = archived
+    with Archive.open(path) as archive:
+        for point in PLAN:
+            reference = archive.reference(point.name)
+            assert isinstance(reference, np.ndarray)
+            assert reference.shape == (SMALL[0] // 2, SMALL[1])
+        assert result.run_id is not None
+        run = archive.run(result.run_id)
+        assert run.status == "finished"
+        assert run.seed == SEED
+        assert len(archive.findings(result.run_id)) == len(result.findings)
+
+
+def test_plan_covers_every_component_and_screw() -> None:
+    names = {point.name for point in PLAN}
+    assert {"A_door", "A_door_open", "A_kapton", "B_tank", "D_tubing"} <= names
+    assert any(point.door_angle_rad > 1.0 for point in PLAN)  # inside the electrical ORU
+    world = load("truss", seed=SEED)
+    try:
+        from rsi.mission.mission import _visible, plan_vistas
+
+        screws = truss_mockup().candidates.screw_sites
+        positions = np.asarray([site.position_m for site in screws])
+        seen = np.zeros(len(screws), dtype=bool)
+        for point in plan_vistas(world):
+            world.set_door(point.door_angle_rad)
+            seen |= _visible(world.render(point.vista, size=SMALL, state="reference"), positions)
+        assert seen.all(), [site.name for site, ok in zip(screws, seen, strict=True) if not ok]
+    finally:
+        world.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"seed": -1}, "seed"),
+        ({"seed": 1.5}, "seed"),
+        ({"seed": True}, "seed"),
+        ({"seed": 0, "repeatability": "moon"}, "repeatability"),
+        ({"seed": 0, "active": "yes"}, "active"),
+        ({"seed": 0, "progress": 3}, "progress"),
+        ({"seed": 0, "archive": "archive.db"}, "archive"),
+        ({"seed": 0, "size": (10, 10)}, "size"),
+        ({"seed": 0, "size": [240, 320]}, "size"),
+    ],
+)
+def test_bad_input_names_the_argument(kwargs: dict[str, object], message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        run_mission(**kwargs)  # type: ignore[arg-type]
+
+
+def test_score_needs_a_mission_result() -> None:
+    with pytest.raises(InputError, match="result"):
+        score_mission("findings")  # type: ignore[arg-type]
+
+
+def test_world_add_vista_refuses_duplicates_and_non_vistas() -> None:
+    world = load("truss", seed=SEED)
+    try:
+        with pytest.raises(InputError, match="already exists"):
+            world.add_vista(world.vista("A_door"))
+        with pytest.raises(InputError, match="Vista"):
+            world.add_vista("A_door")  # type: ignore[arg-type]
+    finally:
+        world.close()
