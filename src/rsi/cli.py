@@ -621,3 +621,93 @@ def archive_export(
         with Archive.open(archive, create=False) as store:
             path = store.export_run(run, out)
         _stdout().print(f"Wrote {path}")
+
+
+@app.command("batch", epilog=_EPILOG)
+def batch(
+    *,
+    manifest: Annotated[
+        Path,
+        typer.Argument(help="CSV with a header 'reference,inspection' (optional: id, per-pair settings)."),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Folder for pairs.csv, flaws.csv and batch.json.")],
+    archive: Annotated[
+        str,
+        typer.Option("--archive", help="SQLite file or SQLAlchemy URL of the archive (created if missing)."),
+    ] = DEFAULT_ARCHIVE,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="Address of a running dask scheduler (tcp://host:8786); default: local processes."),
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(
+            min=1, help="Local worker processes (default: CPU count); with --scheduler, wait for this many."
+        ),
+    ] = None,
+    flaw_model: Annotated[FlawModel, typer.Option(help="Seed §2.4 flaw model.")] = FlawModel.single,
+    size: Annotated[int, typer.Option(help="Flaw window side in pixels (odd).")] = 3,
+    p_false_alarm: Annotated[
+        float, typer.Option(help="Per-pixel false-alarm probability, in (0, 0.5).")
+    ] = 1e-5,
+    polarity: Annotated[Polarity, typer.Option(help="Which changes count as flaws.")] = Polarity.both,
+    model: Annotated[
+        RegistrationModel, typer.Option(help="Registration motion model.")
+    ] = RegistrationModel.translation,
+    method: Annotated[
+        Method, typer.Option(help="Likelihood-ratio test or erosion approximation.")
+    ] = Method.lrt,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="End with one JSON object on the last stdout line.")
+    ] = False,
+) -> None:
+    """Inspect every pair of MANIFEST in parallel (dask); store results and failures in the archive.
+
+    A pair that cannot be read or inspected is reported and skipped; the batch goes on and exits 0. A
+    malformed manifest row stops it before anything runs (exit 4, every bad line named). Manifest columns
+    named like the options below override them for their row.
+    """
+    with _errors():
+        from rsi.archive import Archive
+        from rsi.mission.batch import PairSettings, read_manifest, run_batch
+
+        settings = PairSettings(
+            flaw_model=flaw_model.value,
+            size=size,
+            p_false_alarm=p_false_alarm,
+            polarity=polarity.value,
+            registration_model=model.value,
+            method=method.value,
+        )
+        items = read_manifest(manifest)
+        with Archive.open(archive) as store, _progress_bar("batch") as update:
+            result = run_batch(
+                items, archive=store, out_dir=out, scheduler=scheduler, workers=workers, settings=settings,
+                label=f"batch {manifest.name}", progress=update,
+            )  # fmt: skip
+        record = {**result.summary(), "archive": archive, "files": result.files}
+        if as_json:
+            _print_json(record)
+            return
+        _print_batch(record, out)
+
+
+def _print_batch(record: Mapping[str, Any], out: Path) -> None:
+    from rich.table import Table
+
+    console = _stdout()
+    failed = record["failed"]
+    if failed:
+        table = Table(title=f"{len(failed)} pair(s) skipped")
+        for column in ("pair", "stage", "error"):
+            table.add_column(column)
+        for failure in failed[:_MAX_TABLE_ROWS]:
+            table.add_row(failure["pair_id"], failure["stage"], failure["error"])
+        if len(failed) > _MAX_TABLE_ROWS:
+            table.caption = f"... and {len(failed) - _MAX_TABLE_ROWS} more (all in pairs.csv)"
+        console.print(table)
+    console.print(
+        f"{record['pairs']} pairs done: {record['inspected']} inspected, {record['failures']} failed, "
+        f"{record['flaws']} flaws; {record['pairs_per_s']:.1f} pairs/s on {record['workers']} worker(s) "
+        f"({record['elapsed_s']:.1f} s). Run {record['run_id']} in {record['archive']}; results in {out}/"
+    )
