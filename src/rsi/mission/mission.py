@@ -56,6 +56,14 @@ P_PRELIMINARY = 1e-4
 FLAW_MODEL = "uniform"
 FLAW_SIZE_PX = 3
 MISREGISTRATION_STD_PX = 0.3
+# Empirical nuisance from two pristine reference visits (seed §2.3-2.4, see _nuisance_scale): the local
+# mean of z^2 over this window, then its maximum over the spread (the next visit's pose error differs).
+NUISANCE_WINDOW_PX = 9
+NUISANCE_SPREAD_PX = 9
+# A small dark blob must lose at least this fraction of the reference's brightness over a 3x3 window to be
+# an impact: the planted impacts darken the surface by 30-70 % (seed §4), which a 3x3 window of 0.66 mm
+# pixels over a 1.5-3 mm impact sees as 0.2-0.5 (measured on seeds 0-2); half the false blobs lose < 0.17.
+IMPACT_DARKENING_MIN = 0.15
 DOOR_OPEN_RAD = 1.4
 # A dark blob bigger than this (world area) is a changed component, not a ~1 mm impact.
 COMPONENT_AREA_M2 = 1.0e-4
@@ -110,7 +118,8 @@ class MissionFinding:
     source : str
         Plan point (visual), ``"pyrometer"`` or ``"gas"``.
     score : float
-        The evidence: LRT peak (fused over both looks for a second look), head-disc brightness drop,
+        The evidence: LRT peak (the weaker of the comparisons with the two pristine visits; fused over both
+        looks for a second look), head-disc brightness drop,
         temperature difference (K) or peak concentration (ppm).
     second_look : bool
         Whether active inspection took a second look before this was reported.
@@ -262,11 +271,48 @@ def _with_reference_interpolation(reference: Compensated, inspection: Compensate
     return rebuilt(reference), rebuilt(inspection)
 
 
-def _compare(reference: Compensated, view: View, p_false_alarm: float) -> PairResult:
+def _nuisance_scale(first: Compensated, second: Compensated) -> NDArray[np.float32]:
+    """Per-pixel factor by which the noise model under-states what two pristine visits differ by.
+
+    Seed §2.3-2.4: mis-registration and compensation errors "can be interpreted as increasing the noise".
+    Two reference visits of the same vista (independent pose errors and camera noise) contain no flaw, so
+    their calibrated LRT statistic z should be N(0, 1). Where texture aliasing, parallax, relief or the
+    panel's cell lines make it wider, the local mean of z^2 (a ``NUISANCE_WINDOW_PX`` box, then the maximum
+    over ``NUISANCE_SPREAD_PX`` to cover the next visit's different pose error) is that excess; floored at 1
+    it multiplies both images' variance before the inspection is tested.
+    """
+    import cv2
+
+    from rsi.mission.pair import inspect_pair
+
+    ref, other = _with_reference_interpolation(first, second)
+    # `second` predicts `first`: the statistic lies in the first reference's frame, where it is used
+    pair = inspect_pair(
+        other,
+        ref,
+        flaw_model=FLAW_MODEL,
+        size=FLAW_SIZE_PX,
+        p_false_alarm=P_FALSE_ALARM,
+        polarity="both",
+        misregistration_std_px=MISREGISTRATION_STD_PX,
+    )
+    statistic = np.where(pair.detection.valid, pair.detection.statistic, np.float32(0.0))
+    energy = cv2.blur((statistic * statistic).astype(np.float32), (NUISANCE_WINDOW_PX, NUISANCE_WINDOW_PX))
+    spread = np.ones((NUISANCE_SPREAD_PX, NUISANCE_SPREAD_PX), np.uint8)
+    scale = np.asarray(cv2.dilate(energy, spread), dtype=np.float32)
+    return np.maximum(scale, np.float32(1.0))
+
+
+def _compare(
+    reference: Compensated, view: View, p_false_alarm: float, scale: NDArray[np.float32] | None = None
+) -> PairResult:
     from rsi.imaging.compensation import compensate_interlaced
     from rsi.mission.pair import inspect_pair
 
     ref, insp = _with_reference_interpolation(reference, compensate_interlaced(view.frame))
+    if scale is not None:
+        ref = replace(ref, variance=(ref.variance * scale).astype(np.float32))
+        insp = replace(insp, variance=(insp.variance * scale).astype(np.float32))
     return inspect_pair(
         ref,
         insp,
@@ -357,6 +403,23 @@ class _Look:
     score: float
     bbox: tuple[int, int, int, int]
     second_look: bool
+    darkening: float = 0.0
+
+
+def _darkening(pair: PairResult, bbox: tuple[int, int, int, int]) -> float:
+    """Largest fraction of the reference's brightness a 3x3 window of the blob lost (0: none)."""
+    import cv2
+
+    detection = pair.detection
+    row0, col0, row1, col1 = bbox
+    r0, c0 = max(row0 - 1, 0), max(col0 - 1, 0)
+    r1, c1 = min(row1 + 1, detection.difference.shape[0]), min(col1 + 1, detection.difference.shape[1])
+    difference = np.where(detection.valid[r0:r1, c0:c1], detection.difference[r0:r1, c0:c1], 0.0)
+    predicted = pair.inspection[r0:r1, c0:c1] - detection.difference[r0:r1, c0:c1]
+    lost = cv2.blur(-difference.astype(np.float32), (3, 3), borderType=cv2.BORDER_REPLICATE)
+    bright = cv2.blur(np.maximum(predicted, 0.0).astype(np.float32), (3, 3), borderType=cv2.BORDER_REPLICATE)
+    fraction = lost / np.maximum(bright, np.float32(1.0))
+    return float(fraction.max()) if fraction.size else 0.0
 
 
 def _blobs(pair: PairResult, view: View) -> list[_Look]:
@@ -366,7 +429,9 @@ def _blobs(pair: PairResult, view: View) -> list[_Look]:
         if position is None:
             continue
         pixel = _pixel_m(view, position)
-        looks.append(_Look(position, flaw.area_px * 2.0 * pixel * pixel, flaw.score, flaw.bbox, False))
+        look = _Look(position, flaw.area_px * 2.0 * pixel * pixel, flaw.score, flaw.bbox, False)
+        look.darkening = _darkening(pair, flaw.bbox)
+        looks.append(look)
     return looks
 
 
@@ -516,6 +581,27 @@ def _size(size: object) -> tuple[int, int]:
     return (rows, cols)
 
 
+def _reference_pass(
+    world: World, plan: tuple[PlanPoint, ...], shape: tuple[int, int], report: Callable[[str], None]
+) -> tuple[dict[str, Compensated], dict[str, Compensated], dict[str, NDArray[np.float32]]]:
+    """Two pristine visits per plan point: the reference, a second reference and their nuisance scale."""
+    from rsi.imaging.compensation import compensate_interlaced
+
+    references: dict[str, Compensated] = {}
+    seconds: dict[str, Compensated] = {}
+    scales: dict[str, NDArray[np.float32]] = {}
+    for point in plan:
+        world.set_door(point.door_angle_rad)
+        view = world.render(point.vista, size=shape, state="reference", truth=False)
+        references[point.name] = compensate_interlaced(view.frame)
+        # a second pristine visit: the nuisance map and the second reference of every detection
+        again = world.render(point.vista, size=shape, state="reference", truth=False)
+        seconds[point.name] = compensate_interlaced(again.frame)
+        scales[point.name] = _nuisance_scale(references[point.name], seconds[point.name])
+        report(f"reference {point.name}")
+    return references, seconds, scales
+
+
 def run_mission(
     seed: int,
     *,
@@ -555,7 +641,6 @@ def run_mission(
         Naming the argument: a negative or non-integer seed, an unknown repeatability, a non-bool `active`,
         a non-callable `progress`, a bad `size` or something that is not an Archive.
     """
-    from rsi.imaging.compensation import compensate_interlaced
     from rsi.sim.world import load
 
     seed = _check(seed, archive, repeatability, active, progress)
@@ -574,12 +659,7 @@ def run_mission(
 
     try:
         # ---- reference pass: the pristine mock-up (seed §2.3: references taken once, revisited later)
-        references: dict[str, Compensated] = {}
-        for point in plan:
-            world.set_door(point.door_angle_rad)
-            view = world.render(point.vista, size=shape, state="reference", truth=False)
-            references[point.name] = compensate_interlaced(view.frame)
-            report(f"reference {point.name}")
+        references, seconds, scales = _reference_pass(world, plan, shape, report)
         reference_s = time.perf_counter() - start_s
         run_id = _store_references(
             archive,
@@ -602,6 +682,8 @@ def run_mission(
                 world,
                 point=point,
                 reference=references[point.name],
+                scale=scales[point.name],
+                other=seconds[point.name],
                 shape=shape,
                 active=active,
                 confirm=confirm,
@@ -654,6 +736,8 @@ def _inspect_point(
     *,
     point: PlanPoint,
     reference: Compensated,
+    scale: NDArray[np.float32],
+    other: Compensated,
     shape: tuple[int, int],
     active: bool,
     confirm: float,
@@ -662,7 +746,7 @@ def _inspect_point(
 ) -> tuple[list[MissionFinding], VisitRecord]:
     """One visit: compare with the reference, check the screws, take second looks (seed §2.3-2.5)."""
     view = world.render(point.vista, size=shape, state="inspection")
-    pair = _compare(reference, view, P_PRELIMINARY if active else P_FALSE_ALARM)
+    pair = _compare(reference, view, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
     registration = pair.detection.registration
     translation = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
     findings: list[MissionFinding] = []
@@ -694,12 +778,24 @@ def _inspect_point(
         for look in looks
         if np.min(np.linalg.norm(screw_positions - np.asarray(look.position_m), axis=1)) > SCREW_MATCH_M
     ]
+    if looks:
+        # a flaw is new against *both* pristine visits; a blob that one reference's sampling (aliasing, a
+        # compensation artefact of that visit) made is not: the weaker of the two comparisons is kept
+        other_pair = _compare(other, view, P_PRELIMINARY, scale)
+        for look in looks:
+            look.score = min(look.score, _second_look_score(other_pair, view, look.position_m))
+        looks = [
+            look
+            for look in looks
+            if look.score > (preliminary if active else confirm)
+            and (look.area_m2 > COMPONENT_AREA_M2 or look.darkening >= IMPACT_DARKENING_MIN)
+        ]
     doubtful = [look for look in looks if look.score <= confirm]
     second_looks = confirmed = rejected = 0
     if active and doubtful:
         # seed §2.5 active inspection: another visit (new viewpoint error, new noise) of the same vista
         second = world.render(point.vista, size=shape, state="inspection")
-        second_pair = _compare(reference, second, P_PRELIMINARY)
+        second_pair = _compare(reference, second, P_PRELIMINARY, scale)
         for look in doubtful:
             second_looks += 1
             again = _second_look_score(second_pair, second, look.position_m)
