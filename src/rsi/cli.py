@@ -95,6 +95,15 @@ class Split(str, Enum):
     test = "test"
 
 
+# Detector options shared by `rsi inspect` and `rsi batch` (seed §2.3-2.4).
+FlawModelOption = Annotated[FlawModel, typer.Option(help="Seed §2.4 flaw model.")]
+SizeOption = Annotated[int, typer.Option(help="Flaw window side in pixels (odd).")]
+PFalseAlarmOption = Annotated[float, typer.Option(help="Per-pixel false-alarm probability, in (0, 0.5).")]
+PolarityOption = Annotated[Polarity, typer.Option(help="Which changes count as flaws.")]
+RegistrationModelOption = Annotated[RegistrationModel, typer.Option(help="Registration motion model.")]
+MethodOption = Annotated[Method, typer.Option(help="Likelihood-ratio test or erosion approximation.")]
+
+
 app = typer.Typer(
     name="rsi",
     help="Robotic surface inspection: compare reference and inspection images and find flaws "
@@ -219,18 +228,12 @@ def inspect_command(
     reference: Annotated[Path, typer.Argument(help="Reference image (PNG, TIFF or JPEG; 8 or 16 bit).")],
     inspection: Annotated[Path, typer.Argument(help="Inspection image of the same surface.")],
     out: Annotated[Path, typer.Option("--out", help="Results folder (created if missing).")],
-    flaw_model: Annotated[FlawModel, typer.Option(help="Seed §2.4 flaw model.")] = FlawModel.single,
-    size: Annotated[int, typer.Option(help="Flaw window side in pixels (odd).")] = 3,
-    p_false_alarm: Annotated[
-        float, typer.Option(help="Per-pixel false-alarm probability, in (0, 0.5).")
-    ] = 1e-5,
-    polarity: Annotated[Polarity, typer.Option(help="Which changes count as flaws.")] = Polarity.both,
-    model: Annotated[
-        RegistrationModel, typer.Option(help="Registration motion model.")
-    ] = RegistrationModel.translation,
-    method: Annotated[
-        Method, typer.Option(help="Likelihood-ratio test or erosion approximation.")
-    ] = Method.lrt,
+    flaw_model: FlawModelOption = FlawModel.single,
+    size: SizeOption = 3,
+    p_false_alarm: PFalseAlarmOption = 1e-5,
+    polarity: PolarityOption = Polarity.both,
+    model: RegistrationModelOption = RegistrationModel.translation,
+    method: MethodOption = Method.lrt,
     noise_sigma: Annotated[
         float | None,
         typer.Option(help="Noise std of one image in its own units; estimated from the data if omitted."),
@@ -645,18 +648,12 @@ def batch(
             min=1, help="Local worker processes (default: CPU count); with --scheduler, wait for this many."
         ),
     ] = None,
-    flaw_model: Annotated[FlawModel, typer.Option(help="Seed §2.4 flaw model.")] = FlawModel.single,
-    size: Annotated[int, typer.Option(help="Flaw window side in pixels (odd).")] = 3,
-    p_false_alarm: Annotated[
-        float, typer.Option(help="Per-pixel false-alarm probability, in (0, 0.5).")
-    ] = 1e-5,
-    polarity: Annotated[Polarity, typer.Option(help="Which changes count as flaws.")] = Polarity.both,
-    model: Annotated[
-        RegistrationModel, typer.Option(help="Registration motion model.")
-    ] = RegistrationModel.translation,
-    method: Annotated[
-        Method, typer.Option(help="Likelihood-ratio test or erosion approximation.")
-    ] = Method.lrt,
+    flaw_model: FlawModelOption = FlawModel.single,
+    size: SizeOption = 3,
+    p_false_alarm: PFalseAlarmOption = 1e-5,
+    polarity: PolarityOption = Polarity.both,
+    model: RegistrationModelOption = RegistrationModel.translation,
+    method: MethodOption = Method.lrt,
     as_json: Annotated[
         bool, typer.Option("--json", help="End with one JSON object on the last stdout line.")
     ] = False,
