@@ -134,3 +134,38 @@ def test_world_add_vista_refuses_duplicates_and_non_vistas() -> None:
             world.add_vista("A_door")  # type: ignore[arg-type]
     finally:
         world.close()
+
+
+def test_visit_images_are_the_comparison_in_the_field_frame(archived: tuple[MissionResult, Path]) -> None:
+    result, _ = archived
+    field = (SMALL[0] // 2, SMALL[1])
+    for visit in result.visits:
+        images = visit.images
+        assert images is not None
+        for array in (images.reference, images.inspection, images.difference, images.score, images.valid):
+            assert array.shape == field
+        # the difference is the inspection minus the registered reference, by construction
+        assert np.allclose(images.inspection - images.reference, images.difference, atol=1e-3)
+        assert len(images.impact_strengths) <= int(images.impact_truth.any()) * images.impact_truth.sum()
+
+
+def test_run_roc_is_monotone_and_theory_spans_the_probabilities(archived: tuple[MissionResult, Path]) -> None:
+    result, _ = archived
+    if not any(v.images is not None and v.images.impact_truth.any() for v in result.visits):
+        pytest.skip("seed 0 at this size shows no counted impact")
+    measured, theory = result.roc
+    # a lower threshold never detects less nor false-alarms less
+    assert np.all(np.diff(measured.threshold) <= 0)
+    assert np.all(np.diff(measured.p_false_alarm) >= 0) and np.all(np.diff(measured.p_detection) >= 0)
+    assert theory.p_false_alarm[0] == pytest.approx(1e-7) and theory.p_false_alarm[-1] == pytest.approx(1.0)
+    assert np.all(np.diff(theory.p_detection) >= -1e-12) and theory.p_detection[-1] == pytest.approx(1.0)
+
+
+def test_overview_pose_projects_every_anomaly_into_the_picture(archived: tuple[MissionResult, Path]) -> None:
+    result, _ = archived
+    assert result.overview_rgb is not None and result.overview_pose is not None
+    rows, cols, channels = result.overview_rgb.shape
+    assert channels == 3 and result.overview_rgb.dtype == np.uint8
+    xy, along = result.overview_pose.project(np.asarray([a.position_m for a in result.truth.anomalies]))
+    assert np.all(along > 0)
+    assert np.all((xy[:, 0] >= 0) & (xy[:, 0] < cols) & (xy[:, 1] >= 0) & (xy[:, 1] < rows))

@@ -37,16 +37,20 @@ from rsi.errors import InputError
 
 if TYPE_CHECKING:
     from rsi.archive import Archive
+    from rsi.detection.detect import Detection
+    from rsi.detection.roc import RocCurve
     from rsi.imaging.compensation import Compensated
     from rsi.mission.pair import PairResult
     from rsi.sim.anomalies import Anomaly, AnomalySet, Site
     from rsi.sim.mockup import Vista
+    from rsi.sim.render import CameraPose
     from rsi.sim.world import View, World
 
 FloatArray = NDArray[np.float64]
 ProgressFn = Callable[[str, int, int], None]
 
 MISSION_SIZE = (480, 640)  # the seed's video frame (seed §2.1)
+OVERVIEW_SIZE = (600, 800)
 # Calibrated per-pixel false-alarm probability: ~1.2e6 field pixels are tested per mission, so 1e-7 gives
 # ~0.1 expected false pixels per run under H0 (seed §2.4: the threshold follows from the P_F asked for).
 P_FALSE_ALARM = 1e-7
@@ -138,6 +142,37 @@ class MissionFinding:
 
 
 @dataclass(frozen=True)
+class VisitImages:
+    """One inspection visit's comparison, in the inspection's field frame (what the report crops).
+
+    Attributes
+    ----------
+    reference : ndarray of shape (M, N), float32
+        The compensated reference registered onto the inspection (its prediction of the inspection).
+    inspection : ndarray of shape (M, N), float32
+        The compensated inspection field.
+    difference : ndarray of shape (M, N), float32
+        Inspection minus prediction.
+    score : ndarray of shape (M, N), float32
+        The dark-flaw LRT score (noise sigmas).
+    valid : ndarray of shape (M, N), bool
+        Pixels the test covered.
+    impact_truth : ndarray of shape (M, N), bool
+        Field pixels of the visible impacts that count towards recall (ground truth, for the run's ROC).
+    impact_strengths : tuple of float
+        Each of those impacts' strength: the difference at its darkest pixel in noise sigmas.
+    """
+
+    reference: NDArray[np.float32]
+    inspection: NDArray[np.float32]
+    difference: NDArray[np.float32]
+    score: NDArray[np.float32]
+    valid: NDArray[np.bool_]
+    impact_truth: NDArray[np.bool_]
+    impact_strengths: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
 class VisitRecord:
     """What one plan point's inspection visit saw.
 
@@ -155,6 +190,8 @@ class VisitRecord:
         Second looks that confirmed / rejected their detection.
     visible : tuple of int
         Indices of ground-truth anomalies visible in the frame (from the simulator's truth masks).
+    images : VisitImages or None
+        The comparison's images (for the report and the run's ROC).
     """
 
     point: str
@@ -164,6 +201,7 @@ class VisitRecord:
     confirmed: int
     rejected: int
     visible: tuple[int, ...]
+    images: VisitImages | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass(frozen=True)
@@ -195,6 +233,14 @@ class MissionResult:
         The archive's run, when an archive was given.
     timings_s : dict of str to float
         ``reference``, ``inspection``, ``sensors``, ``total``.
+    roc : tuple of RocCurve
+        The run's empirical ROC (every inspection visit's dark score against the visible impacts that
+        count) and the theoretical one for those impacts' measured strengths; empty when no counted impact
+        was visible.
+    overview_rgb : ndarray of shape (H, W, 3), uint8, or None
+        The whole mock-up after the anomalies appeared, unmarked.
+    overview_pose : CameraPose or None
+        The overview picture's camera: projects findings and truth into it.
     """
 
     seed: int
@@ -210,6 +256,9 @@ class MissionResult:
     gas_stations_m: FloatArray
     run_id: int | None
     timings_s: dict[str, float] = field(default_factory=dict)
+    roc: tuple[RocCurve, ...] = ()
+    overview_rgb: NDArray[np.uint8] | None = field(default=None, repr=False, compare=False)
+    overview_pose: CameraPose | None = field(default=None, repr=False, compare=False)
 
 
 # ------------------------------------------------------------------------------------------------- plan
@@ -703,6 +752,7 @@ def run_mission(
         gas, stations, gas_ppm = _gas_pass(world, rng)
         report("gas")
         findings = tuple(_merge_components(visual) + thermal + gas)
+        overview_rgb, overview_pose = world.overview(size=OVERVIEW_SIZE)
         if archive is not None and run_id is not None:
             _store_findings(archive, run_id, findings)
             archive.finish_run(run_id)
@@ -728,6 +778,9 @@ def run_mission(
         gas_stations_m=stations,
         run_id=run_id,
         timings_s=timings,
+        roc=_run_roc(tuple(visits)),
+        overview_rgb=overview_rgb,
+        overview_pose=overview_pose,
     )
 
 
@@ -830,8 +883,75 @@ def _inspect_point(
         confirmed=confirmed,
         rejected=rejected,
         visible=tuple(sorted(view.flaw_masks)),
+        images=_visit_images(pair, view, world.anomalies),
     )
     return findings, record
+
+
+def _visit_images(pair: PairResult, view: View, truth: AnomalySet) -> VisitImages:
+    detection = pair.detection
+    impacts = np.zeros_like(detection.valid)
+    rows = int(detection.score.shape[0])
+    for index, mask in view.flaw_masks.items():
+        anomaly = truth.anomalies[index]
+        if anomaly.kind == "impact" and _counts(anomaly):
+            # either frame row of a field row: a 1 mm impact may cover only the unlit field's row (seed §2.2)
+            impacts |= mask[0 : 2 * rows : 2] | mask[1 : 2 * rows : 2]
+    inspection = np.asarray(pair.inspection, dtype=np.float32)
+    return VisitImages(
+        reference=(inspection - detection.difference).astype(np.float32),
+        inspection=inspection,
+        difference=detection.difference,
+        score=detection.score,
+        valid=detection.valid,
+        impact_truth=impacts,
+        impact_strengths=_impact_strengths(detection, impacts),
+    )
+
+
+def _run_roc(visits: tuple[VisitRecord, ...]) -> tuple[RocCurve, ...]:
+    """The run's empirical ROC over every inspection visit, and the theory for the impacts it saw.
+
+    Seed §2.4: P_D against P_F. The visits' score maps are stacked (a guard band keeps flaws of one from
+    the next); the theory averages the model's P_D over the counted impacts' measured strengths (the
+    difference at each impact's darkest pixel over the local noise sigma).
+    """
+    from rsi.detection.roc import RocCurve, empirical_roc, theoretical_roc
+
+    images = [v.images for v in visits if v.images is not None and v.images.impact_truth.any()]
+    if not images:
+        return ()
+    band = np.zeros((8, images[0].score.shape[1]), dtype=np.float32)
+    score = np.vstack([part for im in images for part in (im.score, band)])
+    truth = np.vstack([part for im in images for part in (im.impact_truth, band.astype(bool))])
+    valid = np.vstack([part for im in images for part in (im.valid, band.astype(bool))])
+    measured = empirical_roc(score, truth, valid=valid, label="this run (impacts >= 1 mm)")
+    p_false_alarm = np.logspace(-7, 0, 100)
+    strengths = [strength for im in images for strength in im.impact_strengths]
+    curves = [
+        theoretical_roc(FLAW_MODEL, strength_sigma=s, p_false_alarm=p_false_alarm, size=FLAW_SIZE_PX)
+        for s in strengths
+    ]
+    mean_detection = np.mean([curve.p_detection for curve in curves], axis=0)
+    label = "theory (measured impact strengths)"
+    theory = RocCurve(p_false_alarm, mean_detection, curves[0].threshold, label)
+    return (measured, theory)
+
+
+def _impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[float, ...]:
+    """Each truth impact's strength: the difference at its darkest pixel over that pixel's noise sigma."""
+    import cv2
+
+    count, labels = cv2.connectedComponents(truth.astype(np.uint8), connectivity=8)
+    strengths = []
+    for label in range(1, count):
+        inside = (labels == label) & detection.valid
+        if not inside.any():
+            continue
+        darkest = int(np.argmin(np.where(inside, detection.difference, np.inf)))
+        sigma = float(detection.sigma.flat[darkest])
+        strengths.append(max(-float(detection.difference.flat[darkest]), 0.0) / max(sigma, 1e-6))
+    return tuple(strengths)
 
 
 def _merge_components(findings: list[MissionFinding]) -> list[MissionFinding]:

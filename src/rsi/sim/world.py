@@ -554,11 +554,11 @@ class World:
                 masks[index] = mask
         return masks
 
-    def overview_picture(self, *, size: tuple[int, int] = DEFAULT_SIZE) -> NDArray[np.uint8]:
-        """Colour picture (RGB uint8) of the whole mock-up from the overview vista, anomalies marked.
+    def overview(self, *, size: tuple[int, int] = DEFAULT_SIZE) -> tuple[NDArray[np.uint8], CameraPose]:
+        """Colour picture (RGB uint8) of the whole mock-up from the overview vista, and the camera it used.
 
-        Markers: circles coloured by kind (hot spot red, cold spot blue, leak green, missing screw yellow,
-        impact magenta, swapped component orange) with the anomaly's index.
+        Unmarked, in the inspection state (anomalies present), lit by the sun lamp and a lit room for people
+        to see the whole mock-up by; the pose projects world points (findings, truth) into the picture.
         """
         shape = _size(size)
         point = self.vista("overview")
@@ -567,7 +567,7 @@ class World:
         ids = tuple(self._lights["sun"])
         room = self._id("light", "room")
         saved = self.model.light_ambient[room].copy()
-        self.model.light_ambient[room] = 0.25  # a lit room for people to see the whole mock-up by
+        self.model.light_ambient[room] = 0.25
         try:
             image = renderer.rgb(self.data, "isee", state="inspection", lights=ids)
         finally:
@@ -578,7 +578,16 @@ class World:
             math.radians(CAMERA_FOVY_DEG),
             shape,
         )
-        picture = np.ascontiguousarray(image)
+        return np.ascontiguousarray(image), pose
+
+    def overview_picture(self, *, size: tuple[int, int] = DEFAULT_SIZE) -> NDArray[np.uint8]:
+        """Colour picture (RGB uint8) of the whole mock-up from the overview vista, anomalies marked.
+
+        Markers: circles coloured by kind (hot spot red, cold spot blue, leak green, missing screw yellow,
+        impact magenta, swapped component orange) with the anomaly's index.
+        """
+        picture, pose = self.overview(size=size)
+        shape = pose.shape
         radius = max(4, shape[0] // 60)
         for k, anomaly in enumerate(self.anomalies.anomalies):
             xy, _ = pose.project(np.asarray([anomaly.position_m]))
