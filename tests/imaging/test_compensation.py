@@ -7,7 +7,7 @@ import pytest
 
 from rsi.errors import InputError
 from rsi.imaging.camera import BadPixelMap, CameraModel, Frame, expose
-from rsi.imaging.compensation import compensate_interlaced, compensate_two_frames
+from rsi.imaging.compensation import compensate_field_pair, compensate_interlaced, compensate_two_frames
 
 STROBE_DN = 30.0
 SUN_LUX = 130000.0
@@ -233,3 +233,42 @@ def test_variance_map_counts_every_subtracted_term(lit_field: str, edge: int) ->
     np.testing.assert_allclose(result.variance, expected, rtol=1e-6)
     two = compensate_two_frames(raw, raw, camera=camera)
     np.testing.assert_allclose(two.variance, 2 * camera.noise_variance_dn(raw), rtol=1e-6)
+
+
+def _pair(strobe: np.ndarray, ambient: np.ndarray, seed: int = 0) -> tuple[Frame, Frame]:
+    rng = np.random.default_rng(seed)
+    odd = expose(ambient, strobe, exposure_s=1e-3, lit_field="odd", rng=rng)
+    even = expose(ambient, strobe, exposure_s=1e-3, lit_field="even", rng=rng)
+    return odd, even
+
+
+def test_field_pair_gives_every_row_and_each_field_as_its_own_frame() -> None:
+    rows, cols = 40, 24
+    # a one-row dark line on an even row: intra-frame compensation of the odd field cannot see it
+    strobe = np.full((rows, cols), 0.2, np.float32)
+    strobe[10] = 0.05
+    ambient = np.full((rows, cols), 800.0, np.float32)
+    odd, even = _pair(strobe, ambient)
+    woven = compensate_field_pair(odd, even)
+    assert woven.image.shape == (rows, cols) and woven.row_step == 1
+    assert np.array_equal(woven.image[1::2], compensate_interlaced(odd).image)
+    assert np.array_equal(woven.image[0::2], compensate_interlaced(even).image)
+    assert np.array_equal(woven.variance[0::2], compensate_interlaced(even).variance)
+    line, rest = woven.image[10].mean(), np.delete(woven.image, 10, axis=0).mean()
+    assert line < 0.5 * rest  # the strobe-only contrast of the line, 0.05 vs 0.2
+    assert compensate_interlaced(odd).image.mean(axis=1).min() > 0.8 * rest
+
+
+def test_field_pair_rejects_wrong_fields_shapes_and_types() -> None:
+    strobe = np.full((20, 8), 0.2, np.float32)
+    ambient = np.zeros((20, 8), np.float32)
+    odd, even = _pair(strobe, ambient)
+    with pytest.raises(InputError, match="odd_lit must have its strobe in the odd field"):
+        compensate_field_pair(even, even)
+    with pytest.raises(InputError, match="even_lit must have its strobe in the even field"):
+        compensate_field_pair(odd, odd)
+    with pytest.raises(InputError, match=r"odd_lit must be an rsi\.imaging\.camera\.Frame"):
+        compensate_field_pair(odd.raw, even)  # type: ignore[arg-type]
+    small_even = _pair(np.full((18, 8), 0.2, np.float32), np.zeros((18, 8), np.float32))[1]
+    with pytest.raises(InputError, match="same shape"):
+        compensate_field_pair(odd, small_even)

@@ -74,7 +74,7 @@ def test_archive_gets_references_and_a_finished_run(archived: tuple[MissionResul
         for point in PLAN:
             reference = archive.reference(point.name)
             assert isinstance(reference, np.ndarray)
-            assert reference.shape == (SMALL[0] // 2, SMALL[1])
+            assert reference.shape == SMALL  # full resolution: two frames, strobes in opposite fields
         assert result.run_id is not None
         run = archive.run(result.run_id)
         assert run.status == "finished"
@@ -138,7 +138,7 @@ def test_world_add_vista_refuses_duplicates_and_non_vistas() -> None:
 
 def test_visit_images_are_the_comparison_in_the_field_frame(archived: tuple[MissionResult, Path]) -> None:
     result, _ = archived
-    field = (SMALL[0] // 2, SMALL[1])
+    field = SMALL
     for visit in result.visits:
         images = visit.images
         assert images is not None
@@ -169,3 +169,21 @@ def test_overview_pose_projects_every_anomaly_into_the_picture(archived: tuple[M
     xy, along = result.overview_pose.project(np.asarray([a.position_m for a in result.truth.anomalies]))
     assert np.all(along > 0)
     assert np.all((xy[:, 0] >= 0) & (xy[:, 0] < cols) & (xy[:, 1] >= 0) & (xy[:, 1] < rows))
+
+
+def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -> None:
+    from rsi.mission.mission import DEPTH_JUMP_M, _inspection_region
+
+    world = load("truss", seed=SEED)
+    try:
+        view = world.render("B_tank", size=SMALL)
+    finally:
+        world.close()
+    region = _inspection_region(view)
+    assert view.truss_mask is not None and view.depth_m is not None
+    assert not (region & view.truss_mask).any()
+    # no kept pixel has a neighbour across a depth jump (the tank's silhouette against its plate)
+    depth = view.depth_m
+    step = np.abs(np.diff(depth, axis=1)) > DEPTH_JUMP_M
+    assert not (region[:, 1:] & step).any() and not (region[:, :-1] & step).any()
+    assert region.mean() > 0.3  # the plate and the tank stay

@@ -7,8 +7,10 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import rsi
+from rsi.errors import InputError
 from rsi.imaging.compensation import compensate_interlaced
 from rsi.sim.world import REPEATABILITY_PX, World, load, render_vista_to_folder
 
@@ -115,3 +117,28 @@ def test_overview_picture_is_colour_and_marked(world: World) -> None:
     picture = world.overview_picture(size=SMALL)
     assert picture.shape == (*SMALL, 3) and picture.dtype == np.uint8
     assert picture[..., 0].max() == 255  # magenta/red markers
+
+
+def test_next_frame_is_the_same_visit_with_the_strobe_in_the_other_field(world: World) -> None:
+    view = world.render("B_tank", size=SMALL)
+    again = world.next_frame(view, lit_field="even")
+    assert again.lit_field == "even" and again.exposure_s == view.frame.exposure_s
+    # same light and pose: the unlit rows of one are the lit-free rows of the other, up to camera noise
+    first_unlit = view.frame.raw[0::2].astype(np.float64)
+    second_unlit = again.raw[1::2].astype(np.float64)
+    assert abs(first_unlit.mean() - second_unlit.mean()) < 2.0
+    assert not np.array_equal(view.frame.raw, again.raw)
+    with pytest.raises(InputError, match="view must be a View"):
+        world.next_frame(view.frame)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="lit_field"):
+        world.next_frame(view, lit_field="both")
+
+
+def test_truss_mask_marks_the_frame_and_never_a_component(world: World) -> None:
+    view = world.render("B_tank", size=SMALL)
+    assert view.truss_mask is not None and view.depth_m is not None
+    # B_tank looks at its plate with the truss behind it: some struts show, the plate's centre is no strut
+    assert 0 < view.truss_mask.mean() < 0.5
+    rows, cols = SMALL
+    assert not view.truss_mask[rows // 2 - 5 : rows // 2 + 5, cols // 2 - 5 : cols // 2 + 5].any()
+    assert world.render("B_tank", size=SMALL, truth=False).truss_mask is None

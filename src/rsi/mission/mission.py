@@ -68,6 +68,8 @@ NUISANCE_SPREAD_PX = 9
 # an impact: the planted impacts darken the surface by 30-70 % (seed §4), which a 3x3 window of 0.66 mm
 # pixels over a 1.5-3 mm impact sees as 0.2-0.5 (measured on seeds 0-2); half the false blobs lose < 0.17.
 IMPACT_DARKENING_MIN = 0.15
+INSPECTION_GUARD_PX = 2
+DEPTH_JUMP_M = 0.02
 DOOR_OPEN_RAD = 1.4
 # A dark blob bigger than this (world area) is a changed component, not a ~1 mm impact.
 COMPONENT_AREA_M2 = 1.0e-4
@@ -352,13 +354,51 @@ def _nuisance_scale(first: Compensated, second: Compensated) -> NDArray[np.float
     return np.maximum(scale, np.float32(1.0))
 
 
+def _strobe_image(world: World, view: View) -> Compensated:
+    """The visit's full-resolution strobe image: its frame and the next, strobes in opposite fields.
+
+    Seed §2.2 intra-frame compensation keeps one field: every other row, 1.3 mm apart at the standoff, so a
+    ~1 mm impact may fall between the lit rows. Two frames with the strobe on the odd and then the even
+    field give every row, each compensated within its own frame.
+    """
+    from rsi.imaging.compensation import compensate_field_pair
+
+    return compensate_field_pair(view.frame, world.next_frame(view, lit_field="even"))
+
+
+def _inspection_region(view: View) -> NDArray[np.bool_]:
+    """Pixels of the view's component surfaces, away from the truss frame and from depth jumps.
+
+    Seed §2.3: one registration per frame cannot align surfaces at different depths after a viewpoint
+    error (parallax), and the truss struts behind a plate or a tank's silhouette then differ by whole edges.
+    The robot knows its CAD model and the pose (the stereo pair gives depth, seed §3): the region is the
+    components' surfaces, less a guard band of INSPECTION_GUARD_PX around the truss and around every depth
+    jump of more than DEPTH_JUMP_M.
+    """
+    import cv2
+
+    depth, truss = view.depth_m, view.truss_mask
+    assert depth is not None and truss is not None
+    band = np.ones((2 * INSPECTION_GUARD_PX + 1, 2 * INSPECTION_GUARD_PX + 1), np.uint8)
+    near = np.minimum(depth, np.float32(10.0))
+    jump = cv2.dilate(near, band) - cv2.erode(near, band) > DEPTH_JUMP_M
+    off = cv2.dilate(truss.astype(np.uint8), band).astype(bool) | jump | (depth >= 10.0)
+    return ~off
+
+
+def _restricted(image: Compensated, region: NDArray[np.bool_]) -> Compensated:
+    return replace(image, valid=image.valid & region)
+
+
 def _compare(
-    reference: Compensated, view: View, p_false_alarm: float, scale: NDArray[np.float32] | None = None
+    reference: Compensated,
+    inspection: Compensated,
+    p_false_alarm: float,
+    scale: NDArray[np.float32] | None = None,
 ) -> PairResult:
-    from rsi.imaging.compensation import compensate_interlaced
     from rsi.mission.pair import inspect_pair
 
-    ref, insp = _with_reference_interpolation(reference, compensate_interlaced(view.frame))
+    ref, insp = _with_reference_interpolation(reference, inspection)
     if scale is not None:
         ref = replace(ref, variance=(ref.variance * scale).astype(np.float32))
         insp = replace(insp, variance=(insp.variance * scale).astype(np.float32))
@@ -377,7 +417,7 @@ def _field_to_world(view: View, row: float, col: float) -> tuple[float, float, f
     """World point seen at field pixel (row, col) from the frame's depth and camera pose (None: sky)."""
     depth = view.depth_m
     assert depth is not None
-    frame_row = min(round(2 * row + 1), depth.shape[0] - 1)  # seed §2.2: odd field row k = frame 2k+1
+    frame_row = min(max(round(row), 0), depth.shape[0] - 1)
     column = min(max(round(col), 0), depth.shape[1] - 1)
     distance = float(depth[frame_row, column])
     pose = view.pose
@@ -404,7 +444,7 @@ def _pixel_m(view: View, position: tuple[float, float, float]) -> float:
 def _to_field(view: View, points_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Field row, column and depth of world points in this view."""
     xy, along = view.pose.project(points_m)
-    return (xy[:, 1] - 1.0) / 2.0, xy[:, 0], along
+    return xy[:, 1], xy[:, 0], along
 
 
 def _visible(view: View, points_m: FloatArray, tolerance_m: float = 0.006) -> NDArray[np.bool_]:
@@ -427,7 +467,7 @@ def _screw_drop(pair: PairResult, view: View, site: Site) -> float:
     row, col, _ = _to_field(view, np.asarray([site.position_m]))
     radius_px = 0.5 * site.size_m / _pixel_m(view, site.position_m)
     rows, cols = np.indices(detection.difference.shape)
-    disc = ((rows - row[0]) * 2.0) ** 2 + (cols - col[0]) ** 2 <= radius_px**2
+    disc = (rows - row[0]) ** 2 + (cols - col[0]) ** 2 <= radius_px**2
     disc &= detection.valid
     if disc.sum() < 3:
         return 0.0
@@ -478,7 +518,7 @@ def _blobs(pair: PairResult, view: View) -> list[_Look]:
         if position is None:
             continue
         pixel = _pixel_m(view, position)
-        look = _Look(position, flaw.area_px * 2.0 * pixel * pixel, flaw.score, flaw.bbox, False)
+        look = _Look(position, flaw.area_px * pixel * pixel, flaw.score, flaw.bbox, False)
         look.darkening = _darkening(pair, flaw.bbox)
         looks.append(look)
     return looks
@@ -634,18 +674,16 @@ def _reference_pass(
     world: World, plan: tuple[PlanPoint, ...], shape: tuple[int, int], report: Callable[[str], None]
 ) -> tuple[dict[str, Compensated], dict[str, Compensated], dict[str, NDArray[np.float32]]]:
     """Two pristine visits per plan point: the reference, a second reference and their nuisance scale."""
-    from rsi.imaging.compensation import compensate_interlaced
-
     references: dict[str, Compensated] = {}
     seconds: dict[str, Compensated] = {}
     scales: dict[str, NDArray[np.float32]] = {}
     for point in plan:
         world.set_door(point.door_angle_rad)
         view = world.render(point.vista, size=shape, state="reference", truth=False)
-        references[point.name] = compensate_interlaced(view.frame)
+        references[point.name] = _strobe_image(world, view)
         # a second pristine visit: the nuisance map and the second reference of every detection
         again = world.render(point.vista, size=shape, state="reference", truth=False)
-        seconds[point.name] = compensate_interlaced(again.frame)
+        seconds[point.name] = _strobe_image(world, again)
         scales[point.name] = _nuisance_scale(references[point.name], seconds[point.name])
         report(f"reference {point.name}")
     return references, seconds, scales
@@ -799,7 +837,9 @@ def _inspect_point(
 ) -> tuple[list[MissionFinding], VisitRecord]:
     """One visit: compare with the reference, check the screws, take second looks (seed §2.3-2.5)."""
     view = world.render(point.vista, size=shape, state="inspection")
-    pair = _compare(reference, view, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
+    region = _inspection_region(view)
+    pair_inspection = _restricted(_strobe_image(world, view), region)
+    pair = _compare(reference, pair_inspection, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
     registration = pair.detection.registration
     translation = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
     findings: list[MissionFinding] = []
@@ -834,7 +874,7 @@ def _inspect_point(
     if looks:
         # a flaw is new against *both* pristine visits; a blob that one reference's sampling (aliasing, a
         # compensation artefact of that visit) made is not: the weaker of the two comparisons is kept
-        other_pair = _compare(other, view, P_PRELIMINARY, scale)
+        other_pair = _compare(other, pair_inspection, P_PRELIMINARY, scale)
         for look in looks:
             look.score = min(look.score, _second_look_score(other_pair, view, look.position_m))
         looks = [
@@ -848,7 +888,8 @@ def _inspect_point(
     if active and doubtful:
         # seed §2.5 active inspection: another visit (new viewpoint error, new noise) of the same vista
         second = world.render(point.vista, size=shape, state="inspection")
-        second_pair = _compare(reference, second, P_PRELIMINARY, scale)
+        second_image = _restricted(_strobe_image(world, second), _inspection_region(second))
+        second_pair = _compare(reference, second_image, P_PRELIMINARY, scale)
         for look in doubtful:
             second_looks += 1
             again = _second_look_score(second_pair, second, look.position_m)
@@ -891,12 +932,10 @@ def _inspect_point(
 def _visit_images(pair: PairResult, view: View, truth: AnomalySet) -> VisitImages:
     detection = pair.detection
     impacts = np.zeros_like(detection.valid)
-    rows = int(detection.score.shape[0])
     for index, mask in view.flaw_masks.items():
         anomaly = truth.anomalies[index]
         if anomaly.kind == "impact" and _counts(anomaly):
-            # either frame row of a field row: a 1 mm impact may cover only the unlit field's row (seed §2.2)
-            impacts |= mask[0 : 2 * rows : 2] | mask[1 : 2 * rows : 2]
+            impacts |= mask
     inspection = np.asarray(pair.inspection, dtype=np.float32)
     return VisitImages(
         reference=(inspection - detection.difference).astype(np.float32),

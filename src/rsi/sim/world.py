@@ -84,6 +84,7 @@ ARM_HOME_TOOL_TIP_M = (
 )
 TOOL_VIEW = "tool"  # View.vista of a frame from the arm's ISEE camera
 _TRUTH_DEPTH_TOLERANCE_M = 5e-3
+_TRUSS_PARTS = ("longeron_", "batten_", "node_", "diagonal_")  # the frame the components hang on (seed §4)
 _MARKER_COLOURS = {
     "hot_spot": (255, 64, 32),
     "cold_spot": (64, 160, 255),
@@ -123,6 +124,10 @@ class View:
         Image shift (x = col, y = row) of the vista's target plane caused by this visit's pose error.
     stereo : tuple of Frame or None
         Left and right frames (baseline :data:`rsi.sim.scene.STEREO_BASELINE_M`) when asked for.
+    truss_mask : ndarray of shape (M, N), bool, or None
+        Pixels showing the truss frame (longerons, battens, nodes, diagonals) rather than a component: what
+        a robot's CAD model, projected with the known pose, tells it is not the inspected surface. None
+        from ``truth=False``.
     """
 
     vista: str
@@ -136,6 +141,7 @@ class View:
     pose: CameraPose
     pose_error_px: tuple[float, float]
     stereo: tuple[Frame, Frame] | None = field(default=None)
+    truss_mask: BoolArray | None = field(default=None, repr=False)
 
     @property
     def flaw_mask(self) -> BoolArray:
@@ -194,6 +200,9 @@ class World:
         self._lights = {
             group: [self._id("light", name) for name in names] for group, names in LIGHT_GROUPS.items()
         }
+        self._truss_geoms = [
+            self._id("geom", part.name) for part in mockup.parts if part.name.startswith(_TRUSS_PARTS)
+        ]
         centre = (0.9, -0.47, 1.2)  # front of the middle bay
         # seed §4.1: the pan range (theta 90-180 deg) puts the lamp on the +x side of its spot
         self.lamp = inverse_kinematics(centre, intensity_lux=LAB_LAMP_LUX, rail_m=2.0)
@@ -447,6 +456,24 @@ class World:
         cameras = (arm.camera_name("left"), arm.camera_name("left"), arm.camera_name("right"))
         return self._view(TOOL_VIEW, pose, cameras, (0.0, 0.0), stereo=stereo, truth=truth, **settings)
 
+    def next_frame(self, view: View, *, lit_field: str = "even") -> Frame:
+        """The visit's next video frame: same pose and light, new camera noise, the strobe in `lit_field`.
+
+        Seed §2.2: with the strobe on the other field the two frames together give a full-resolution
+        compensated image (:func:`rsi.imaging.compensation.compensate_field_pair`).
+        """
+        if not isinstance(view, View):
+            raise InputError(f"view must be a View from World.render; got {type(view).__name__}.")
+        field_name = v.choice(lit_field, "lit_field", ("odd", "even"))
+        return expose(
+            view.ambient_lux,
+            view.strobe_lux_s,
+            exposure_s=view.frame.exposure_s,
+            camera=self.camera,
+            lit_field=field_name,
+            rng=self._noise_rng,
+        )
+
     def _shot_settings(
         self, size: object, state: str, lit_field: str, exposure_s: float | None, truth: object
     ) -> tuple[tuple[int, int], dict[str, Any]]:
@@ -488,14 +515,18 @@ class World:
         state = settings["state"]
         depth: F32 | None = None
         masks: dict[int, BoolArray] = {}
+        truss: BoolArray | None = None
         if truth:
             depth, segments = self._renderer(shape).depth_and_segments(self.data, main, state=state)
+            truss = np.isin(segments, self._truss_geoms)
             if state == "inspection":
                 masks = self._truth(pose, depth, segments, state, camera=main)
         pair = None
         if stereo:
             pair = (self._frame(left, shape, **settings)[0], self._frame(right, shape, **settings)[0])
-        return View(vista, state, frame, basis, ambient, strobe, depth, masks, pose, pose_error_px, pair)
+        return View(
+            vista, state, frame, basis, ambient, strobe, depth, masks, pose, pose_error_px, pair, truss
+        )
 
     def _frame(
         self,
