@@ -187,3 +187,13 @@ def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -
     step = np.abs(np.diff(depth, axis=1)) > DEPTH_JUMP_M
     assert not (region[:, 1:] & step).any() and not (region[:, :-1] & step).any()
     assert region.mean() > 0.3  # the plate and the tank stay
+
+
+def test_screws_and_the_discoloured_tank_are_found_at_full_size() -> None:
+    # seed 0: screws B_2, C_1 and D_0 removed, D_tank_0 discoloured to 0.49 of its reflectance (seed §4)
+    result = run_mission(SEED, active=False)
+    score = score_mission(result)
+    assert score.per_type["missing_screw"].found == score.per_type["missing_screw"].truth == 3
+    assert score.per_type["missing_screw"].false_findings == 0
+    assert score.per_type["swapped_component"].found == 1
+    assert score.per_type["impact"].false_findings <= 3

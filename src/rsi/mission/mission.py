@@ -47,6 +47,7 @@ if TYPE_CHECKING:
     from rsi.sim.world import View, World
 
 FloatArray = NDArray[np.float64]
+Scale = NDArray[np.float32]
 ProgressFn = Callable[[str, int, int], None]
 
 MISSION_SIZE = (480, 640)  # the seed's video frame (seed §2.1)
@@ -75,7 +76,11 @@ DOOR_OPEN_RAD = 1.4
 COMPONENT_AREA_M2 = 1.0e-4
 # A missing screw leaves a 3.6 mm hole where the 8 mm head was: the head disc loses this fraction of its
 # brightness or more; a present screw seen again changes by a few per cent (misregistration, noise).
-SCREW_DROP_THRESHOLD = 0.3
+SCREW_SIMILARITY_MIN = 0.4  # head-pattern correlation: present >= 0.45, removed <= 0.31 (seeds 0-5)
+COMPONENT_DISC_M = 0.05
+COMPONENT_CHANGE_MIN = 0.05  # changed fraction of the disc: discoloured 0.16-0.63, pristine <= 0.012
+DENT_RELIEF_MIN_M = 1.5e-3  # dents are 2-10 mm deep (seed §4 mock-up defects)
+STEREO_DISPARITY_NOISE_PX = 0.1
 SCREW_MATCH_M = 0.008  # a visual detection this close to a screw site is that screw's evidence
 THERMAL_THRESHOLD_K = 3.0  # pyrometer noise 0.1 K; a Peltier spot is 30 K (seed §4)
 GAS_THRESHOLD_PPM = 2.0  # MOS noise is ~0.02 ppm in clean air
@@ -461,21 +466,79 @@ def _visible(view: View, points_m: FloatArray, tolerance_m: float = 0.006) -> ND
     return seen
 
 
-def _screw_drop(pair: PairResult, view: View, site: Site) -> float:
-    """Fraction of the screw head's brightness lost between reference and inspection (seed §4 screws)."""
+def _disc(shape: tuple[int, ...], view: View, position_m: tuple[float, float, float], radius_m: float) -> Any:
+    """Pixels within `radius_m` (on the surface) of a world point's projection."""
+    row, col, _ = _to_field(view, np.asarray([position_m]))
+    radius_px = radius_m / _pixel_m(view, position_m)
+    rows, cols = np.indices(shape[:2])
+    return (rows - row[0]) ** 2 + (cols - col[0]) ** 2 <= radius_px**2
+
+
+def _screw_similarity(pair: PairResult, view: View, site: Site) -> float:
+    """How much of the screw head's pattern the inspection still shows (seed §4 screws): in [-1, 1].
+
+    The normalised correlation of the registered reference with the inspection over the head disc (one
+    pixel beyond the head), the best over one-pixel shifts (a residual mis-registration of the 2 mm relief).
+    A present head correlates (measured >= 0.45 over seeds 0-5); a removed one leaves a plain plate with a
+    small hole where the slot and rim were (<= 0.31). A mean brightness drop does not separate them: the
+    hole is as dark as the slot, the plate as bright as the head.
+    """
     detection = pair.detection
-    row, col, _ = _to_field(view, np.asarray([site.position_m]))
-    radius_px = 0.5 * site.size_m / _pixel_m(view, site.position_m)
-    rows, cols = np.indices(detection.difference.shape)
-    disc = (rows - row[0]) ** 2 + (cols - col[0]) ** 2 <= radius_px**2
-    disc &= detection.valid
-    if disc.sum() < 3:
-        return 0.0
+    radius_m = 0.5 * site.size_m + _pixel_m(view, site.position_m)
+    disc = _disc(detection.difference.shape, view, site.position_m, radius_m) & detection.valid
+    if disc.sum() < 12:
+        return 1.0
     predicted = pair.inspection - detection.difference
-    brightness = float(np.mean(predicted[disc]))
-    if brightness <= 1.0:
+    rows, cols = np.nonzero(disc)
+    inspected = pair.inspection[rows, cols]
+    best = -1.0
+    height, width = predicted.shape
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            shifted = predicted[np.clip(rows + dr, 0, height - 1), np.clip(cols + dc, 0, width - 1)]
+            if shifted.std() > 0 and inspected.std() > 0:
+                best = max(best, float(np.corrcoef(shifted, inspected)[0, 1]))
+    return best
+
+
+def _component_change(pair: PairResult, view: View, site: Site) -> float:
+    """Fraction of the component's central disc whose difference exceeds 3 noise sigmas (seed §4 swaps).
+
+    A discoloured replacement darkens the whole component (measured 0.16-0.63 over seeds 0-5 where one
+    was, <= 0.012 on pristine ones); a 5 cm disc at the site's centre is the part every view of it shows.
+    """
+    detection = pair.detection
+    disc = _disc(detection.difference.shape, view, site.position_m, COMPONENT_DISC_M) & detection.valid
+    if disc.sum() < 50:
         return 0.0
-    return float(-np.mean(detection.difference[disc]) / brightness)
+    z = np.abs(detection.difference[disc]) / np.maximum(detection.sigma[disc], np.float32(1e-6))
+    return float(np.mean(z > 3.0))
+
+
+def _relief_m(depth_m: NDArray[np.float32], view: View, site: Site) -> float:
+    """Depth of the site's centre below its surroundings: central 3 cm disc against a 4.5-7 cm ring."""
+    shape, at = depth_m.shape, site.position_m
+    inner = _disc(shape, view, at, 0.03)
+    ring = _disc(shape, view, at, 0.07) & ~_disc(shape, view, at, 0.045)
+    usable = np.isfinite(depth_m) & (depth_m < 10.0)
+    inner, ring = inner & usable, ring & usable
+    if inner.sum() < 20 or ring.sum() < 20:
+        return 0.0
+    return float(np.median(depth_m[inner]) - np.median(depth_m[ring]))
+
+
+def _stereo_depth(view: View, rng: np.random.Generator) -> NDArray[np.float32]:
+    """The ISEE stereo pair's range map (seed §3): the view's depth with the disparity noise of matching.
+
+    sigma_Z = Z^2 sigma_d / (f B) with sigma_d = STEREO_DISPARITY_NOISE_PX, baseline B of the pair.
+    """
+    from rsi.sim.scene import STEREO_BASELINE_M
+
+    depth = view.depth_m
+    assert depth is not None
+    sigma = depth * depth * np.float32(STEREO_DISPARITY_NOISE_PX / (view.pose.focal_px * STEREO_BASELINE_M))
+    noisy = depth + sigma * rng.standard_normal(depth.shape).astype(np.float32)
+    return np.asarray(np.where(depth < 10.0, noisy, depth), dtype=np.float32)
 
 
 def _confidence(margin: float) -> float:
@@ -671,22 +734,39 @@ def _size(size: object) -> tuple[int, int]:
 
 
 def _reference_pass(
-    world: World, plan: tuple[PlanPoint, ...], shape: tuple[int, int], report: Callable[[str], None]
-) -> tuple[dict[str, Compensated], dict[str, Compensated], dict[str, NDArray[np.float32]]]:
-    """Two pristine visits per plan point: the reference, a second reference and their nuisance scale."""
+    world: World,
+    plan: tuple[PlanPoint, ...],
+    shape: tuple[int, int],
+    report: Callable[[str], None],
+    stereo_rng: np.random.Generator,
+) -> tuple[dict[str, Compensated], dict[str, Compensated], dict[str, Scale], dict[str, dict[str, float]]]:
+    """Two pristine visits per plan point: the reference, a second reference, their nuisance scale, and
+    the relief of every component site the reference sees (from the stereo range map)."""
     references: dict[str, Compensated] = {}
     seconds: dict[str, Compensated] = {}
     scales: dict[str, NDArray[np.float32]] = {}
+    reliefs: dict[str, dict[str, float]] = {}
     for point in plan:
         world.set_door(point.door_angle_rad)
-        view = world.render(point.vista, size=shape, state="reference", truth=False)
+        view = world.render(point.vista, size=shape, state="reference")
         references[point.name] = _strobe_image(world, view)
+        depth = _stereo_depth(view, stereo_rng)
+        reliefs[point.name] = {
+            site.name: _relief_m(depth, view, site) for site in _seen_components(world, view)
+        }
         # a second pristine visit: the nuisance map and the second reference of every detection
         again = world.render(point.vista, size=shape, state="reference", truth=False)
         seconds[point.name] = _strobe_image(world, again)
         scales[point.name] = _nuisance_scale(references[point.name], seconds[point.name])
         report(f"reference {point.name}")
-    return references, seconds, scales
+    return references, seconds, scales, reliefs
+
+
+def _seen_components(world: World, view: View) -> list[Site]:
+    """Component sites whose centre the view sees (depth within 2 cm: a tank's front, a panel's face)."""
+    sites = world.mockup.candidates.component_sites
+    seen = _visible(view, np.asarray([site.position_m for site in sites]), tolerance_m=0.02)
+    return [site for site, visible in zip(sites, seen, strict=True) if visible]
 
 
 def run_mission(
@@ -746,7 +826,8 @@ def run_mission(
 
     try:
         # ---- reference pass: the pristine mock-up (seed §2.3: references taken once, revisited later)
-        references, seconds, scales = _reference_pass(world, plan, shape, report)
+        stereo_rng = np.random.default_rng(np.random.SeedSequence([seed, 11]))
+        references, seconds, scales, reliefs = _reference_pass(world, plan, shape, report, stereo_rng)
         reference_s = time.perf_counter() - start_s
         run_id = _store_references(
             archive,
@@ -771,6 +852,8 @@ def run_mission(
                 reference=references[point.name],
                 scale=scales[point.name],
                 other=seconds[point.name],
+                reliefs=reliefs[point.name],
+                stereo_rng=stereo_rng,
                 shape=shape,
                 active=active,
                 confirm=confirm,
@@ -834,6 +917,8 @@ def _inspect_point(
     confirm: float,
     preliminary: float,
     screws_done: set[str],
+    reliefs: Mapping[str, float],
+    stereo_rng: np.random.Generator,
 ) -> tuple[list[MissionFinding], VisitRecord]:
     """One visit: compare with the reference, check the screws, take second looks (seed §2.3-2.5)."""
     view = world.render(point.vista, size=shape, state="inspection")
@@ -851,18 +936,21 @@ def _inspect_point(
         if not visible:
             continue
         screws_done.add(site.name)
-        drop = _screw_drop(pair, view, site)
-        if drop > SCREW_DROP_THRESHOLD:
+        similarity = _screw_similarity(pair, view, site)
+        if similarity < SCREW_SIMILARITY_MIN:
             findings.append(
                 MissionFinding(
                     kind="missing_screw",
                     position_m=site.position_m,
                     size_m=site.size_m,
-                    confidence=_confidence((drop - SCREW_DROP_THRESHOLD) / 0.05),
+                    confidence=_confidence((SCREW_SIMILARITY_MIN - similarity) / 0.05),
                     source=point.name,
-                    score=drop,
+                    score=similarity,
                 )
             )
+    findings += _component_checks(
+        pair, view, point.name, reliefs=reliefs, depth_m=_stereo_depth(view, stereo_rng), world=world
+    )
     screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
 
     looks = _blobs(pair, view)
@@ -991,6 +1079,44 @@ def _impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[f
         sigma = float(detection.sigma.flat[darkest])
         strengths.append(max(-float(detection.difference.flat[darkest]), 0.0) / max(sigma, 1e-6))
     return tuple(strengths)
+
+
+def _component_checks(
+    pair: PairResult,
+    view: View,
+    source: str,
+    *,
+    reliefs: Mapping[str, float],
+    depth_m: NDArray[np.float32],
+    world: World,
+) -> list[MissionFinding]:
+    """Each component site the view sees, checked for a swap (seed §4): discoloured or dented.
+
+    A discoloured replacement changes the strobe image over the whole component; a dent of a flat face
+    hardly does (a co-located strobe sees a shallow facet as bright as the skin), but the stereo range map
+    shows it sunk below its surroundings by millimetres.
+    """
+    found = []
+    for site in _seen_components(world, view):
+        change = _component_change(pair, view, site)
+        sunk = _relief_m(depth_m, view, site) - reliefs.get(site.name, math.nan)
+        if change > COMPONENT_CHANGE_MIN:
+            score, margin = change, (change - COMPONENT_CHANGE_MIN) / 0.01
+        elif abs(sunk) > DENT_RELIEF_MIN_M:
+            score, margin = sunk, (abs(sunk) - DENT_RELIEF_MIN_M) / 2e-4
+        else:
+            continue
+        found.append(
+            MissionFinding(
+                kind="swapped_component",
+                position_m=site.position_m,
+                size_m=site.size_m,
+                confidence=_confidence(margin),
+                source=source,
+                score=score,
+            )
+        )
+    return found
 
 
 def _merge_components(findings: list[MissionFinding]) -> list[MissionFinding]:
