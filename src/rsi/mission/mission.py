@@ -953,11 +953,12 @@ def _inspect_point(
     )
     screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
 
-    looks = _blobs(pair, view)
+    swapped = [f for f in findings if f.kind == "swapped_component"]
     looks = [
         look
-        for look in looks
+        for look in _blobs(pair, view)
         if np.min(np.linalg.norm(screw_positions - np.asarray(look.position_m), axis=1)) > SCREW_MATCH_M
+        and not any(_on_component(look.position_m, f) for f in swapped)
     ]
     if looks:
         # a flaw is new against *both* pristine visits; a blob that one reference's sampling (aliasing, a
@@ -1079,6 +1080,12 @@ def _impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[f
         sigma = float(detection.sigma.flat[darkest])
         strengths.append(max(-float(detection.difference.flat[darkest]), 0.0) / max(sigma, 1e-6))
     return tuple(strengths)
+
+
+def _on_component(position_m: tuple[float, float, float], component: MissionFinding) -> bool:
+    """Whether a blob lies on a component already found swapped: part of that change, not an impact."""
+    distance = float(np.linalg.norm(np.asarray(position_m) - np.asarray(component.position_m)))
+    return distance < 0.5 * component.size_m + 0.02
 
 
 def _component_checks(
