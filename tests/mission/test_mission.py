@@ -169,3 +169,15 @@ def test_overview_pose_projects_every_anomaly_into_the_picture(archived: tuple[M
     xy, along = result.overview_pose.project(np.asarray([a.position_m for a in result.truth.anomalies]))
     assert np.all(along > 0)
     assert np.all((xy[:, 0] >= 0) & (xy[:, 0] < cols) & (xy[:, 1] >= 0) & (xy[:, 1] < rows))
+
+
+def test_score_matches_each_finding_to_an_anomaly_of_its_kind(archived: tuple[MissionResult, Path]) -> None:
+    result, _ = archived
+    score = score_mission(result)
+    # every finding outside `matches` is a false finding, and no anomaly is matched twice
+    assert len(result.findings) - len(score.matches) == score.false_findings
+    assert len(set(score.matches.values())) == len(score.matches)
+    for finding_index, anomaly_index in score.matches.items():
+        finding, anomaly = result.findings[finding_index], result.truth.anomalies[anomaly_index]
+        assert finding.kind == anomaly.kind
+        assert np.linalg.norm(np.subtract(finding.position_m, anomaly.position_m)) <= 0.05

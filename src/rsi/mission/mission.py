@@ -1097,11 +1097,15 @@ class MissionScore:
         Findings matching no anomaly, all types.
     misses : tuple of Miss
         Every counted anomaly not found, with the reason.
+    matches : dict of int to int
+        Finding index -> index of the anomaly it matched; a finding absent here is false (one matching an
+        impact under 1 mm is here, though that impact does not count towards recall).
     """
 
     per_type: dict[str, TypeScore]
     false_findings: int
     misses: tuple[Miss, ...]
+    matches: dict[int, int] = field(default_factory=dict)
 
 
 def score_mission(result: MissionResult) -> MissionScore:
@@ -1148,6 +1152,7 @@ def score_mission(result: MissionResult) -> MissionScore:
         per_type=scores,
         false_findings=sum(score.false_findings for score in scores.values()),
         misses=tuple(misses),
+        matches=dict(sorted(used_findings.items())),
     )
 
 
