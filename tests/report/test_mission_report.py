@@ -242,13 +242,15 @@ def test_roc_png_needs_one_measured_flag_per_curve(report: Report) -> None:
 def _browser() -> Any:
     """Headless Debian chromium through its chromedriver; skipped (failed in CI) when either is absent."""
     missing = [str(path) for path in (CHROMIUM, CHROMEDRIVER) if not path.exists()]
+    fixes = ["apt-get install chromium chromium-driver"] if missing else []
     try:
         from selenium import webdriver
         from selenium.webdriver.chrome.service import Service
     except ImportError:
-        missing.append("the selenium package (the '[test]' extra)")
+        missing.append("the selenium package")
+        fixes.append("pip install -e '.[test]'")
     if missing:
-        message = f"no real browser: {', '.join(missing)} missing; apt-get install chromium chromium-driver"
+        message = f"no real browser: {', '.join(missing)} missing; {' and '.join(fixes)}"
         if os.environ.get("RSI_REQUIRE_BROWSER"):
             pytest.fail(message)
         pytest.skip(message)

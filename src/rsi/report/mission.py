@@ -79,6 +79,7 @@ _TYPE_OF = {"hot_spot": "thermal_spot", "cold_spot": "thermal_spot"}
 _IMPACT_MIN_SIZE_M = 1e-3  # issue 5: impacts of at least 1 mm count towards recall
 _OVERVIEW_DARK = 12  # overview pixels at most this bright (all channels) are empty space, cropped away
 _OVERVIEW_MARGIN_PX = 24
+_LABEL_OFFSETS_PT = ((6, 6), (6, -14), (-18, 6), (-18, -14))
 _CSS = """
 body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1280px; color: #222; }
 h1, h2 { border-bottom: 1px solid #ccc; padding-bottom: 0.2em; }
@@ -200,7 +201,7 @@ def mission_html(
         overview_section(result, score),
         findings_section(result, score),
         truth_section(result, score),
-        crops_section(result),
+        crops_section(result, score),
         sensors_section(result),
         proximity_section(result),
         roc_section(result),
@@ -338,8 +339,8 @@ def overview_png(result: MissionResult) -> tuple[bytes, int]:
 def _finding_marker(axes: Any, finding: MissionFinding, number: int, x: float, y: float) -> None:
     colour = KIND_COLOURS.get(finding.kind, _OTHER_COLOUR)
     axes.scatter([x], [y], s=40, color=colour, edgecolors="black", linewidths=0.8, zorder=3)
-    # labels alternate above and below their disc so that neighbours (a cluster of impacts) stay legible
-    offset = (6, 6 if number % 2 else -14)
+    # labels go round their disc in turn so that neighbours (a cluster of impacts) stay legible
+    offset = _LABEL_OFFSETS_PT[number % len(_LABEL_OFFSETS_PT)]
     axes.annotate(
         str(number),
         (x, y),
@@ -466,15 +467,17 @@ def timings_section(timings_s: Mapping[str, float]) -> str:
 # --------------------------------------------------------------------------------------------- crops
 
 
-def crops_section(result: MissionResult) -> str:
+def crops_section(result: MissionResult, score: MissionScore) -> str:
     """Per visual finding with a field box: reference, inspection, difference and score crops."""
     blocks = []
     for number, finding in enumerate(result.findings, start=1):
         images = _images_of(result, finding)
         if finding.bbox is None or images is None:
             continue
+        matched = score.matches.get(number - 1)
+        truth = "FALSE" if matched is None else f"truth #{matched} {result.truth.anomalies[matched].site}"
         blocks.append(
-            f"<h3>Finding {number}: {_e(finding.kind)} at {_e(finding.source)}</h3>\n"
+            f"<h3>Finding {number}: {_e(finding.kind)} at {_e(finding.source)} ({_e(truth)})</h3>\n"
             f'<div class="crops">{_crop_figures(images, finding.bbox, number)}</div>'
         )
     low, high = SCORE_RANGE_SIGMA
