@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
+import re
 import subprocess
 import sys
 import types
@@ -51,7 +53,28 @@ def last_json_line(result: Result) -> dict[str, Any]:
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Result, Path]:
     out = tmp_path_factory.mktemp("demo") / "results"
-    return invoke("demo", "--out", out), out
+    return invoke("demo-pair", "--out", out), out
+
+
+@dataclass(frozen=True)
+class MissionRuns:
+    first: Result
+    second: Result
+    out: Path
+
+
+@pytest.fixture(scope="module")
+def mission_runs(tmp_path_factory: pytest.TempPathFactory) -> MissionRuns:
+    """`rsi demo` twice into one folder (seeds 0 and 1), at a quarter of the frame size to stay quick."""
+    import rsi.mission.mission
+
+    out = tmp_path_factory.mktemp("mission") / "results"
+    small = functools.partial(rsi.mission.mission.run_mission, size=(240, 320))
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(rsi.mission.mission, "run_mission", small)
+        first = invoke("demo", "--seed", "0", "--out", out)
+        second = invoke("demo", "--seed", "1", "--out", out)
+    return MissionRuns(first, second, out)
 
 
 @dataclass(frozen=True)
@@ -93,6 +116,49 @@ def test_demo_reports_honest_recall_and_where_the_results_are(demo_run: tuple[Re
     assert f"false alarms: {summary['false_alarms']}" in stdout
     assert str(out) in "".join(result.stdout.split())  # rich may wrap a long path
     assert "Flaws found" in stdout
+
+
+def test_demo_runs_the_mission_and_writes_its_report(mission_runs: MissionRuns) -> None:
+    result, out = mission_runs.first, mission_runs.out
+    assert result.exit_code == 0, result.output
+    findings = json.loads((out / "runs" / "run-0001" / "findings.json").read_text())["findings"]
+    assert findings
+    stdout = result.stdout
+    assert "Findings of seed 0 against ground truth" in stdout
+    # one printed row per finding, each with its verdict against the ground truth
+    for finding in findings:
+        verdict = "FALSE" if finding["truth_index"] is None else f"#{finding['truth_index']}"
+        pattern = rf"^\s*{finding['number']}\s+{finding['kind']}\s+{finding['source']}\s.*$"
+        row = re.search(pattern, stdout, re.MULTILINE)
+        assert row is not None and verdict in row.group(0), finding
+    assert "Score per type" in stdout
+    assert f"Report:{out / 'report.html'}" in "".join(stdout.split())  # rich may wrap a long path
+    page = (out / "runs" / "run-0001" / "report.html").read_text()
+    assert "Inspection mission, seed 0" in page and "archive run</th><td class='text'>1<" in page
+
+
+def test_a_second_demo_into_the_same_folder_keeps_the_first_run(mission_runs: MissionRuns) -> None:
+    from rsi.archive import Archive
+
+    assert mission_runs.second.exit_code == 0, mission_runs.second.output
+    out = mission_runs.out
+    with Archive.open(out / "archive.db", create=False) as archive:
+        runs = archive.runs()
+    assert [(run.run_id, run.seed, run.status) for run in runs] == [(1, 0, "finished"), (2, 1, "finished")]
+    first, second = (out / "runs" / f"run-000{n}" / "report.html" for n in (1, 2))
+    assert "Inspection mission, seed 0" in first.read_text()
+    assert "Inspection mission, seed 1" in second.read_text()
+    # the folder's report.html is the latest run's
+    assert (out / "report.html").read_bytes() == second.read_bytes()
+
+
+def test_demo_progress_gets_one_more_stage_for_the_report() -> None:
+    calls: list[tuple[str, int, int]] = []
+    stages = cli._FinalStage(lambda *call: calls.append(call), "report")
+    stages.update("reference A_door", 1, 16)
+    stages.update("gas", 16, 16)
+    stages.finish()
+    assert calls == [("reference A_door", 1, 17), ("gas", 16, 17), ("report", 17, 17)]
 
 
 def test_inspect_finds_the_seeded_flaws_in_a_png_pair(png_pair: PngPair, tmp_path: Path) -> None:
@@ -204,6 +270,8 @@ def error_cases(
         "unreadable image": (("inspect", not_an_image, pair.inspection, "--out", out), cli.EXIT_FILE),
         "out is a file": (("inspect", pair.reference, pair.inspection, "--out", not_an_image), cli.EXIT_FILE),
         "missing dataset": (("eval", "deeppcb", out / "no-such-folder"), cli.EXIT_FILE),
+        "demo negative seed": (("demo", "--seed", "-1", "--out", out), cli.EXIT_USAGE),
+        "demo out is a file": (("demo", "--out", not_an_image), cli.EXIT_FILE),
     }
 
 
@@ -223,6 +291,8 @@ def error_cases(
         "unreadable image",
         "out is a file",
         "missing dataset",
+        "demo negative seed",
+        "demo out is a file",
     ],
 )
 def test_bad_input_exits_with_its_documented_code(
@@ -253,7 +323,14 @@ def test_a_bug_exits_internal_with_one_line(
 
 def test_help_documents_every_exit_code() -> None:
     assert set(cli.EXIT_CODES) == {0, 2, 3, 4, 5}
-    for args in ((), ("inspect",), ("eval", "deeppcb"), ("isee", "proximity-demo")):
+    for args in (
+        (),
+        ("demo",),
+        ("demo-pair",),
+        ("inspect",),
+        ("eval", "deeppcb"),
+        ("isee", "proximity-demo"),
+    ):
         result = invoke(*args, "--help")
         assert result.exit_code == 0
         text = " ".join(result.stdout.split())

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
     from rsi.detection.detect import Flaw
     from rsi.detection.roc import RocCurve
+    from rsi.mission.mission import MissionResult, MissionScore
     from rsi.mission.pair import DemoResult, PairResult
     from rsi.sim.isee_demo import Check
 
@@ -44,7 +45,10 @@ _EPILOG = (
 )
 DEFAULT_OUT = Path("rsi-results")
 """Where ``rsi demo`` writes unless told otherwise."""
+DEFAULT_PAIR_OUT = Path("rsi-pair-results")
+"""Where ``rsi demo-pair`` writes unless told otherwise."""
 _MAX_TABLE_ROWS = 20
+_MAX_MISSION_ROWS = 40  # a mission reports ~10-30 findings: print them all
 _ROC_TABLE_P_FALSE_ALARM = (1e-6, 1e-5, 1e-4, 1e-3)
 
 
@@ -190,10 +194,135 @@ def _flaw_table(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None,
 @app.command(epilog=_EPILOG)
 def demo(
     *,
-    seed: Annotated[int, typer.Option(min=0, help="Seed of the scene, flaw positions and sensor noise.")] = 0,
-    out: Annotated[Path, typer.Option("--out", help="Results folder (created if missing).")] = DEFAULT_OUT,
+    seed: Annotated[
+        int, typer.Option(min=0, help="Seed of the world: anomalies, viewpoint errors, sensor noise.")
+    ] = 0,
+    out: Annotated[
+        Path, typer.Option("--out", help="Results folder (created if missing; earlier runs are kept).")
+    ] = DEFAULT_OUT,
 ) -> None:
-    """Simulate an inspection with seeded ~1 mm flaws, find them, and write pictures and scores."""
+    """The whole inspection mission over the simulated truss mock-up, scored, archived and reported.
+
+    Reference pass, anomalies, inspection pass with active second looks, pyrometer and gas surveys (seed
+    §2-4); findings scored against the world's ground truth; everything stored in OUT/archive.db; the run's
+    self-contained HTML report in OUT/report.html (a copy per run under OUT/runs/).
+    """
+    with _errors():
+        import time
+
+        from rsi.archive import Archive
+        from rsi.mission.mission import run_mission, score_mission
+        from rsi.report.mission import write_mission_report
+
+        start_s = time.perf_counter()
+        _results_folder(out)
+        with Archive.open(out / "archive.db") as archive, _progress_bar("mission") as update:
+            stages = _FinalStage(update, "report")
+            result = run_mission(seed, archive=archive, progress=stages.update)
+            scoring_s = time.perf_counter()
+            score = score_mission(result)
+            scoring_s = time.perf_counter() - scoring_s
+            run_folder = out / "runs" / (f"run-{result.run_id:04d}" if result.run_id is not None else "run")
+            files = write_mission_report(run_folder, result, score, timings_s={"scoring": scoring_s})
+            files = {name: _copy_atomically(path, out / name) for name, path in files.items()}
+            stages.finish()
+        _print_mission(result, score, files, run_folder, elapsed_s=time.perf_counter() - start_s)
+
+
+def _results_folder(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise FileError(f"--out {out} is a file; pass a folder (it is created if missing).")
+    out.mkdir(parents=True, exist_ok=True)
+
+
+class _FinalStage:
+    """Feeds a progress bar the mission's stages, then one more of its own (the report)."""
+
+    def __init__(self, update: Callable[[str, int, int], None], name: str) -> None:
+        self._update, self._name, self._done, self._total = update, name, 0, 1
+
+    def update(self, stage: str, done: int, total: int) -> None:
+        self._done, self._total = done, total + 1
+        self._update(stage, done, total + 1)
+
+    def finish(self) -> None:
+        self._update(self._name, self._total, self._total)
+
+
+def _copy_atomically(source: Path, target: Path) -> Path:
+    from rsi._files import atomic_write_bytes
+
+    return atomic_write_bytes(target, source.read_bytes())
+
+
+def _print_mission(
+    result: MissionResult,
+    score: MissionScore,
+    files: Mapping[str, Path],
+    run_folder: Path,
+    *,
+    elapsed_s: float,
+) -> None:
+    from rich import box
+    from rich.table import Table
+
+    from rsi.report.mission import finding_records
+
+    console = _stdout()
+    records = finding_records(result, score)
+    table = Table(
+        title=f"Findings of seed {result.seed} against ground truth",
+        box=box.SIMPLE_HEAD,
+        padding=(0, 1, 0, 0),
+    )
+    for column in ("#", "kind", "source", "position mm", "size mm"):
+        table.add_column(column, justify="right" if column in ("#", "size mm") else "left", no_wrap=True)
+    table.add_column("ground truth", overflow="fold")  # in 80 columns a long site folds, nothing is cut
+    for record in records[:_MAX_MISSION_ROWS]:
+        matched = record["truth_index"]
+        truth = "FALSE" if matched is None else f"#{matched} {record['truth_site']}"
+        position = ", ".join(f"{1000 * record[key]:.0f}" for key in ("x_m", "y_m", "z_m"))
+        size = f"{1000 * record['size_m']:.1f}"
+        table.add_row(str(record["number"]), record["kind"], record["source"], position, size, truth)
+    if len(records) > _MAX_MISSION_ROWS:
+        table.caption = (
+            f"... and {len(records) - _MAX_MISSION_ROWS} more (all in findings.csv and the report)"
+        )
+    console.print(table)
+    console.print(_score_table(score))
+    console.print(
+        f"{len(records)} findings, {score.false_findings} false; mission {result.timings_s['total']:.1f} s, "
+        f"all {elapsed_s:.1f} s. Run {result.run_id} in {files['report.html'].parent / 'archive.db'}."
+    )
+    console.print(f"Report: {files['report.html']} (this run's copy: {run_folder / 'report.html'})")
+
+
+def _score_table(score: MissionScore) -> Any:
+    from rich import box
+    from rich.table import Table
+
+    from rsi.report.mission import FALSE_FINDINGS_TARGET, RECALL_TARGET
+
+    title = f"Score per type (targets: recall >= {RECALL_TARGET}, <= {FALSE_FINDINGS_TARGET} false per run)"
+    table = Table(title=title, box=box.SIMPLE_HEAD)
+    for column in ("type", "found/truth", "recall", "recall target", "false findings"):
+        table.add_column(column, justify="left" if column == "type" else "right")
+    for name, entry in score.per_type.items():
+        met = "met" if entry.recall >= RECALL_TARGET else "NOT MET"
+        row = (name, f"{entry.found}/{entry.truth}", f"{entry.recall:.2f}", met, str(entry.false_findings))
+        table.add_row(*row)
+    return table
+
+
+@app.command("demo-pair", epilog=_EPILOG)
+def demo_pair(
+    *,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the scene, flaw positions and sensor noise.")] = 0,
+    out: Annotated[
+        Path, typer.Option("--out", help="Results folder (created if missing).")
+    ] = DEFAULT_PAIR_OUT,
+) -> None:
+    """One synthetic reference/inspection pair with seeded ~1 mm flaws: found, pictured and scored."""
     with _errors():
         from rsi.mission.pair import simulate_demo
         from rsi.report.writers import write_demo_report

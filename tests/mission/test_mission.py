@@ -197,3 +197,15 @@ def test_screws_and_the_discoloured_tank_are_found_at_full_size() -> None:
     assert score.per_type["missing_screw"].false_findings == 0
     assert score.per_type["swapped_component"].found == 1
     assert score.per_type["impact"].false_findings <= 3
+
+
+def test_score_matches_each_finding_to_an_anomaly_of_its_kind(archived: tuple[MissionResult, Path]) -> None:
+    result, _ = archived
+    score = score_mission(result)
+    # every finding outside `matches` is a false finding, and no anomaly is matched twice
+    assert len(result.findings) - len(score.matches) == score.false_findings
+    assert len(set(score.matches.values())) == len(score.matches)
+    for finding_index, anomaly_index in score.matches.items():
+        finding, anomaly = result.findings[finding_index], result.truth.anomalies[anomaly_index]
+        assert finding.kind == anomaly.kind
+        assert np.linalg.norm(np.subtract(finding.position_m, anomaly.position_m)) <= 0.05

@@ -168,6 +168,9 @@ class VisitImages:
         Field pixels of the visible impacts that count towards recall (ground truth, for the run's ROC).
     impact_strengths : tuple of float
         Each of those impacts' strength: the difference at its darkest pixel in noise sigmas.
+    row_step : int
+        Frame rows per image row: 1 for the mission's full-resolution images (two frames, strobes in
+        opposite fields), 2 for an intra-frame field.
     """
 
     reference: NDArray[np.float32]
@@ -177,6 +180,7 @@ class VisitImages:
     valid: NDArray[np.bool_]
     impact_truth: NDArray[np.bool_]
     impact_strengths: tuple[float, ...] = ()
+    row_step: int = 1
 
 
 @dataclass(frozen=True)
@@ -1269,11 +1273,15 @@ class MissionScore:
         Findings matching no anomaly, all types.
     misses : tuple of Miss
         Every counted anomaly not found, with the reason.
+    matches : dict of int to int
+        Finding index -> index of the anomaly it matched; a finding absent here is false (one matching an
+        impact under 1 mm is here, though that impact does not count towards recall).
     """
 
     per_type: dict[str, TypeScore]
     false_findings: int
     misses: tuple[Miss, ...]
+    matches: dict[int, int] = field(default_factory=dict)
 
 
 def score_mission(result: MissionResult) -> MissionScore:
@@ -1320,6 +1328,7 @@ def score_mission(result: MissionResult) -> MissionScore:
         per_type=scores,
         false_findings=sum(score.false_findings for score in scores.values()),
         misses=tuple(misses),
+        matches=dict(sorted(used_findings.items())),
     )
 
 

@@ -161,6 +161,53 @@ def _lookup_table(cmap: str) -> UInt8Array:
     return np.ascontiguousarray(rgb[:, ::-1])
 
 
+def mapped_png(
+    image: object,
+    *,
+    low: float,
+    high: float,
+    cmap: str = "gray",
+    valid: object = None,
+    scale_rc: tuple[int, int] = (1, 1),
+) -> bytes:
+    """Render an image through a colour map between fixed limits, enlarged by whole factors, as a PNG.
+
+    Unlike :func:`grey_png` and :func:`colour_png` the limits are given, so that several pictures (a
+    reference and its inspection, every finding's score) share one scale and can be compared by eye.
+
+    Parameters
+    ----------
+    image : ndarray of shape (M, N)
+        Any real image.
+    low, high : float
+        Values mapped to the colour map's ends (``high > low``); values outside are clipped.
+    cmap : str, default "gray"
+        Name of a matplotlib colour map.
+    valid : ndarray of bool, shape (M, N), optional
+        Pixels that carry data; the others are drawn mid grey.
+    scale_rc : (int, int), default (1, 1)
+        Whole enlargement factors along rows and columns (nearest neighbour: pixels stay honest). An
+        interlaced field is shown at the frame's aspect with ``(2 * k, k)``.
+
+    Returns
+    -------
+    bytes
+        The PNG file contents.
+    """
+    pixels = as_image(image, "image", allow_nan=True)
+    if not high > low:
+        raise InputError(f"high must exceed low; got low={low!r}, high={high!r}.")
+    rows_factor, cols_factor = (int(factor) for factor in scale_rc)
+    if rows_factor < 1 or cols_factor < 1:
+        raise InputError(f"scale_rc must hold whole factors >= 1; got {scale_rc!r}.")
+    mask = _valid_or_all(valid, pixels.shape) & np.isfinite(pixels)
+    index = np.clip((np.nan_to_num(pixels) - low) / (high - low), 0.0, 1.0)
+    bgr = _lookup_table(cmap)[np.round(index * 255.0).astype(np.intp)]
+    bgr[~mask] = _INVALID_BGR
+    big = np.repeat(np.repeat(bgr, rows_factor, axis=0), cols_factor, axis=1)
+    return encode_png(big)
+
+
 def _enlargement(shape: tuple[int, ...]) -> int:
     return max(1, -(-_OVERLAY_MIN_SIDE_PX // max(shape[:2])))
 
@@ -211,7 +258,9 @@ def _draw_flaw(
     cv2.putText(canvas, str(number), label_xy, cv2.FONT_HERSHEY_SIMPLEX, 0.4, _LABEL_BGR, 1, cv2.LINE_AA)
 
 
-def roc_png(curves: Sequence[RocCurve], *, title: str = "ROC") -> bytes:
+def roc_png(
+    curves: Sequence[RocCurve], *, title: str = "ROC", measured: Sequence[bool] | None = None
+) -> bytes:
     """Plot P_D against P_F (log axis) for one or more ROC curves.
 
     Parameters
@@ -221,6 +270,9 @@ def roc_png(curves: Sequence[RocCurve], *, title: str = "ROC") -> bytes:
         theory as a line (seed §2.4: the ROC is the parametric plot of P_D versus P_F).
     title : str, default "ROC"
         Plot title.
+    measured : sequence of bool, optional
+        Per curve, whether it is measured (markers) or theory (a line); by default a curve is measured when
+        its label contains "measured".
 
     Returns
     -------
@@ -233,8 +285,12 @@ def roc_png(curves: Sequence[RocCurve], *, title: str = "ROC") -> bytes:
 
     figure = Figure(figsize=(6.0, 4.5), dpi=100)
     axes = figure.subplots()
-    for curve in curves:
-        _plot_curve(axes, curve)
+    if measured is None:
+        measured = ["measured" in curve.label for curve in curves]
+    if len(measured) != len(curves):
+        raise InputError(f"measured must hold one flag per curve ({len(curves)}); got {len(measured)}.")
+    for curve, is_measured in zip(curves, measured, strict=True):
+        _plot_curve(axes, curve, measured=bool(is_measured))
     axes.set(xscale="log", xlabel="P_F (false alarms per pixel)", ylabel="P_D", title=title)
     axes.set_ylim(-0.02, 1.02)
     axes.set_xlim(left=_P_FALSE_ALARM_FLOOR / 2.0)
@@ -252,11 +308,11 @@ def figure_png(figure: Any) -> bytes:
     return buffer.getvalue()
 
 
-def _plot_curve(axes: Any, curve: RocCurve) -> None:
+def _plot_curve(axes: Any, curve: RocCurve, *, measured: bool) -> None:
     p_false_alarm = np.asarray(curve.p_false_alarm, dtype=np.float64)
     p_detection = np.asarray(curve.p_detection, dtype=np.float64)
     seen = p_false_alarm > 0.0
-    if "measured" not in curve.label:
+    if not measured:
         axes.plot(p_false_alarm[seen], p_detection[seen], "-", label=curve.label)
         return
     (line,) = axes.plot(p_false_alarm[seen], p_detection[seen], "o", markersize=3, label=curve.label)

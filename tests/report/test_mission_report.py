@@ -1,0 +1,291 @@
+"""The mission's HTML report: self-contained, every picture a valid PNG, the numbers of the record, escaped
+text, and a real browser that shows every picture (headless Debian chromium through selenium)."""
+
+from __future__ import annotations
+
+import base64
+import csv
+import dataclasses
+import json
+import os
+import re
+from dataclasses import dataclass
+from html.parser import HTMLParser
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.errors import InputError
+from rsi.mission import mission
+from rsi.mission.mission import MissionResult, MissionScore, run_mission, score_mission
+from rsi.report import figures
+from rsi.report.mission import (
+    AMBIENT_K,
+    FINDING_COLUMNS,
+    GAS_THRESHOLD_PPM,
+    REPORT_FILE,
+    THERMAL_THRESHOLD_K,
+    crop_window,
+    mission_html,
+    proximity_section,
+    roc_section,
+    write_mission_report,
+)
+
+SEED = 0
+SMALL = (240, 320)
+DATA_URI = "data:image/png;base64,"
+CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
+
+
+@dataclass(frozen=True)
+class Report:
+    result: MissionResult
+    score: MissionScore
+    files: dict[str, Path]
+    page: str
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory: pytest.TempPathFactory) -> Report:
+    result = run_mission(SEED, size=SMALL)
+    score = score_mission(result)
+    files = write_mission_report(tmp_path_factory.mktemp("mission") / "out", result, score)
+    return Report(result, score, files, files[REPORT_FILE].read_text(encoding="utf-8"))
+
+
+class _Tags(HTMLParser):
+    """Every start tag with its attributes, in order."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tags: list[tuple[str, dict[str, str | None]]] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.tags.append((tag, dict(attrs)))
+
+
+def _tags(page: str) -> list[tuple[str, dict[str, str | None]]]:
+    parser = _Tags()
+    parser.feed(page)
+    return parser.tags
+
+
+def _images(page: str) -> list[str]:
+    return [attrs["src"] or "" for tag, attrs in _tags(page) if tag == "img"]
+
+
+def test_page_is_self_contained(report: Report) -> None:
+    page = report.page
+    assert "://" not in page  # no http(s), file or any other address (base64 has no ':')
+    for tag, attrs in _tags(page):
+        assert tag not in ("script", "link", "iframe", "object", "embed"), tag
+        for name in ("src", "href"):
+            if name in attrs:
+                assert (attrs[name] or "").startswith(DATA_URI), (tag, name, (attrs[name] or "")[:40])
+    assert "url(" not in page
+
+
+def test_every_image_is_a_png_that_decodes(report: Report) -> None:
+    sources = _images(report.page)
+    # the overview, one row of four crops per boxed visual finding, pyrometer, gas and ROC plots
+    boxed = sum(finding.bbox is not None for finding in report.result.findings)
+    assert boxed > 0
+    assert len(sources) == 1 + 4 * boxed + 2 + (1 if report.result.roc else 0)
+    for source in sources:
+        data = base64.b64decode(source.removeprefix(DATA_URI), validate=True)
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        assert image is not None and image.size > 0 and min(image.shape[:2]) >= 16
+
+
+def test_page_counts_every_finding_and_marks_the_false_ones(report: Report) -> None:
+    result, score, page = report.result, report.score, report.page
+    rows = re.findall(r'<tr class="finding (false|found)">', page)
+    assert len(rows) == len(result.findings) > 0
+    assert rows.count("false") == score.false_findings
+    assert f"<strong>{len(result.findings)} findings</strong>" in page
+    assert page.count("MISSED: ") == len(score.misses)
+
+
+def test_findings_files_agree_with_the_record(report: Report) -> None:
+    result, score = report.result, report.score
+    document = json.loads(report.files["findings.json"].read_text())
+    assert document["count"] == len(result.findings)
+    with report.files["findings.csv"].open() as stream:
+        rows = list(csv.DictReader(stream))
+    assert tuple(rows[0]) == FINDING_COLUMNS
+    for index, (row, finding) in enumerate(zip(rows, result.findings, strict=True)):
+        assert row["kind"] == finding.kind and int(row["number"]) == index + 1
+        assert float(row["x_m"]) == pytest.approx(finding.position_m[0])
+        assert (row["verdict"] == "FALSE") == (index not in score.matches)
+
+
+def test_targets_are_marked_honestly(report: Report) -> None:
+    page, score = report.page, report.score
+    section = page[page.index("Score against the targets") : page.index("<h2>Timings")]
+    met = section.count('class="met"')
+    unmet = section.count('class="unmet"')
+    recall_met = sum(entry.recall >= 0.95 for entry in score.per_type.values())
+    assert met == recall_met + (score.false_findings <= 1)
+    assert met + unmet == len(score.per_type) + 1
+
+
+def test_text_from_the_record_is_escaped(report: Report) -> None:
+    hostile = "<script>alert('x')</script>"
+    first = dataclasses.replace(report.result.findings[0], source=hostile)
+    result = dataclasses.replace(report.result, findings=(first, *report.result.findings[1:]))
+    page = mission_html(result, score_mission(result))
+    assert "<script" not in page
+    assert "&lt;script&gt;alert(&#x27;x&#x27;)&lt;/script&gt;" in page
+
+
+def test_sensor_thresholds_are_the_missions() -> None:
+    assert AMBIENT_K == mission._AMBIENT_K
+    assert THERMAL_THRESHOLD_K == mission.THERMAL_THRESHOLD_K
+    assert GAS_THRESHOLD_PPM == mission.GAS_THRESHOLD_PPM
+
+
+@dataclass(frozen=True)
+class _Transit:
+    name: str
+    time_s: Any
+    distances_m: Any
+
+
+class _WithTransits:
+    """A mission result with the arm's transits (MissionResult gets them on another branch)."""
+
+    def __init__(self, result: MissionResult, transits: tuple[_Transit, ...]) -> None:
+        self._result, self.transits = result, transits
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._result, name)
+
+
+def test_proximity_section_draws_transits_when_present(report: Report) -> None:
+    assert "No arm transits in this run." in proximity_section(report.result)
+    time_s = np.linspace(0.0, 2.0, 50)
+    distances = np.column_stack([0.30 - 0.1 * time_s, np.full(50, np.nan)])  # right sensor out of range
+    transit = _Transit("A_door -> A_kapton", time_s, distances)
+    section = proximity_section(_WithTransits(report.result, (transit,)))  # type: ignore[arg-type]
+    assert "No arm transits" not in section
+    assert len(_images(section)) == 1
+    assert "A_door -&gt; A_kapton" in section
+    assert "<td>100.0</td>" in section  # closest left reading: 0.30 - 0.2 m
+
+
+def test_proximity_section_names_a_transit_of_the_wrong_shape(report: Report) -> None:
+    transit = _Transit("bad", np.arange(5.0), np.zeros((5, 3)))
+    with pytest.raises(InputError, match=r"transit 'bad'.*\(T, 2\)"):
+        proximity_section(_WithTransits(report.result, (transit,)))  # type: ignore[arg-type]
+
+
+def test_roc_section_says_when_the_run_has_no_roc(report: Report) -> None:
+    assert report.result.roc, "seed 0 sees counted impacts: its run has an ROC"
+    assert len(_images(roc_section(report.result))) == 1
+    empty = dataclasses.replace(report.result, roc=())
+    section = roc_section(empty)
+    assert not _images(section) and "no empirical ROC" in section
+
+
+@pytest.mark.parametrize(
+    ("bbox", "shape"),
+    [((50, 70, 53, 74), (120, 320)), ((0, 0, 2, 2), (120, 320)), ((29, 95, 92, 118), (120, 320)),
+     ((110, 300, 119, 319), (120, 320)), ((5, 5, 8, 9), (16, 30))],
+)  # fmt: skip
+def test_crop_window_holds_the_box_inside_the_image(
+    bbox: tuple[int, int, int, int], shape: tuple[int, int]
+) -> None:
+    for row_step in (1, 2):
+        rows, cols = crop_window(bbox, shape, row_step=row_step)
+        assert 0 <= rows.start <= bbox[0] and bbox[2] <= rows.stop <= shape[0]
+        assert 0 <= cols.start <= bbox[1] and bbox[3] <= cols.stop <= shape[1]
+        height, width = rows.stop - rows.start, cols.stop - cols.start
+        if shape[0] >= 2 * height and shape[1] >= 2 * width:
+            # square on screen (a field row is drawn twice, seed §2.2), at least 48 x 48 frame pixels
+            assert width == row_step * height and height * row_step >= 48
+
+
+def test_mapped_png_uses_the_given_limits_and_scales() -> None:
+    image = np.array([[0.0, 5.0], [10.0, np.nan]])
+    png = figures.mapped_png(image, low=0.0, high=10.0, scale_rc=(4, 2))
+    decoded = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_UNCHANGED)
+    assert decoded.shape == (8, 4, 3)
+    assert tuple(decoded[0, 0]) == (0, 0, 0) and tuple(decoded[4, 0]) == (255, 255, 255)
+    assert tuple(decoded[4, 2]) == (96, 96, 96)  # NaN carries no data: mid grey
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"low": 1.0, "high": 1.0}, "high must exceed low"),
+        ({"low": 0.0, "high": 1.0, "scale_rc": (0, 1)}, "scale_rc"),
+    ],
+)
+def test_mapped_png_bad_input(kwargs: dict[str, Any], message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        figures.mapped_png(np.zeros((4, 4)), **kwargs)
+
+
+def test_roc_png_needs_one_measured_flag_per_curve(report: Report) -> None:
+    with pytest.raises(InputError, match="one flag per curve"):
+        figures.roc_png(report.result.roc, measured=[True])
+
+
+# ------------------------------------------------------------------------------------ a real browser
+
+
+def _browser() -> Any:
+    """Headless Debian chromium through its chromedriver; skipped (failed in CI) when either is absent."""
+    missing = [str(path) for path in (CHROMIUM, CHROMEDRIVER) if not path.exists()]
+    fixes = ["apt-get install chromium chromium-driver"] if missing else []
+    try:
+        from selenium import webdriver
+        from selenium.webdriver.chrome.service import Service
+    except ImportError:
+        missing.append("the selenium package")
+        fixes.append("pip install -e '.[test]'")
+    if missing:
+        message = f"no real browser: {', '.join(missing)} missing; {' and '.join(fixes)}"
+        if os.environ.get("RSI_REQUIRE_BROWSER"):
+            pytest.fail(message)
+        pytest.skip(message)
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--disable-dev-shm-usage", "--window-size=1280,2400"):  # fmt: skip
+        options.add_argument(flag)
+    return webdriver.Chrome(options=options, service=Service(executable_path=str(CHROMEDRIVER)))
+
+
+def test_report_renders_in_a_real_browser_with_every_image(report: Report, tmp_path: Path) -> None:
+    browser = _browser()
+    try:
+        browser.get(report.files[REPORT_FILE].resolve().as_uri())
+        state = browser.execute_script(
+            "return Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight]);"
+        )
+        screenshot = browser.get_screenshot_as_png()
+    finally:
+        browser.quit()
+    assert len(state) == len(_images(report.page)) > 0
+    assert all(complete and width > 0 and height > 0 for complete, width, height in state), state
+    shot = cv2.imdecode(np.frombuffer(screenshot, np.uint8), cv2.IMREAD_GRAYSCALE)
+    (tmp_path / "report.png").write_bytes(screenshot)
+    # not blank: the page draws text, tables and the dark overview picture on white
+    assert shot.shape[0] >= 1000 and shot.shape[1] >= 1000
+    assert float(shot.std()) > 20.0
+    assert np.mean(shot < 64) > 0.02 and np.mean(shot > 240) > 0.3
+
+
+def test_browser_check_skips_with_a_clear_message_without_chromium(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("RSI_REQUIRE_BROWSER", raising=False)
+    monkeypatch.setattr(f"{__name__}.CHROMIUM", Path("/nonexistent/chromium"))
+    with pytest.raises(pytest.skip.Exception, match="apt-get install chromium chromium-driver"):
+        _browser()
