@@ -115,3 +115,16 @@ def test_overview_picture_is_colour_and_marked(world: World) -> None:
     picture = world.overview_picture(size=SMALL)
     assert picture.shape == (*SMALL, 3) and picture.dtype == np.uint8
     assert picture[..., 0].max() == 255  # magenta/red markers
+
+
+def test_the_lamp_switched_off_leaves_only_the_isee_lights(world: World) -> None:
+    lit = world.render("A_kapton", size=(60, 80), truth=False)
+    world.switch_lamp(False)
+    try:
+        dark = world.render("A_kapton", size=(60, 80), truth=False)
+        assert world.readouts()["lamp_intensity_lux"] == 0.0
+    finally:
+        world.switch_lamp(True)
+    # seed §4.1: in the Earth's shadow no sun and no room light; the strobe and the shutter stay
+    assert lit.ambient_lux.any() and not dark.ambient_lux.any() and not dark.basis["sun"].any()
+    assert dark.frame.exposure_s == lit.frame.exposure_s and dark.strobe_lux_s.any()
