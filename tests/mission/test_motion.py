@@ -15,11 +15,12 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.control.blending import proximity_term
 from rsi.errors import InputError
-from rsi.mission.mission import PLAN, PlanPoint, plan_vistas
+from rsi.mission.mission import PLAN, PlanPoint, plan_vistas, run_mission
 from rsi.mission.motion import (
     ARRIVAL_TOLERANCE_M,
     ARRIVAL_TOLERANCE_RAD,
     GUARD_LAW,
+    SUN_DIRECTION_TOLERANCE_RAD,
     Tour,
     Transit,
     approach_law,
@@ -188,6 +189,22 @@ def test_a_visit_takes_the_frame_from_where_the_arm_holds_the_camera(world: Worl
     assert panel.vista == "C_panel_west" and not tour.transits[-1].reach.reachable
 
 
+def test_the_mission_moves_the_arm_and_follows_the_sun() -> None:
+    result = run_mission(SEED, size=TINY, active=False)
+    visits = 3 * len(PLAN)  # two reference visits and one inspection visit per point
+    assert len(result.transits) == visits and len(result.suns) == visits
+    assert {t.label for t in result.transits if t.reached} == REACHABLE
+    stages = [s.stage for s in result.suns]
+    assert stages == ["reference"] * 2 * len(PLAN) + ["inspection"] * len(PLAN)
+    times = np.array([s.time_s for s in result.suns])
+    assert np.all(np.diff(times[: 2 * len(PLAN)]) > 0) and times[2 * len(PLAN)] > PERIOD_S
+    assert result.timings_s["transits"] > 0.0
+    # ORU A lies in the orbit plane of the lab's placement: its sun is reproduced exactly
+    for setting in result.suns:
+        if setting.label.startswith("A_"):
+            assert setting.reachable and setting.direction_error_rad < SUN_DIRECTION_TOLERANCE_RAD
+
+
 # --------------------------------------------------------------------------------------------- sun
 
 
@@ -264,6 +281,9 @@ def test_bad_input_names_the_argument(world: World) -> None:
         (lambda: Tour(world, seed=0, size=TINY).start_pass("reference", -1.0), "start_s"),
         (lambda: Tour(world, seed=0, size=TINY).visit("X", "nowhere", state="reference"), "vista"),
         (lambda: world.switch_lamp("on"), "on"),  # type: ignore[arg-type]
+        (lambda: run_mission(0, arm="yes"), "arm"),  # type: ignore[arg-type]
+        (lambda: run_mission(0, orbit=None), "orbit"),  # type: ignore[arg-type]
+        (lambda: run_mission(0, orbit_start_s=[0.0, 1.0]), "orbit_start_s"),  # type: ignore[arg-type]
     ]
     try:
         for call, argument in cases:

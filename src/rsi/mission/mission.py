@@ -34,10 +34,12 @@ from scipy import special
 
 from rsi import _validate as v
 from rsi.errors import InputError
+from rsi.sim.orbit import orbital_period_s
 
 if TYPE_CHECKING:
     from rsi.archive import Archive
     from rsi.imaging.compensation import Compensated
+    from rsi.mission.motion import SunSetting, Tour, Transit
     from rsi.mission.pair import PairResult
     from rsi.sim.anomalies import Anomaly, AnomalySet, Site
     from rsi.sim.mockup import Vista
@@ -78,6 +80,9 @@ GAS_STATION_SPACING_M = 0.01
 GAS_DWELL_S = 20.0
 GAS_SURVEY_START_S = 60.0  # after the visual pass; the leaks start within 30 s (seed §4)
 REPEATABILITY = ("lab", "space")
+# The reference pass begins 26 deg past orbit noon, the inspection pass one orbit later at the same phase:
+# a sun 20 deg apart between the passes raised false impacts 4 -> 15 on seed 0 (docs/mission.md).
+ORBIT_START_S = (400.0, 400.0 + orbital_period_s())
 _AMBIENT_K = 293.15
 
 
@@ -194,7 +199,14 @@ class MissionResult:
     run_id : int or None
         The archive's run, when an archive was given.
     timings_s : dict of str to float
-        ``reference``, ``inspection``, ``sensors``, ``total``.
+        ``reference``, ``inspection``, ``sensors``, ``total``, and ``transits`` (wall time of the arm's
+        simulated transits, part of the passes).
+    transits : tuple of Transit
+        Every move of the ISEE by the arm, in order, with its 44 Hz proximity trace (empty without the arm;
+        out-of-reach vistas appear with an empty trace and their shortfall). See :mod:`rsi.mission.motion`.
+    suns : tuple of SunSetting
+        The solar simulator at each visit: mission-clock time, sun and lamp directions, lamp configuration
+        (empty without the orbit).
     """
 
     seed: int
@@ -210,6 +222,8 @@ class MissionResult:
     gas_stations_m: FloatArray
     run_id: int | None
     timings_s: dict[str, float] = field(default_factory=dict)
+    transits: tuple[Transit, ...] = ()
+    suns: tuple[SunSetting, ...] = ()
 
 
 # ------------------------------------------------------------------------------------------------- plan
@@ -582,7 +596,11 @@ def _size(size: object) -> tuple[int, int]:
 
 
 def _reference_pass(
-    world: World, plan: tuple[PlanPoint, ...], shape: tuple[int, int], report: Callable[[str], None]
+    world: World,
+    plan: tuple[PlanPoint, ...],
+    shape: tuple[int, int],
+    report: Callable[[str], None],
+    tour: Tour,
 ) -> tuple[dict[str, Compensated], dict[str, Compensated], dict[str, NDArray[np.float32]]]:
     """Two pristine visits per plan point: the reference, a second reference and their nuisance scale."""
     from rsi.imaging.compensation import compensate_interlaced
@@ -592,10 +610,10 @@ def _reference_pass(
     scales: dict[str, NDArray[np.float32]] = {}
     for point in plan:
         world.set_door(point.door_angle_rad)
-        view = world.render(point.vista, size=shape, state="reference", truth=False)
+        view = tour.visit(point.name, point.vista, state="reference", truth=False)
         references[point.name] = compensate_interlaced(view.frame)
         # a second pristine visit: the nuisance map and the second reference of every detection
-        again = world.render(point.vista, size=shape, state="reference", truth=False)
+        again = tour.visit(point.name, point.vista, state="reference", truth=False)
         seconds[point.name] = compensate_interlaced(again.frame)
         scales[point.name] = _nuisance_scale(references[point.name], seconds[point.name])
         report(f"reference {point.name}")
@@ -610,6 +628,9 @@ def run_mission(
     active: bool = True,
     progress: ProgressFn | None = None,
     size: tuple[int, int] = MISSION_SIZE,
+    arm: bool = True,
+    orbit: bool = True,
+    orbit_start_s: tuple[float, float] = ORBIT_START_S,
 ) -> MissionResult:
     """Reference pass, inspection pass and sensor passes over the seeded mock-up (seed §2-§4).
 
@@ -630,6 +651,17 @@ def run_mission(
         ``progress(stage, done, total)`` after each visit and sensor pass.
     size : (int, int)
         Frame (rows, cols), each >= 64.
+    arm : bool
+        Move the ISEE with the arm and rail to each reachable vista (retract, transfer, approach under the
+        proximity law; seed §3.1) and take the frame from where the arm holds the camera; vistas out of
+        reach (the solar panel's, from above) keep the free camera. False: the free camera teleported to
+        each vista (``World.render``), as before.
+    orbit : bool
+        Light each visit by the orbit's sun at its mission-clock time (seed §4.1); False keeps the lamp
+        where the world put it.
+    orbit_start_s : (float, float)
+        Orbit time (s after orbit noon) at which the reference and the inspection pass begin, each >= 0;
+        by default 400 s and one orbit (5553.6 s) later, so both passes see about the same sun.
 
     Returns
     -------
@@ -639,15 +671,22 @@ def run_mission(
     ------
     InputError
         Naming the argument: a negative or non-integer seed, an unknown repeatability, a non-bool `active`,
-        a non-callable `progress`, a bad `size` or something that is not an Archive.
+        a non-callable `progress`, a bad `size` or something that is not an Archive; a non-bool `arm` or
+        `orbit`, or `orbit_start_s` not two times >= 0 s.
     """
+    from rsi.mission.motion import Tour, pass_starts
     from rsi.sim.world import load
 
     seed = _check(seed, archive, repeatability, active, progress)
     shape = _size(size)
+    starts = pass_starts(orbit_start_s)
+    for name, flag in (("arm", arm), ("orbit", orbit)):
+        if not isinstance(flag, bool):
+            raise InputError(f"{name} must be True or False; got {flag!r}.")
     start_s = time.perf_counter()
-    world = load("truss", seed=seed, repeatability=repeatability)
+    world = load("truss", seed=seed, repeatability=repeatability, arm=arm)
     plan = plan_vistas(world)
+    tour = Tour(world, seed=seed, size=shape, arm=arm, orbit=orbit)
     total = 2 * len(plan) + 2
     done = 0
 
@@ -659,7 +698,8 @@ def run_mission(
 
     try:
         # ---- reference pass: the pristine mock-up (seed §2.3: references taken once, revisited later)
-        references, seconds, scales = _reference_pass(world, plan, shape, report)
+        tour.start_pass("reference", starts[0])
+        references, seconds, scales = _reference_pass(world, plan, shape, report, tour)
         reference_s = time.perf_counter() - start_s
         run_id = _store_references(
             archive,
@@ -676,6 +716,7 @@ def run_mission(
         visual: list[MissionFinding] = []
         visits: list[VisitRecord] = []
         screws_done: set[str] = set()
+        tour.start_pass("inspection", starts[1])
         for point in plan:
             world.set_door(point.door_angle_rad)
             found, record = _inspect_point(
@@ -689,6 +730,7 @@ def run_mission(
                 confirm=confirm,
                 preliminary=preliminary,
                 screws_done=screws_done,
+                tour=tour,
             )
             visual += found
             visits.append(record)
@@ -713,6 +755,7 @@ def run_mission(
         "inspection": inspection_s,
         "sensors": time.perf_counter() - sensors_start,
         "total": time.perf_counter() - start_s,
+        "transits": sum(transit.wall_s for transit in tour.transits),
     }
     return MissionResult(
         seed=seed,
@@ -728,6 +771,8 @@ def run_mission(
         gas_stations_m=stations,
         run_id=run_id,
         timings_s=timings,
+        transits=tuple(tour.transits),
+        suns=tuple(tour.suns),
     )
 
 
@@ -743,9 +788,10 @@ def _inspect_point(
     confirm: float,
     preliminary: float,
     screws_done: set[str],
+    tour: Tour,
 ) -> tuple[list[MissionFinding], VisitRecord]:
     """One visit: compare with the reference, check the screws, take second looks (seed §2.3-2.5)."""
-    view = world.render(point.vista, size=shape, state="inspection")
+    view = tour.visit(point.name, point.vista, state="inspection")
     pair = _compare(reference, view, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
     registration = pair.detection.registration
     translation = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
@@ -794,7 +840,7 @@ def _inspect_point(
     second_looks = confirmed = rejected = 0
     if active and doubtful:
         # seed §2.5 active inspection: another visit (new viewpoint error, new noise) of the same vista
-        second = world.render(point.vista, size=shape, state="inspection")
+        second = tour.visit(point.name, point.vista, state="inspection")
         second_pair = _compare(reference, second, P_PRELIMINARY, scale)
         for look in doubtful:
             second_looks += 1

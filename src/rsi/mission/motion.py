@@ -829,7 +829,7 @@ def pass_starts(start_s: object) -> tuple[float, float]:
     if not isinstance(start_s, tuple) or len(start_s) != 2:
         raise InputError(
             f"orbit_start_s must be a (reference, inspection) tuple of times in seconds; got {start_s!r}. "
-            "Try orbit_start_s=(400.0, 700.0)."
+            "Try orbit_start_s=(400.0, 5953.6): the inspection one orbit after the reference."
         )
     first, second = (v.in_range(value, "orbit_start_s", low=0.0) for value in start_s)
     return (first, second)
