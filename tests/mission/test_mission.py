@@ -25,6 +25,7 @@ from rsi.sim.world import load
 
 SEED = 0
 SMALL = (240, 320)
+STILL = {"arm": False, "orbit": False}  # free camera, fixed lamp: fast (the arm's mission: test_motion.py)
 
 
 @pytest.fixture(scope="module")
@@ -32,14 +33,16 @@ def archived(tmp_path_factory: pytest.TempPathFactory) -> tuple[MissionResult, P
     path = tmp_path_factory.mktemp("mission") / "archive.db"
     stages: list[tuple[str, int, int]] = []
     with Archive.open(path) as archive:
-        result = run_mission(SEED, archive=archive, size=SMALL, progress=lambda *stage: stages.append(stage))
+        result = run_mission(
+            SEED, archive=archive, size=SMALL, progress=lambda *stage: stages.append(stage), **STILL
+        )
     assert [done for _, done, _ in stages] == list(range(1, 2 * len(PLAN) + 3))
     return result, path
 
 
 def test_same_seed_same_findings(archived: tuple[MissionResult, Path]) -> None:
     first, _ = archived
-    again = run_mission(SEED, size=SMALL)
+    again = run_mission(SEED, size=SMALL, **STILL)
     assert again.findings == first.findings
     assert np.array_equal(again.gas_ppm, first.gas_ppm)
     assert again.pyrometer_k == first.pyrometer_k
@@ -191,7 +194,7 @@ def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -
 
 def test_screws_and_the_discoloured_tank_are_found_at_full_size() -> None:
     # seed 0: screws B_2, C_1 and D_0 removed, D_tank_0 discoloured to 0.49 of its reflectance (seed §4)
-    result = run_mission(SEED, active=False)
+    result = run_mission(SEED, active=False, arm=False, orbit=False)
     score = score_mission(result)
     assert score.per_type["missing_screw"].found == score.per_type["missing_screw"].truth == 3
     assert score.per_type["missing_screw"].false_findings == 0

@@ -42,6 +42,7 @@ WorldCall = Callable[[World], Any]
         (lambda w: w.render("A_door", size=SMALL, truth=1), "truth"),
         (lambda w: w.set_door(3.0), "angle_rad"),
         (lambda w: w.set_halogen(1), "on"),
+        (lambda w: w.switch_lamp("off"), "on"),
     ],
 )
 def test_unknown_names_and_bad_settings_are_refused_with_the_argument_named(

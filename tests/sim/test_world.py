@@ -142,3 +142,16 @@ def test_truss_mask_marks_the_frame_and_never_a_component(world: World) -> None:
     rows, cols = SMALL
     assert not view.truss_mask[rows // 2 - 5 : rows // 2 + 5, cols // 2 - 5 : cols // 2 + 5].any()
     assert world.render("B_tank", size=SMALL, truth=False).truss_mask is None
+
+
+def test_the_lamp_switched_off_leaves_only_the_isee_lights(world: World) -> None:
+    lit = world.render("A_kapton", size=(60, 80), truth=False)
+    world.switch_lamp(False)
+    try:
+        dark = world.render("A_kapton", size=(60, 80), truth=False)
+        assert world.readouts()["lamp_intensity_lux"] == 0.0
+    finally:
+        world.switch_lamp(True)
+    # seed §4.1: in the Earth's shadow no sun and no room light; the strobe and the shutter stay
+    assert lit.ambient_lux.any() and not dark.ambient_lux.any() and not dark.basis["sun"].any()
+    assert dark.frame.exposure_s == lit.frame.exposure_s and dark.strobe_lux_s.any()

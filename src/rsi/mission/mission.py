@@ -34,12 +34,14 @@ from scipy import special
 
 from rsi import _validate as v
 from rsi.errors import InputError
+from rsi.sim.orbit import orbital_period_s
 
 if TYPE_CHECKING:
     from rsi.archive import Archive
     from rsi.detection.detect import Detection
     from rsi.detection.roc import RocCurve
     from rsi.imaging.compensation import Compensated
+    from rsi.mission.motion import SunSetting, Tour, Transit
     from rsi.mission.pair import PairResult
     from rsi.sim.anomalies import Anomaly, AnomalySet, Site
     from rsi.sim.mockup import Vista
@@ -89,6 +91,9 @@ GAS_STATION_SPACING_M = 0.01
 GAS_DWELL_S = 20.0
 GAS_SURVEY_START_S = 60.0  # after the visual pass; the leaks start within 30 s (seed §4)
 REPEATABILITY = ("lab", "space")
+# The reference pass begins 26 deg past orbit noon, the inspection pass one orbit later at the same phase:
+# a sun 20 deg apart between the passes raised false impacts 4 -> 15 on seed 0 (docs/mission.md).
+ORBIT_START_S = (400.0, 400.0 + orbital_period_s())
 _AMBIENT_K = 293.15
 
 
@@ -243,7 +248,8 @@ class MissionResult:
     run_id : int or None
         The archive's run, when an archive was given.
     timings_s : dict of str to float
-        ``reference``, ``inspection``, ``sensors``, ``total``.
+        ``reference``, ``inspection``, ``sensors``, ``total``, and ``transits`` (wall time of the arm's
+        simulated transits, part of the passes).
     roc : tuple of RocCurve
         The run's empirical ROC (every inspection visit's dark score against the visible impacts that
         count) and the theoretical one for those impacts' measured strengths; empty when no counted impact
@@ -252,6 +258,12 @@ class MissionResult:
         The whole mock-up after the anomalies appeared, unmarked.
     overview_pose : CameraPose or None
         The overview picture's camera: projects findings and truth into it.
+    transits : tuple of Transit
+        Every move of the ISEE by the arm, in order, with its 44 Hz proximity trace (empty without the arm;
+        out-of-reach vistas appear with an empty trace and their shortfall). See :mod:`rsi.mission.motion`.
+    suns : tuple of SunSetting
+        The solar simulator at each visit: mission-clock time, sun and lamp directions, lamp configuration
+        (empty without the orbit).
     """
 
     seed: int
@@ -270,6 +282,8 @@ class MissionResult:
     roc: tuple[RocCurve, ...] = ()
     overview_rgb: NDArray[np.uint8] | None = field(default=None, repr=False, compare=False)
     overview_pose: CameraPose | None = field(default=None, repr=False, compare=False)
+    transits: tuple[Transit, ...] = ()
+    suns: tuple[SunSetting, ...] = ()
 
 
 # ------------------------------------------------------------------------------------------------- plan
@@ -730,6 +744,23 @@ def _check(seed: object, archive: object, repeatability: object, active: object,
     return int(seed)
 
 
+def _sensor_passes(
+    world: World, seed: int, report: Callable[[str], None]
+) -> tuple[list[MissionFinding], dict[str, float], list[MissionFinding], FloatArray, FloatArray]:
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
+    thermal, readings = _pyrometer_pass(world, rng)
+    report("pyrometer")
+    gas, stations, gas_ppm = _gas_pass(world, rng)
+    report("gas")
+    return thermal, readings, gas, stations, gas_ppm
+
+
+def _check_flags(**flags: object) -> None:
+    for name, flag in flags.items():
+        if not isinstance(flag, bool):
+            raise InputError(f"{name} must be True or False; got {flag!r}.")
+
+
 def _size(size: object) -> tuple[int, int]:
     if not isinstance(size, tuple) or len(size) != 2:
         raise InputError(f"size must be a (rows, cols) tuple; got {size!r}. Try size=(480, 640).")
@@ -742,7 +773,9 @@ def _reference_pass(
     plan: tuple[PlanPoint, ...],
     shape: tuple[int, int],
     report: Callable[[str], None],
+    *,
     stereo_rng: np.random.Generator,
+    tour: Tour,
 ) -> tuple[dict[str, Compensated], dict[str, Compensated], dict[str, Scale], dict[str, dict[str, float]]]:
     """Two pristine visits per plan point: the reference, a second reference, their nuisance scale, and
     the relief of every component site the reference sees (from the stereo range map)."""
@@ -752,14 +785,14 @@ def _reference_pass(
     reliefs: dict[str, dict[str, float]] = {}
     for point in plan:
         world.set_door(point.door_angle_rad)
-        view = world.render(point.vista, size=shape, state="reference")
+        view = tour.visit(point.name, point.vista, state="reference")
         references[point.name] = _strobe_image(world, view)
         depth = _stereo_depth(view, stereo_rng)
         reliefs[point.name] = {
             site.name: _relief_m(depth, view, site) for site in _seen_components(world, view)
         }
         # a second pristine visit: the nuisance map and the second reference of every detection
-        again = world.render(point.vista, size=shape, state="reference", truth=False)
+        again = tour.visit(point.name, point.vista, state="reference", truth=False)
         seconds[point.name] = _strobe_image(world, again)
         scales[point.name] = _nuisance_scale(references[point.name], seconds[point.name])
         report(f"reference {point.name}")
@@ -781,6 +814,9 @@ def run_mission(
     active: bool = True,
     progress: ProgressFn | None = None,
     size: tuple[int, int] = MISSION_SIZE,
+    arm: bool = True,
+    orbit: bool = True,
+    orbit_start_s: tuple[float, float] = ORBIT_START_S,
 ) -> MissionResult:
     """Reference pass, inspection pass and sensor passes over the seeded mock-up (seed §2-§4).
 
@@ -801,6 +837,17 @@ def run_mission(
         ``progress(stage, done, total)`` after each visit and sensor pass.
     size : (int, int)
         Frame (rows, cols), each >= 64.
+    arm : bool
+        Move the ISEE with the arm and rail to each reachable vista (retract, transfer, approach under the
+        proximity law; seed §3.1) and take the frame from where the arm holds the camera; vistas out of
+        reach (the solar panel's, from above) keep the free camera. False: the free camera teleported to
+        each vista (``World.render``), as before.
+    orbit : bool
+        Light each visit by the orbit's sun at its mission-clock time (seed §4.1); False keeps the lamp
+        where the world put it.
+    orbit_start_s : (float, float)
+        Orbit time (s after orbit noon) at which the reference and the inspection pass begin, each >= 0;
+        by default 400 s and one orbit (5553.6 s) later, so both passes see about the same sun.
 
     Returns
     -------
@@ -810,15 +857,20 @@ def run_mission(
     ------
     InputError
         Naming the argument: a negative or non-integer seed, an unknown repeatability, a non-bool `active`,
-        a non-callable `progress`, a bad `size` or something that is not an Archive.
+        a non-callable `progress`, a bad `size` or something that is not an Archive; a non-bool `arm` or
+        `orbit`, or `orbit_start_s` not two times >= 0 s.
     """
+    from rsi.mission.motion import Tour, pass_starts
     from rsi.sim.world import load
 
     seed = _check(seed, archive, repeatability, active, progress)
     shape = _size(size)
+    starts = pass_starts(orbit_start_s)
+    _check_flags(arm=arm, orbit=orbit)
     start_s = time.perf_counter()
-    world = load("truss", seed=seed, repeatability=repeatability)
+    world = load("truss", seed=seed, repeatability=repeatability, arm=arm)
     plan = plan_vistas(world)
+    tour = Tour(world, seed=seed, size=shape, arm=arm, orbit=orbit)
     total = 2 * len(plan) + 2
     done = 0
 
@@ -831,7 +883,10 @@ def run_mission(
     try:
         # ---- reference pass: the pristine mock-up (seed §2.3: references taken once, revisited later)
         stereo_rng = np.random.default_rng(np.random.SeedSequence([seed, 11]))
-        references, seconds, scales, reliefs = _reference_pass(world, plan, shape, report, stereo_rng)
+        tour.start_pass("reference", starts[0])
+        references, seconds, scales, reliefs = _reference_pass(
+            world, plan, shape, report, stereo_rng=stereo_rng, tour=tour
+        )
         reference_s = time.perf_counter() - start_s
         run_id = _store_references(
             archive,
@@ -848,6 +903,7 @@ def run_mission(
         visual: list[MissionFinding] = []
         visits: list[VisitRecord] = []
         screws_done: set[str] = set()
+        tour.start_pass("inspection", starts[1])
         for point in plan:
             world.set_door(point.door_angle_rad)
             found, record = _inspect_point(
@@ -863,6 +919,7 @@ def run_mission(
                 confirm=confirm,
                 preliminary=preliminary,
                 screws_done=screws_done,
+                tour=tour,
             )
             visual += found
             visits.append(record)
@@ -871,11 +928,7 @@ def run_mission(
         inspection_s = time.perf_counter() - start_s - reference_s
 
         sensors_start = time.perf_counter()
-        rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
-        thermal, readings = _pyrometer_pass(world, rng)
-        report("pyrometer")
-        gas, stations, gas_ppm = _gas_pass(world, rng)
-        report("gas")
+        thermal, readings, gas, stations, gas_ppm = _sensor_passes(world, seed, report)
         findings = tuple(_merge_components(visual) + thermal + gas)
         overview_rgb, overview_pose = world.overview(size=OVERVIEW_SIZE)
         if archive is not None and run_id is not None:
@@ -888,6 +941,7 @@ def run_mission(
         "inspection": inspection_s,
         "sensors": time.perf_counter() - sensors_start,
         "total": time.perf_counter() - start_s,
+        "transits": sum(transit.wall_s for transit in tour.transits),
     }
     return MissionResult(
         seed=seed,
@@ -906,6 +960,8 @@ def run_mission(
         roc=_run_roc(tuple(visits)),
         overview_rgb=overview_rgb,
         overview_pose=overview_pose,
+        transits=tuple(tour.transits),
+        suns=tuple(tour.suns),
     )
 
 
@@ -923,9 +979,10 @@ def _inspect_point(
     screws_done: set[str],
     reliefs: Mapping[str, float],
     stereo_rng: np.random.Generator,
+    tour: Tour,
 ) -> tuple[list[MissionFinding], VisitRecord]:
     """One visit: compare with the reference, check the screws, take second looks (seed §2.3-2.5)."""
-    view = world.render(point.vista, size=shape, state="inspection")
+    view = tour.visit(point.name, point.vista, state="inspection")
     region = _inspection_region(view)
     pair_inspection = _restricted(_strobe_image(world, view), region)
     pair = _compare(reference, pair_inspection, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
@@ -980,7 +1037,7 @@ def _inspect_point(
     second_looks = confirmed = rejected = 0
     if active and doubtful:
         # seed §2.5 active inspection: another visit (new viewpoint error, new noise) of the same vista
-        second = world.render(point.vista, size=shape, state="inspection")
+        second = tour.visit(point.name, point.vista, state="inspection")
         second_image = _restricted(_strobe_image(world, second), _inspection_region(second))
         second_pair = _compare(reference, second_image, P_PRELIMINARY, scale)
         for look in doubtful:

@@ -196,6 +196,7 @@ class World:
         self._arm = Arm.bind(model, self.data, prefix=WORLD_ARM_PREFIX) if arm else None
         self.time_s = 0.0
         self.halogen_on = False
+        self.lamp_on = True
         self._renderers: dict[tuple[int, int], SceneRenderer] = {}
         self._lights = {
             group: [self._id("light", name) for name in names] for group, names in LIGHT_GROUPS.items()
@@ -286,6 +287,16 @@ class World:
         """Point the lamp at a spot, light arriving from `light_from`, at `intensity_lux` (seed §4.1 IK)."""
         self.set_lamp(inverse_kinematics(spot_world_m, intensity_lux=intensity_lux, light_from=light_from))
 
+    def switch_lamp(self, on: bool) -> None:
+        """Switch the solar-simulator lamp (seed §4.1: off while the orbit is in the Earth's shadow).
+
+        Off, frames get neither the lamp nor the room light it scatters, only the ISEE's own lights; the
+        shutter keeps the lamp's compensating exposure (seed §2.1).
+        """
+        if not isinstance(on, bool):
+            raise InputError(f"on must be True or False; got {on!r}.")
+        self.lamp_on = on
+
     def set_door(self, angle_rad: float) -> None:
         """Open the ORU A door by `angle_rad` in [0, 1.92] (0 = closed): shows connectors and cold plate."""
         angle = v.in_range(angle_rad, "angle_rad", low=0.0, high=1.92)
@@ -321,7 +332,7 @@ class World:
         return {
             "standoff_m": float(self.data.sensor("isee_range").data[0]),
             "door_angle_rad": self.door_angle_rad,
-            "lamp_intensity_lux": self.lamp_task.intensity_lux,
+            "lamp_intensity_lux": self.lamp_task.intensity_lux if self.lamp_on else 0.0,
             "time_s": self.time_s,
         }
 
@@ -543,7 +554,10 @@ class World:
         basis = {
             g: renderer.luminance(self.data, camera, state=state, lights=tuple(self._lights[g]))
             for g in groups
+            if g != "sun" or self.lamp_on
         }
+        if not self.lamp_on:  # the sun group is the lamp and the room light it scatters: both dark
+            basis["sun"] = np.zeros(shape, dtype=np.float32)
         # render units -> lux: 255 * level is a white surface facing the light at its calibration point
         ambient = basis["sun"] * np.float32(intensity / (255 * SUN_LEVEL))
         at_reference = 1.0 / REFERENCE_DISTANCE_M**2

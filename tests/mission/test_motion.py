@@ -1,0 +1,302 @@
+"""The ISEE carried between vista points by the arm under the proximity law, and the solar simulator on the
+orbit's sun (issue 5 item 1; seed §3.1, §4.1): arrival, guard, law, reach, sun, eclipse, determinism, bad
+input."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.control.blending import proximity_term
+from rsi.errors import InputError
+from rsi.mission.mission import PLAN, PlanPoint, plan_vistas, run_mission
+from rsi.mission.motion import (
+    ARRIVAL_TOLERANCE_M,
+    ARRIVAL_TOLERANCE_RAD,
+    GUARD_LAW,
+    SUN_DIRECTION_TOLERANCE_RAD,
+    Tour,
+    Transit,
+    approach_law,
+    lab_world_from_lvlh,
+    lamp_light_direction,
+    light_by_sun,
+    pass_starts,
+    reach,
+    sun_setting,
+    transit,
+    viewing_pose,
+)
+from rsi.sim import orbit as orbits
+from rsi.sim.world import World, load
+
+SEED = 0
+TINY = (64, 80)
+REACHABLE = {"A_door", "A_door_open", "A_kapton", "B_tank", "D_tubing"}
+PERIOD_S = orbits.orbital_period_s()
+
+
+@pytest.fixture(scope="module")
+def world() -> Iterator[World]:
+    built = load("truss", seed=SEED, arm=True)
+    plan_vistas(built)
+    yield built
+    built.close()
+
+
+@pytest.fixture(scope="module")
+def tour_transits(world: World) -> dict[str, Transit]:
+    """One transit to each plan point in the plan's order, as a pass makes them (door opened for its view)."""
+    moved = {}
+    for index, point in enumerate(PLAN):
+        world.set_door(point.door_angle_rad)
+        moved[point.name] = transit(world, point.vista, rng=index, label=point.name)
+    world.set_door(0.0)
+    return moved
+
+
+def _angle(first: np.ndarray, second: np.ndarray) -> float:
+    return float(np.arctan2(np.linalg.norm(np.cross(first, second)), np.dot(first, second)))
+
+
+# ------------------------------------------------------------------------------------------- reach
+
+
+def test_the_arm_reaches_the_front_views_and_not_the_panel_from_above(
+    tour_transits: dict[str, Transit],
+) -> None:
+    reached = {name for name, moved in tour_transits.items() if moved.reached}
+    assert reached == REACHABLE
+    for name in ("C_panel_west", "C_panel_east"):
+        moved = tour_transits[name]
+        # the camera 0.5 m above the panel top (z = 2.08 m) is ~1.2 m beyond the wrist's reach from the rail
+        assert not moved.reach.reachable and 1.1 < moved.reach.shortfall_m < 1.3
+        assert moved.time_s.size == 0 and moved.pose is None and math.isnan(moved.position_error_m)
+    for name in REACHABLE:
+        assert tour_transits[name].reach.shortfall_m < -0.2  # 20 cm or more inside the reach
+
+
+def test_each_reachable_pose_is_reached_within_tolerance(tour_transits: dict[str, Transit]) -> None:
+    for name in REACHABLE:
+        moved = tour_transits[name]
+        assert moved.pose is not None
+        assert moved.position_error_m < ARRIVAL_TOLERANCE_M
+        assert moved.position_error_m < 2e-3  # the rangefinders' noise along the axis, measured ~1 mm
+        assert moved.orientation_error_rad < ARRIVAL_TOLERANCE_RAD
+        # the camera looks along the vista's forward, the image's up the vista's up
+        assert np.allclose(moved.camera_rotation, moved.pose.camera_rotation, atol=ARRIVAL_TOLERANCE_RAD)
+        assert set(moved.phase.tolist()) == {"retract", "transfer", "approach"}
+
+
+def test_the_approach_servos_where_both_rays_expect_one_surface(tour_transits: dict[str, Transit]) -> None:
+    for name in REACHABLE:
+        moved = tour_transits[name]
+        assert moved.approach_law is not None
+        agree = float(np.ptp(moved.expected_range_m)) <= 5e-3
+        assert moved.servo == agree
+        if agree:  # the law's standoff is what the rangefinders read at the pose
+            assert moved.approach_law.standoff_m == pytest.approx(moved.expected_range_m.mean(), abs=1e-12)
+            assert np.allclose(moved.range_true_m[-1], moved.expected_range_m, atol=3e-3)
+    # D: one ray on the tubing, the other on the plate behind it
+    assert not tour_transits["D_tubing"].servo
+
+
+# ------------------------------------------------------------------------------------------- guard
+
+
+def test_the_guard_keeps_every_range_and_clearance_safe(tour_transits: dict[str, Transit]) -> None:
+    for moved in tour_transits.values():
+        if not moved.time_s.size:
+            continue
+        law = moved.approach_law
+        assert law is not None
+        finite = moved.range_true_m[np.isfinite(moved.range_true_m)]
+        assert finite.min() > GUARD_LAW.min_distance_m
+        assert finite.min() > law.avoidance_start_m  # never into region B of the law in force
+        assert moved.min_clearance_m > 0.2  # nothing of the arm came within 20 cm of the mock-up
+        assert np.all(moved.clearance_m > 0.0)
+
+
+def test_the_commanded_speed_is_the_generator_plus_the_law(tour_transits: dict[str, Transit]) -> None:
+    for moved in tour_transits.values():
+        if not moved.time_s.size:
+            continue
+        assert moved.approach_law is not None
+        approach = moved.phase == "approach"
+        for index in range(moved.time_s.size):
+            if approach[index]:
+                law, mode = moved.approach_law, "servo" if moved.servo else "avoidance"
+            else:
+                law, mode = GUARD_LAW, "avoidance"
+            expected, _, _ = proximity_term(moved.range_reading_m[index], law, mode=mode)
+            assert moved.proximity_m_s[index] == float(expected)
+            assert moved.command_m_s[index] == pytest.approx(
+                moved.trajectory_m_s[index] + moved.proximity_m_s[index], abs=1e-15
+            )
+        # the approach's feed-forward stays within +-Vjs, so region C cannot be overridden (seed §3.1)
+        assert np.all(np.abs(moved.trajectory_m_s[approach]) <= moved.approach_law.joystick_speed_m_s + 1e-6)
+        assert np.all(np.isnan(moved.axis_error_m[~approach]))
+        assert np.isfinite(moved.axis_error_m[approach]).all()
+
+
+def test_the_law_stops_the_arm_short_of_a_surface_nearer_than_planned(world: World) -> None:
+    # the law believes the surface is 0.1 m farther than it is: the generator pushes to the pose at full
+    # +Vjs, region C of the law holds the arm off (seed §3.1: the avoidance cannot be overridden)
+    law = approach_law(0.60)
+    moved = transit(world, "A_kapton", rng=5, law=law)
+    approach = moved.phase == "approach"
+    assert not moved.reached
+    assert moved.range_true_m[approach].min() > law.hold_distance_m - 3e-3
+    assert moved.pose is not None and moved.position_error_m > 0.04
+    assert np.all(moved.command_m_s[approach][-20:] < 0.02)  # at rest, not creeping on
+
+
+def test_same_rng_same_transit() -> None:
+    twins = []
+    for _ in range(2):
+        built = load("truss", seed=SEED, arm=True)
+        twins.append(transit(built, "A_kapton", rng=3, offset_m=(1e-3, -1e-3)))
+        built.close()
+    first, second = twins
+    for name in ("time_s", "range_true_m", "range_reading_m", "command_m_s", "clearance_m", "camera_m"):
+        assert np.array_equal(getattr(first, name), getattr(second, name)), name
+    assert np.array_equal(first.phase, second.phase)
+
+
+# -------------------------------------------------------------------------------------------- tour
+
+
+def test_a_visit_takes_the_frame_from_where_the_arm_holds_the_camera(world: World) -> None:
+    tour = Tour(world, seed=SEED, size=TINY)
+    tour.start_pass("reference", 400.0)
+    view = tour.visit("A_kapton", "A_kapton", state="reference", truth=False)
+    moved = tour.transits[-1]
+    assert moved.reached and view.vista == "A_kapton"
+    assert np.allclose(view.pose.position_m, moved.camera_m, atol=1e-12)
+    # the repeatability error, drawn as World.render draws it ("lab": 1-2 px), plus the arm's own miss
+    assert 0.8 < math.hypot(*view.pose_error_px) < 2.2
+    sun = tour.suns[-1]
+    assert sun.time_s == pytest.approx(400.0 + moved.duration_s)
+    assert tour.clock_s == pytest.approx(sun.time_s + 1 / 30)
+    # out of reach: the free camera of World.render, the shortfall recorded
+    panel = tour.visit("C_panel_west", "C_panel_west", state="reference", truth=False)
+    assert panel.vista == "C_panel_west" and not tour.transits[-1].reach.reachable
+
+
+def test_the_mission_moves_the_arm_and_follows_the_sun() -> None:
+    result = run_mission(SEED, size=TINY, active=False)
+    visits = 3 * len(PLAN)  # two reference visits and one inspection visit per point
+    assert len(result.transits) == visits and len(result.suns) == visits
+    assert {t.label for t in result.transits if t.reached} == REACHABLE
+    stages = [s.stage for s in result.suns]
+    assert stages == ["reference"] * 2 * len(PLAN) + ["inspection"] * len(PLAN)
+    times = np.array([s.time_s for s in result.suns])
+    assert np.all(np.diff(times[: 2 * len(PLAN)]) > 0) and times[2 * len(PLAN)] > PERIOD_S
+    assert result.timings_s["transits"] > 0.0
+    # ORU A lies in the orbit plane of the lab's placement: its sun is reproduced exactly
+    for setting in result.suns:
+        if setting.label.startswith("A_"):
+            assert setting.reachable and setting.direction_error_rad < SUN_DIRECTION_TOLERANCE_RAD
+
+
+# --------------------------------------------------------------------------------------------- sun
+
+
+def _sun_world(time_s: float) -> np.ndarray:
+    """The orbit's sun in the lab, computed independently of sun_setting."""
+    return np.asarray(orbits.sun_direction_lvlh(orbits.Orbit(), time_s)[0] @ lab_world_from_lvlh().T)
+
+
+def test_the_lamp_gives_the_orbits_sun_on_oru_a(world: World) -> None:
+    spot = world.vista("A_kapton").target_m
+    for time_s in (0.0, 250.0, 500.0, 800.0):
+        setting = sun_setting(spot, time_s)
+        light_by_sun(world, setting)
+        assert setting.sunlit and setting.reachable and world.lamp_on
+        assert _angle(lamp_light_direction(world, spot), _sun_world(time_s)) < 1e-6
+        assert setting.intensity_lux == pytest.approx(1950.0) and not setting.focus_clipped
+
+
+def test_an_unreachable_sun_gets_the_nearest_lamp_direction_recorded(world: World) -> None:
+    # before orbit noon the sun rises from the -x side; the lamp's pan range only lights from +x (seed §4.1)
+    spot = world.vista("A_kapton").target_m
+    setting = sun_setting(spot, PERIOD_S - 300.0)
+    light_by_sun(world, setting)
+    measured = _angle(lamp_light_direction(world, spot), _sun_world(PERIOD_S - 300.0))
+    assert not setting.reachable and setting.direction_error_rad == pytest.approx(measured, abs=1e-9)
+    assert setting.direction_error_rad == pytest.approx(2 * math.pi * 300.0 / PERIOD_S, abs=1e-6)
+    # the panel's top lies out of the rail's plane through ORU A: recorded, not hidden
+    top = world.vista("C_panel_west").target_m
+    panel = sun_setting(top, 400.0)
+    light_by_sun(world, panel)
+    assert not panel.reachable and panel.direction_error_rad > math.radians(5)
+    assert panel.direction_error_rad == pytest.approx(
+        _angle(lamp_light_direction(world, top), _sun_world(400.0)), abs=1e-9
+    )
+
+
+def test_in_eclipse_the_lamp_is_off_and_frames_get_no_sun(world: World) -> None:
+    midnight = PERIOD_S / 2
+    setting = sun_setting(world.vista("B_tank").target_m, midnight)
+    assert not setting.sunlit and setting.intensity_lux == 0.0
+    light_by_sun(world, setting)
+    assert not world.lamp_on and world.readouts()["lamp_intensity_lux"] == 0.0
+    dark = world.render("A_kapton", size=TINY, truth=False)
+    assert not dark.ambient_lux.any() and dark.strobe_lux_s.any()
+    light_by_sun(world, sun_setting(world.vista("B_tank").target_m, 400.0))
+    assert world.lamp_on and world.render("A_kapton", size=TINY, truth=False).ambient_lux.any()
+
+
+# --------------------------------------------------------------------------------------- bad input
+
+
+def test_bad_input_names_the_argument(world: World) -> None:
+    plain = load("truss", seed=SEED)
+    cases = [
+        (lambda: transit(plain, "A_door"), "world"),
+        (lambda: Tour(plain, seed=0, size=TINY, arm=True), "world"),
+        (lambda: transit(world, "nowhere"), "vista"),
+        (lambda: reach(world, "nowhere"), "vista"),
+        (lambda: viewing_pose(world, "A_door", offset_m=(math.nan, 0.0)), "offset_m"),
+        (lambda: transit(world, "A_door", clock_s=-1.0), "clock_s"),
+        (lambda: transit(world, "A_door", law="fast"), "law"),  # type: ignore[arg-type]
+        (lambda: approach_law(0.9), "standoff_m"),
+        (lambda: approach_law(-0.1), "standoff_m"),
+        (lambda: approach_law(0.5, math.nan), "nearest_m"),
+        (lambda: sun_setting((0.3, -0.47, 1.2), -5.0), "time_s"),
+        (lambda: sun_setting((0.3, -0.47, 1.2), math.nan), "time_s"),
+        (lambda: sun_setting((0.3, -0.47, 1.2), "noon"), "time_s"),  # type: ignore[arg-type]
+        (lambda: light_by_sun(world, "noon"), "setting"),  # type: ignore[arg-type]
+        (lambda: pass_starts((400.0,)), "orbit_start_s"),
+        (lambda: pass_starts((400.0, -1.0)), "orbit_start_s"),
+        (lambda: Tour(world, seed=0, size=TINY, arm="yes"), "arm"),  # type: ignore[arg-type]
+        (lambda: Tour(world, seed=0, size=TINY, orbit=1), "orbit"),  # type: ignore[arg-type]
+        (lambda: Tour(world, seed=0, size=TINY).start_pass("rehearsal", 0.0), "stage"),
+        (lambda: Tour(world, seed=0, size=TINY).start_pass("reference", -1.0), "start_s"),
+        (lambda: Tour(world, seed=0, size=TINY).visit("X", "nowhere", state="reference"), "vista"),
+        (lambda: world.switch_lamp("on"), "on"),  # type: ignore[arg-type]
+        (lambda: run_mission(0, arm="yes"), "arm"),  # type: ignore[arg-type]
+        (lambda: run_mission(0, orbit=None), "orbit"),  # type: ignore[arg-type]
+        (lambda: run_mission(0, orbit_start_s=[0.0, 1.0]), "orbit_start_s"),  # type: ignore[arg-type]
+    ]
+    try:
+        for call, argument in cases:
+            with pytest.raises(InputError) as caught:
+                call()
+            message = str(caught.value)
+            assert argument in message, (argument, message)
+    finally:
+        plain.close()
+
+
+def test_an_unknown_plan_point_is_refused_before_anything_moves(world: World) -> None:
+    before = world.arm.joint_positions
+    with pytest.raises(InputError, match=r"vista must be one of .*plan_vistas"):
+        Tour(world, seed=0, size=TINY).visit("Z", PlanPoint("Z", "Z_nowhere").vista, state="inspection")
+    assert np.array_equal(world.arm.joint_positions, before)
