@@ -40,11 +40,14 @@ from rsi.control.redundancy import orientation_error
 from rsi.errors import InputError
 from rsi.sim import orbit as orbits
 from rsi.sim.arm import FOREARM_M, LIMITS, RANGEFINDER_CUTOFF_M, UPPER_ARM_M
+from rsi.sim.mockup import VISTA_STANDOFF_M
+from rsi.sim.render import import_mujoco
 from rsi.sim.scene import CAMERA_FOVY_DEG
 from rsi.sim.solar_simulator import LampConfiguration, LampMount, RateLimits, lamp_pose
 
 if TYPE_CHECKING:
     from rsi.sim.arm import Arm
+    from rsi.sim.mockup import Vista
     from rsi.sim.world import View, World
 
 FloatArray = NDArray[np.float64]
@@ -60,7 +63,7 @@ MOVE_TOLERANCE_M = 2e-3  # retract and transfer end here; the approach corrects 
 MOVE_TOLERANCE_RAD = 5e-3
 SETTLE_BAND_M = 2e-3
 SETTLE_SAMPLES = 11  # a quarter second at 44 Hz
-SERVO_AGREEMENT_M = 5e-3  # both rays on one surface square to the axis: the servo's mean is the nearer
+SERVO_AGREEMENT_M = 5e-3  # rays this close: the blend's mean (servo) and nearer (avoidance) agree
 PHASE_TIMEOUT_S = 12.0  # 1.8 m of rail travel takes 7.2 s
 APPROACH_TIMEOUT_S = 6.0
 ARRIVAL_TOLERANCE_M = 5e-3  # the servo holds the rangefinders' noise (1.4 mm at 0.5 m): well inside this
@@ -79,8 +82,7 @@ _HOLD_BELOW_STANDOFF_M = 0.05
 _HOLD_BELOW_NEAREST_M = 0.02
 _SERVO_END_M = 0.73
 _MIN_SEGMENT_M = 0.015  # keeps every slope of the law under 0.5 * 44 /s
-_SENSOR_MIN_M = 0.08  # seed §3.1: the SA1D's minimum distance (region A|B)
-_VISTA_STANDOFF_M = 0.5
+_SENSOR_MIN_M = ProximityLaw().min_distance_m  # seed §3.1: the SA1D's minimum distance (region A|B)
 
 
 def _unit(vector: FloatArray) -> FloatArray:
@@ -108,7 +110,7 @@ def _arm_of(world: World) -> Arm:
         ) from None
 
 
-def _vista_of(world: World, vista: object) -> Any:
+def _vista_of(world: World, vista: object) -> Vista:
     if not isinstance(vista, str) or vista not in world.vistas:
         raise InputError(
             f"vista must be one of this world's vistas {sorted(world.vistas)}; got {vista!r}. A mission's "
@@ -275,7 +277,7 @@ def approach_law(standoff_m: float, nearest_m: float | None = None) -> Proximity
     )
 
 
-GUARD_LAW = approach_law(_VISTA_STANDOFF_M)  # avoidance during retract and transfer
+GUARD_LAW = approach_law(VISTA_STANDOFF_M)  # avoidance during retract and transfer
 
 
 def expected_ranges_m(world: World, pose: ViewingPose) -> FloatArray:
@@ -286,13 +288,14 @@ def expected_ranges_m(world: World, pose: ViewingPose) -> FloatArray:
     """
     isee = _isee(world)
     prefix = _arm_of(world).prefix
+    mujoco = import_mujoco()
     axis = pose.tool_rotation[:, 2].copy()
     ranges = np.full(2, np.inf)
     for index, site in enumerate(isee.sensors_m):
         origin = pose.tool_m + pose.tool_rotation @ site
         travelled, geom = 0.0, np.zeros(1, dtype=np.int32)
         for _ in range(8):
-            hit = world._mujoco.mj_ray(world.model, world.data, origin, axis, None, 1, isee.sensor_body, geom)
+            hit = mujoco.mj_ray(world.model, world.data, origin, axis, None, 1, isee.sensor_body, geom)
             if hit < 0:
                 break
             travelled += hit
@@ -319,6 +322,7 @@ class _Clearance:
         prefix = _arm_of(world).prefix
         arm = [g for g in range(model.ngeom) if _in_arm(model, g, prefix)]
         self._world = world
+        self._mujoco = import_mujoco()
         self._arm = np.array(arm)
         self._other = np.array([g for g in range(model.ngeom) if g not in set(arm)])
         self._radius = np.asarray(model.geom_rbound, dtype=np.float64)
@@ -333,7 +337,7 @@ class _Clearance:
             if bound.flat[flat] >= best:
                 break
             i, j = divmod(int(flat), self._other.size)
-            distance = world._mujoco.mj_geomDistance(
+            distance = self._mujoco.mj_geomDistance(
                 world.model, world.data, int(self._arm[i]), int(self._other[j]), best, None
             )
             best = min(best, float(distance))
