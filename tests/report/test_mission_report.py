@@ -93,10 +93,11 @@ def test_page_is_self_contained(report: Report) -> None:
 
 def test_every_image_is_a_png_that_decodes(report: Report) -> None:
     sources = _images(report.page)
-    # the overview, one row of four crops per boxed visual finding, pyrometer, gas and ROC plots
+    # the overview, one row of four crops per boxed visual finding, pyrometer, gas, proximity and ROC plots
     boxed = sum(finding.bbox is not None for finding in report.result.findings)
     assert boxed > 0
-    assert len(sources) == 1 + 4 * boxed + 2 + (1 if report.result.roc else 0)
+    plots = 2 + (1 if report.result.transits else 0) + (1 if report.result.roc else 0)
+    assert len(sources) == 1 + 4 * boxed + plots
     for source in sources:
         data = base64.b64decode(source.removeprefix(DATA_URI), validate=True)
         image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
@@ -168,7 +169,10 @@ class _WithTransits:
 
 
 def test_proximity_section_draws_transits_when_present(report: Report) -> None:
-    assert "No arm transits in this run." in proximity_section(report.result)
+    without = dataclasses.replace(report.result, transits=())
+    assert "No arm transits in this run." in proximity_section(without)
+    # the mission's own transits (the arm moved the ISEE to every reachable plan point)
+    assert report.result.transits and len(_images(proximity_section(report.result))) == 1
     time_s = np.linspace(0.0, 2.0, 50)
     distances = np.column_stack([0.30 - 0.1 * time_s, np.full(50, np.nan)])  # right sensor out of range
     transit = _Transit("A_door -> A_kapton", time_s, distances)
