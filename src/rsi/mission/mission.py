@@ -484,12 +484,16 @@ def _visible(view: View, points_m: FloatArray, tolerance_m: float = 0.006) -> ND
     return seen
 
 
+def _surface_distance_m(shape: tuple[int, ...], view: View, position_m: tuple[float, float, float]) -> Any:
+    """Each pixel's distance (on the surface, metres) from a world point's projection."""
+    row, col, _ = _to_field(view, np.asarray([position_m]))
+    rows, cols = np.indices(shape[:2])
+    return np.hypot(rows - row[0], cols - col[0]) * _pixel_m(view, position_m)
+
+
 def _disc(shape: tuple[int, ...], view: View, position_m: tuple[float, float, float], radius_m: float) -> Any:
     """Pixels within `radius_m` (on the surface) of a world point's projection."""
-    row, col, _ = _to_field(view, np.asarray([position_m]))
-    radius_px = radius_m / _pixel_m(view, position_m)
-    rows, cols = np.indices(shape[:2])
-    return (rows - row[0]) ** 2 + (cols - col[0]) ** 2 <= radius_px**2
+    return _surface_distance_m(shape, view, position_m) <= radius_m
 
 
 def _screw_similarity(pair: PairResult, view: View, site: Site) -> float:
@@ -535,9 +539,8 @@ def _component_change(pair: PairResult, view: View, site: Site) -> float:
 
 def _relief_m(depth_m: NDArray[np.float32], view: View, site: Site) -> float:
     """Depth of the site's centre below its surroundings: central 3 cm disc against a 4.5-7 cm ring."""
-    shape, at = depth_m.shape, site.position_m
-    inner = _disc(shape, view, at, 0.03)
-    ring = _disc(shape, view, at, 0.07) & ~_disc(shape, view, at, 0.045)
+    distance = _surface_distance_m(depth_m.shape, view, site.position_m)
+    inner, ring = distance <= 0.03, (distance >= 0.045) & (distance <= 0.07)
     usable = np.isfinite(depth_m) & (depth_m < 10.0)
     inner, ring = inner & usable, ring & usable
     if inner.sum() < 20 or ring.sum() < 20:
