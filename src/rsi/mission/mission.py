@@ -1171,17 +1171,20 @@ def _component_checks(
     for site in _seen_components(world, view):
         change = _component_change(pair, view, site)
         sunk = _relief_m(depth_m, view, site) - reliefs.get(site.name, math.nan)
-        if change > COMPONENT_CHANGE_MIN:
-            score, margin = change, (change - COMPONENT_CHANGE_MIN) / 0.01
-        elif abs(sunk) > DENT_RELIEF_MIN_M:
+        # a dent changes the site's disc, a discolouring the whole component: the size says which part of
+        # the component is explained by the swap (impacts elsewhere on it are still reported)
+        if abs(sunk) > DENT_RELIEF_MIN_M:
             score, margin = sunk, (abs(sunk) - DENT_RELIEF_MIN_M) / 2e-4
+            size = min(site.size_m, 2 * COMPONENT_DISC_M)
+        elif change > COMPONENT_CHANGE_MIN:
+            score, margin, size = change, (change - COMPONENT_CHANGE_MIN) / 0.01, site.size_m
         else:
             continue
         found.append(
             MissionFinding(
                 kind="swapped_component",
                 position_m=site.position_m,
-                size_m=site.size_m,
+                size_m=size,
                 confidence=_confidence(margin),
                 source=source,
                 score=score,
@@ -1208,8 +1211,8 @@ def _merge_components(findings: list[MissionFinding]) -> list[MissionFinding]:
         merged.setdefault(site.name, []).append(finding)
     for name, group in merged.items():
         site = next(s for s in sites if s.name == name)
-        best = max(group, key=lambda f: f.score)
-        others.append(replace(best, position_m=site.position_m, size_m=site.size_m))
+        best = max(group, key=lambda f: f.confidence)
+        others.append(replace(best, position_m=site.position_m))
     return others
 
 

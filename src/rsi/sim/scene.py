@@ -17,13 +17,14 @@ group 4 what they remove (removed screws, the original components: the *referenc
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
 
 from rsi.sim.anomalies import AnomalySet, Impact, MissingScrew, SwappedComponent
+from rsi.sim.dent import box_mesh, crater_on_box
 from rsi.sim.mockup import (
     DOOR_HINGE_AXIS,
     SCREW_RADIUS_M,
@@ -36,6 +37,7 @@ if TYPE_CHECKING:
     import mujoco
 
 COMMON_GROUP, ANOMALY_GROUP, PRISTINE_GROUP = 0, 3, 4
+MESH_MATERIAL_SUFFIX = "_mesh"  # materials of mesh geoms: texture coordinates come with the mesh
 
 # Render levels: the light's diffuse colour in the classic renderer, which returns
 # 255 * reflectance * level * cos(incidence) * attenuation (linear, measured). Each group's level fills
@@ -152,10 +154,13 @@ def _fmt(values: tuple[float, ...] | list[float] | np.ndarray) -> str:
     return " ".join(f"{float(value):.6g}" for value in values)
 
 
-def _material_xml(name: str, material: Material, factor: float = 1.0) -> str:
+def _material_xml(name: str, material: Material, factor: float = 1.0, *, mesh: bool = False) -> str:
     rgb = _fmt([channel * factor for channel in material.rgb])
     texture = ""
-    if material.texture is not None:
+    if material.texture is not None and mesh:
+        # a mesh carries its own texture coordinates (rsi.sim.dent), already in tiles
+        texture = f' texture="tex_{material.texture}" texuniform="false" texrepeat="1 1"'
+    elif material.texture is not None:
         texture = (
             f' texture="tex_{material.texture}" texuniform="true" '
             f'texrepeat="{_TEXTURE_REPEAT_PER_M:g} {_TEXTURE_REPEAT_PER_M:g}"'
@@ -168,12 +173,22 @@ def _material_xml(name: str, material: Material, factor: float = 1.0) -> str:
 
 
 def _geom_xml(
-    part: Part, *, group: int, material: str | None = None, origin: tuple[float, ...] = (0, 0, 0)
+    part: Part,
+    *,
+    group: int,
+    material: str | None = None,
+    origin: tuple[float, ...] = (0, 0, 0),
+    meshes: dict[str, str] | None = None,
 ) -> str:
     pos = np.asarray(part.pos) - np.asarray(origin)
+    mesh = (meshes or {}).get(part.name)
+    shape = f'type="mesh" mesh="{mesh}"' if mesh else f'type="{part.shape}" size="{_fmt(part.size)}"'
+    material = material or part.material
+    if mesh and not material.endswith(MESH_MATERIAL_SUFFIX):
+        material += MESH_MATERIAL_SUFFIX
     return (
-        f'<geom name="{part.name}" type="{part.shape}" size="{_fmt(part.size)}" pos="{_fmt(pos)}" '
-        f'zaxis="{_fmt(part.zaxis)}" material="{material or part.material}" group="{group}"/>'
+        f'<geom name="{part.name}" {shape} pos="{_fmt(pos)}" '
+        f'zaxis="{_fmt(part.zaxis)}" material="{material}" group="{group}"/>'
     )
 
 
@@ -261,6 +276,8 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
     door_parts: list[Part] = []
     flaw_geoms: dict[int, tuple[str, ...]] = {}
     pristine_geoms: dict[int, tuple[str, ...]] = {}
+    meshes: dict[str, str] = {}  # geom name -> mesh asset, for dented boxes and the boxes they replace
+    mesh_xml: list[str] = []
     for index, anomaly in enumerate(anomalies.anomalies):
         if isinstance(anomaly, Impact):
             parts, _ = _impact_parts(index, anomaly)
@@ -284,37 +301,32 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
         elif isinstance(anomaly, SwappedComponent):
             originals = [by_name[name] for name in mockup.components[anomaly.site]]
             pristine_names.update(part.name for part in originals)
-            if anomaly.defect == "discoloured":
-                copies = []
-                for part in originals:
-                    name = f"{part.name}_swapped"
-                    materials.append(_material_xml(name, _material_of(part), anomaly.reflectance_factor))
-                    copies.append(
-                        Part(name, part.component, part.shape, part.size, part.pos, name, part.zaxis)
-                    )
-                anomaly_parts += copies
-                flaw_geoms[index] = tuple(part.name for part in copies)
-            else:
-                anomaly_parts += [
-                    Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, _visual(p), p.zaxis)
-                    for p in originals
-                ]
-                dent = _dent(index, anomaly, originals[0])
-                anomaly_parts.append(dent)
-                flaw_geoms[index] = (dent.name,)
+            parts, flaw_geoms[index], extra = _swapped(index, anomaly, originals, meshes)
+            anomaly_parts += parts
+            (materials if anomaly.defect == "discoloured" else mesh_xml).extend(extra)
             pristine_geoms[index] = tuple(part.name for part in originals)
     hinge = np.asarray(mockup.door_hinge_m)
     world_xml, door_xml = [], []
     for part in mockup.parts:
         group = PRISTINE_GROUP if part.name in pristine_names else COMMON_GROUP
         if part.component == "A_door":
-            door_xml.append(_geom_xml(part, group=group, material=_visual(part), origin=tuple(hinge)))
+            door_xml.append(
+                _geom_xml(part, group=group, material=_visual(part), origin=tuple(hinge), meshes=meshes)
+            )
         else:
-            world_xml.append(_geom_xml(part, group=group, material=_visual(part)))
-    world_xml += [_geom_xml(part, group=ANOMALY_GROUP) for part in anomaly_parts]
-    door_xml += [_geom_xml(part, group=ANOMALY_GROUP, origin=tuple(hinge)) for part in door_parts]
+            world_xml.append(_geom_xml(part, group=group, material=_visual(part), meshes=meshes))
+    world_xml += [_geom_xml(part, group=ANOMALY_GROUP, meshes=meshes) for part in anomaly_parts]
+    door_xml += [
+        _geom_xml(part, group=ANOMALY_GROUP, origin=tuple(hinge), meshes=meshes) for part in door_parts
+    ]
+    if meshes:
+        materials += [
+            _material_xml(name + MESH_MATERIAL_SUFFIX, material, mesh=True)
+            for name, material in MATERIALS.items()
+        ]
     textures = {kind: _png(_texture(kind)) for kind in ("brushed", "grain", "cells")}
     texture_xml = [f'<texture name="tex_{kind}" type="2d" file="{kind}.png"/>' for kind in textures]
+    texture_xml += mesh_xml
     xml = _document(materials, texture_xml, world_xml, door_xml, hinge)
     index_record = SceneIndex(flaw_geoms=flaw_geoms, pristine_geoms=pristine_geoms)
     return xml, {f"{kind}.png": data for kind, data in textures.items()}, index_record
@@ -328,10 +340,69 @@ def _material_of(part: Part) -> Material:
     return MATERIALS[_visual(part)]
 
 
+def _swapped(
+    index: int, anomaly: SwappedComponent, originals: list[Part], meshes: dict[str, str]
+) -> tuple[list[Part], tuple[str, ...], list[str]]:
+    """Parts of a defective replacement (seed §4), the geoms that show the defect, and their assets.
+
+    The assets are materials of a discoloured component, or the meshes of a dented box (registered in
+    `meshes`).
+    """
+    if anomaly.defect == "discoloured":
+        copies = [
+            Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, f"{p.name}_swapped", p.zaxis)
+            for p in originals
+        ]
+        materials = [
+            _material_xml(copy.name, _material_of(part), anomaly.reflectance_factor)
+            for copy, part in zip(copies, originals, strict=True)
+        ]
+        return copies, tuple(copy.name for copy in copies), materials
+    copies = [
+        Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, _visual(p), p.zaxis) for p in originals
+    ]
+    if originals[0].shape == "box":
+        return copies, (copies[0].name,), _dented_box(anomaly, originals[0], copies[0].name, meshes)
+    dent = _dent(index, anomaly, originals[0])
+    return [*copies, dent], (dent.name,), []
+
+
+def _dent_radius_m(anomaly: SwappedComponent) -> float:
+    return 0.03 + 2.0 * anomaly.dent_depth_m
+
+
+def _dented_box(
+    anomaly: SwappedComponent, part: Part, swapped_name: str, meshes: dict[str, str]
+) -> list[str]:
+    """Mesh assets of a dented box (seed §4) and of the flat box it replaces, registered in `meshes`.
+
+    The pristine box is drawn as a flat mesh too, so both states share one texture mapping: the reference
+    and the inspection images then differ by the crater alone.
+    """
+    crater = crater_on_box(
+        part.size,
+        part.pos,
+        part.zaxis,
+        anomaly.position_m,
+        anomaly.normal,
+        depth_m=anomaly.dent_depth_m,
+        radius_m=_dent_radius_m(anomaly),
+    )
+    xml = []
+    for geom, dent in ((part.name, replace(crater, depth_m=0.0)), (swapped_name, crater)):
+        mesh = box_mesh(part.size, _TEXTURE_REPEAT_PER_M, dent)
+        meshes[geom] = f"mesh_{geom}"
+        xml.append(
+            f'<mesh name="mesh_{geom}" vertex="{_fmt(mesh.vertices.ravel())}" '
+            f'texcoord="{_fmt(mesh.texcoords.ravel())}" face="{_fmt(mesh.faces.ravel())}"/>'
+        )
+    return xml
+
+
 def _dent(index: int, anomaly: SwappedComponent, part: Part) -> Part:
-    """A dent drawn as a shallow facet sunk `dent_depth_m` into the component at its site (seed §4)."""
+    """A dent in a curved skin: a flat facet sunk `dent_depth_m` into it at its site (seed §4)."""
     normal = np.asarray(anomaly.normal)
-    radius = 0.03 + 2.0 * anomaly.dent_depth_m
+    radius = _dent_radius_m(anomaly)
     # a flat disc pushed into the surface: the flat facet shades unlike the curved or painted skin around it
     centre = np.asarray(anomaly.position_m) - normal * anomaly.dent_depth_m
     lift = anomaly.dent_depth_m * 0.5

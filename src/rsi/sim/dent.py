@@ -1,0 +1,168 @@
+"""Seed §4: a dented box-shaped component drawn as a closed triangle mesh with a smooth crater in one face.
+
+A dent in a flat face is concave: no union of MuJoCo primitives draws it, and a facet sunk into an opaque
+box is hidden by the box. :func:`box_mesh` builds the box itself as a mesh (each face its own grid, so the
+edges stay sharp), with the crater ``depth * (1 - (rho / radius)^2)^2`` pressed into the face that holds the
+dent: zero depth and zero slope at the rim, as metal pushed in by a blow. Texture coordinates follow
+MuJoCo's own box mapping of a top face (measured: ``u`` from the face's low edge, ``v`` from its high edge,
+half the material's repeat per metre), so a flat mesh renders as the box it replaces. The pristine box is
+drawn from the same grid with a crater of zero depth: both are lit at the same vertices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+CRATER_SPACING_M = 1e-3  # grid step inside the crater: ~2 px at the 0.5 m standoff (seed §2.1)
+# The classic renderer lights vertices and interpolates: a face needs vertices every centimetre or so to
+# show the strobe's highlight as MuJoCo's own subdivided box does.
+FACE_SPACING_M = 0.01
+
+
+@dataclass(frozen=True)
+class Crater:
+    """A dent in the face of a box, in the box's own frame.
+
+    Attributes
+    ----------
+    axis : int
+        Index (0, 1, 2) of the local axis normal to the dented face.
+    sign : int
+        +1 or -1: which of the two faces along `axis`.
+    centre : (float, float)
+        Centre of the crater in the face, along the face's two other axes in increasing order, metres.
+    depth_m : float
+        Depth at the centre, metres.
+    radius_m : float
+        Radius of the rim, metres.
+    """
+
+    axis: int
+    sign: int
+    centre: tuple[float, float]
+    depth_m: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class BoxMesh:
+    """Vertices (N, 3), texture coordinates (N, 2) and outward triangles (M, 3) of a box mesh."""
+
+    vertices: F64
+    texcoords: F64
+    faces: NDArray[np.int64]
+
+
+def local_rotation(zaxis: tuple[float, float, float] | F64) -> F64:
+    """The 3x3 rotation MuJoCo gives a geom whose ``zaxis`` is `zaxis` (the shortest turn from +z)."""
+    target = np.asarray(zaxis, dtype=float)
+    target = target / np.linalg.norm(target)
+    z = np.array([0.0, 0.0, 1.0])
+    cosine = float(np.dot(z, target))
+    if cosine < -1.0 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])  # MuJoCo turns -z by pi about x
+    axis = np.cross(z, target)
+    skew = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    rotation: F64 = np.eye(3) + skew + skew @ skew / (1.0 + cosine)
+    return rotation
+
+
+def crater_on_box(
+    size: tuple[float, ...],
+    pos: tuple[float, float, float],
+    zaxis: tuple[float, float, float],
+    point_m: tuple[float, float, float],
+    normal: tuple[float, float, float],
+    *,
+    depth_m: float,
+    radius_m: float,
+) -> Crater:
+    """The crater of a dent at world `point_m`, outward `normal`, in the box (`size`, `pos`, `zaxis`)."""
+    rotation = local_rotation(zaxis)
+    local_normal = rotation.T @ np.asarray(normal, dtype=float)
+    axis = int(np.argmax(np.abs(local_normal)))
+    sign = 1 if local_normal[axis] > 0 else -1
+    local_point = rotation.T @ (np.asarray(point_m, dtype=float) - np.asarray(pos, dtype=float))
+    first, second = (k for k in range(3) if k != axis)
+    # the rim stays on the face: a crater wider than the face would tear its edges
+    radius = min(radius_m, 0.95 * min(size[first], size[second]))
+    centre = tuple(
+        float(np.clip(local_point[k], -size[k] + radius, size[k] - radius)) for k in (first, second)
+    )
+    return Crater(axis, sign, (centre[0], centre[1]), min(depth_m, 1.9 * size[axis]), radius)
+
+
+def box_mesh(size: tuple[float, ...], repeat_per_m: float, crater: Crater | None = None) -> BoxMesh:
+    """A closed box mesh of half sizes `size`, flat or with `crater` pressed into one face."""
+    # one set of grid lines per axis, shared by the faces that meet at an edge: no T-junctions, no cracks
+    lines = [_grid_lines(size[axis], None, 0.0) for axis in range(3)]
+    if crater is not None:
+        in_face = [k for k in range(3) if k != crater.axis]
+        for k, centre in zip(in_face, crater.centre, strict=True):
+            lines[k] = _grid_lines(size[k], centre, crater.radius_m)
+    vertices: list[F64] = []
+    texcoords: list[F64] = []
+    faces: list[NDArray[np.int64]] = []
+    count = 0
+    for axis in range(3):
+        for sign in (1, -1):
+            dented = crater if crater is not None and (crater.axis, crater.sign) == (axis, sign) else None
+            face_vertices, face_uv, face_triangles = _face(
+                size, axis, sign, lines, repeat_per_m=repeat_per_m, crater=dented
+            )
+            vertices.append(face_vertices)
+            texcoords.append(face_uv)
+            faces.append(face_triangles + count)
+            count += len(face_vertices)
+    return BoxMesh(np.concatenate(vertices), np.concatenate(texcoords), np.concatenate(faces))
+
+
+def _grid_lines(half: float, centre: float | None, radius: float) -> F64:
+    lines = np.linspace(-half, half, max(int(np.ceil(2 * half / FACE_SPACING_M)), 1) + 1)
+    if centre is None:
+        return lines
+    count = max(int(np.ceil(2 * radius / CRATER_SPACING_M)), 8)
+    inner = np.linspace(centre - radius, centre + radius, count + 1)
+    return np.unique(np.concatenate([lines, inner]))
+
+
+def _face(
+    size: tuple[float, ...],
+    axis: int,
+    sign: int,
+    lines: list[F64],
+    *,
+    repeat_per_m: float,
+    crater: Crater | None,
+) -> tuple[F64, F64, NDArray[np.int64]]:
+    first, second = (k for k in range(3) if k != axis)
+    lines_a, lines_b = lines[first], lines[second]
+    grid_a, grid_b = np.meshgrid(lines_a, lines_b, indexing="ij")
+    points = np.zeros((grid_a.size, 3))
+    points[:, first], points[:, second] = grid_a.ravel(), grid_b.ravel()
+    points[:, axis] = sign * size[axis]
+    if crater is not None:
+        rho2 = ((grid_a - crater.centre[0]) ** 2 + (grid_b - crater.centre[1]) ** 2) / crater.radius_m**2
+        sink = crater.depth_m * np.clip(1.0 - rho2, 0.0, None) ** 2
+        points[:, axis] -= sign * sink.ravel()  # seed §4: pressed in, against the outward normal
+    scale = repeat_per_m / 2  # MuJoCo maps a box face's texture at half the repeat per metre
+    uv = np.column_stack(
+        [scale * (points[:, first] + size[first]), scale * (size[second] - points[:, second])]
+    )
+    n_a, n_b = len(lines_a), len(lines_b)
+    corner = (np.arange(n_a - 1)[:, None] * n_b + np.arange(n_b - 1)[None, :]).ravel()
+    lower = np.column_stack([corner, corner + n_b, corner + n_b + 1])
+    upper = np.column_stack([corner, corner + n_b + 1, corner + 1])
+    triangles = np.concatenate([lower, upper]).astype(np.int64)
+    # (first, second, axis) is right-handed only for some faces: flip winding so every normal points out
+    outward = np.zeros(3)
+    outward[axis] = sign
+    e_first, e_second = np.eye(3)[first], np.eye(3)[second]
+    if np.dot(np.cross(e_first, e_second), outward) < 0:
+        triangles = triangles[:, ::-1]
+    return points, uv, triangles

@@ -1,0 +1,154 @@
+"""Dented boxes (rsi.sim.dent): a closed mesh with the seed §4 crater, drawn as MuJoCo draws the box."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections import Counter
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.sim.anomalies import AnomalySet, SwappedComponent
+from rsi.sim.dent import BoxMesh, Crater, box_mesh, crater_on_box, local_rotation
+from rsi.sim.mockup import truss_mockup
+from rsi.sim.scene import scene_mjcf
+
+SIZE = (0.26, 0.2, 0.006)  # the solar panel's half sizes
+
+
+def _signed_volume(mesh: BoxMesh) -> float:
+    a, b, c = (mesh.vertices[mesh.faces[:, k]] for k in range(3))
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+def _edges(mesh: BoxMesh) -> Counter[tuple[int, int]]:
+    """Directed edges keyed by vertex position, so faces meeting at a box edge count as joined."""
+    keys = {tuple(np.round(v, 9)): k for k, v in enumerate(mesh.vertices)}
+    ids = np.array([keys[tuple(np.round(v, 9))] for v in mesh.vertices])
+    count: Counter[tuple[int, int]] = Counter()
+    for triangle in ids[mesh.faces]:
+        for start, end in ((0, 1), (1, 2), (2, 0)):
+            count[(int(triangle[start]), int(triangle[end]))] += 1
+    return count
+
+
+def test_flat_mesh_is_the_box_with_outward_faces() -> None:
+    mesh = box_mesh(SIZE, 10.0)
+    assert np.allclose(np.abs(mesh.vertices).max(axis=0), SIZE)
+    assert _signed_volume(mesh) == pytest.approx(8 * math.prod(SIZE), rel=1e-9)
+
+
+def test_crater_removes_its_volume_and_sinks_its_centre() -> None:
+    crater = Crater(axis=2, sign=1, centre=(0.05, -0.02), depth_m=0.008, radius_m=0.046)
+    mesh = box_mesh(SIZE, 10.0, crater)
+    removed = math.pi * crater.radius_m**2 * crater.depth_m / 3  # integral of d (1 - rho^2/R^2)^2
+    assert 8 * math.prod(SIZE) - _signed_volume(mesh) == pytest.approx(removed, rel=0.01)
+    rho = np.hypot(mesh.vertices[:, 0] - 0.05, mesh.vertices[:, 1] + 0.02)
+    top = mesh.vertices[mesh.vertices[:, 2] > -SIZE[2]]  # the bottom face is flat
+    inside = top[np.hypot(top[:, 0] - 0.05, top[:, 1] + 0.02) < crater.radius_m]
+    deepest = inside[np.argmin(inside[:, 2])]
+    assert deepest[:2] == pytest.approx(crater.centre, abs=1.1e-3)
+    assert deepest[2] == pytest.approx(SIZE[2] - crater.depth_m, abs=1e-6)
+    rim = (rho >= crater.radius_m) & (mesh.vertices[:, 2] > 0) & (np.abs(mesh.vertices[:, 0]) < SIZE[0])
+    assert np.allclose(mesh.vertices[rim & (np.abs(mesh.vertices[:, 1]) < SIZE[1]), 2], SIZE[2])
+
+
+@pytest.mark.parametrize(("axis", "sign"), [(0, 1), (1, -1), (2, -1)])
+def test_dented_mesh_stays_closed_on_any_face(axis: int, sign: int) -> None:
+    crater = Crater(axis=axis, sign=sign, centre=(0.0, 0.0), depth_m=0.004, radius_m=0.005)
+    edges = _edges(box_mesh((0.03, 0.02, 0.01), 10.0, crater))
+    # every edge of a closed, consistently wound surface is walked once each way
+    assert all(edges[(end, start)] == n for (start, end), n in edges.items())
+
+
+def test_local_rotation_is_mujocos_zaxis_frame() -> None:
+    import mujoco
+
+    axes = [(0, 0, 1), (0, 0, -1), (0, -1, 0), (1, 0, 0), (0.3, -0.5, 0.8)]
+    geoms = "".join(f'<geom type="box" size="1 1 1" zaxis="{x} {y} {z}"/>' for x, y, z in axes)
+    model = mujoco.MjModel.from_xml_string(f"<mujoco><worldbody>{geoms}</worldbody></mujoco>")
+    for k, axis in enumerate(axes):
+        assert local_rotation(axis) == pytest.approx(_matrix(model.geom_quat[k]), abs=1e-9)
+
+
+def _matrix(quaternion: np.ndarray) -> np.ndarray:
+    import mujoco
+
+    matrix = np.zeros(9)
+    mujoco.mju_quat2Mat(matrix, quaternion)
+    return matrix.reshape(3, 3)
+
+
+def test_crater_on_box_finds_the_face_and_keeps_the_rim_on_it() -> None:
+    crater = crater_on_box(
+        (0.17, 0.07, 0.14),
+        (0.3, -0.4, 1.2),
+        (0.0, 0.0, 1.0),
+        (0.45, -0.47, 1.2),
+        (0.0, -1.0, 0.0),
+        depth_m=0.005,
+        radius_m=0.04,
+    )
+    assert (crater.axis, crater.sign) == (1, -1)
+    assert crater.centre == pytest.approx((0.17 - 0.04, 0.0))  # pulled in so the rim stays on the face
+    deep = crater_on_box(SIZE, (0, 0, 0), (0, 0, 1), (0, 0, 0.006), (0, 0, 1), depth_m=0.05, radius_m=0.3)
+    assert deep.depth_m < 2 * SIZE[2] and deep.radius_m < SIZE[1]
+
+
+def test_flat_mesh_renders_as_mujocos_box() -> None:
+    import cv2
+    import mujoco
+
+    from rsi.sim.scene import _texture  # the panel's own cell texture
+
+    png = cv2.imencode(".png", _texture("cells"))[1].tobytes()
+    mesh = box_mesh(SIZE, 10.0)
+    fmt = " ".join
+
+    def picture(geom: str, extra: str = "") -> np.ndarray:
+        xml = f"""<mujoco><visual><global offwidth="160" offheight="160"/>
+          <headlight ambient="0.3 0.3 0.3" diffuse="0.6 0.6 0.6" specular="0 0 0"/></visual>
+          <asset><texture name="t" type="2d" file="c.png"/>
+            <material name="box" texture="t" texuniform="true" texrepeat="10 10" specular="0"/>
+            <material name="mesh" texture="t" texuniform="false" texrepeat="1 1" specular="0"/>{extra}</asset>
+          <worldbody><camera name="c" pos="0.05 0.02 0.5"/>{geom}</worldbody></mujoco>"""
+        model = mujoco.MjModel.from_xml_string(xml, {"c.png": png})
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        with mujoco.Renderer(model, 160, 160) as renderer:
+            renderer.update_scene(data, camera="c")
+            return renderer.render().astype(int)
+
+    box = picture(f'<geom type="box" size="{fmt(map(str, SIZE))}" material="box"/>')
+    asset = (
+        f'<mesh name="m" vertex="{fmt(map(str, mesh.vertices.ravel()))}" '
+        f'texcoord="{fmt(map(str, mesh.texcoords.ravel()))}" face="{fmt(map(str, mesh.faces.ravel()))}"/>'
+    )
+    drawn = picture('<geom type="mesh" mesh="m" material="mesh"/>', asset)
+    assert np.abs(drawn - box).mean() < 1.0
+
+
+def test_scene_draws_a_dented_panel_as_meshes_of_one_grid() -> None:
+    mockup = truss_mockup()
+    site = next(s for s in mockup.candidates.component_sites if s.name == "C_panel")
+    dent = SwappedComponent(
+        site="C_panel",
+        position_m=site.position_m,
+        normal=site.normal,
+        surface=site.surface,
+        size_m=site.size_m,
+        defect="dented",
+        dent_depth_m=0.006,
+    )
+    xml, _, index = scene_mjcf(mockup, AnomalySet((dent,)))
+    assert index.flaw_geoms[0] == ("C_panel_swapped",) and index.pristine_geoms[0] == ("C_panel",)
+    assert 'name="C_panel" type="mesh" mesh="mesh_C_panel"' in xml
+    assert 'name="C_panel_swapped" type="mesh" mesh="mesh_C_panel_swapped"' in xml
+    pristine, dented = (
+        xml.split(f'<mesh name="{name}" vertex="')[1].split('"')[0]
+        for name in ("mesh_C_panel", "mesh_C_panel_swapped")
+    )
+    assert pristine.count(" ") == dented.count(" ") and pristine != dented
