@@ -57,10 +57,7 @@ def test_ci_runs_the_readme_test_command() -> None:
 
 
 def test_import_rsi_stays_cheap() -> None:
-    code = (
-        "import sys, rsi; "
-        "print(sorted({'cv2', 'scipy', 'matplotlib', 'typer'} & set(sys.modules)))"
-    )
+    code = "import sys, rsi; print(sorted({'cv2', 'scipy', 'matplotlib', 'typer'} & set(sys.modules)))"
     result = _run(sys.executable, "-c", code)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "[]"

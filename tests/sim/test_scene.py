@@ -65,3 +65,32 @@ def test_mjcf_has_no_emission_and_spot_lamp() -> None:
     assert 'emission="0"' in xml and 'type="directional"' in xml  # only the room's ambient is directional
     assert 'name="solar_lamp" mode="fixed" type="spot"' in xml
     assert set(assets) == {"brushed.png", "grain.png", "cells.png"}
+
+
+def test_no_two_box_faces_overlap_in_one_plane() -> None:
+    """Coplanar faces facing the same way z-fight: their pixels flicker with the pose, and a reference and
+    an inspection frame then differ there like a flaw (seen at the ORU rims before they were trimmed)."""
+    from rsi.sim.dent import local_rotation
+
+    faces = []
+    for part in (p for p in truss_mockup().parts if p.shape == "box"):
+        rotation, half = local_rotation(part.zaxis), np.asarray(part.size)
+        for axis in range(3):
+            for sign in (1, -1):
+                normal = sign * rotation[:, axis]
+                others = [k for k in range(3) if k != axis]
+                centre = np.asarray(part.pos) + normal * half[axis]
+                faces.append((part.name, normal, centre, [(rotation[:, k], half[k]) for k in others]))
+    clashes = []
+    for i, (name, normal, centre, extent) in enumerate(faces):
+        for other, normal_b, centre_b, extent_b in faces[i + 1 :]:
+            same_plane = np.dot(normal, normal_b) > 1 - 1e-9 and abs(np.dot(centre_b - centre, normal)) < 1e-9
+            if other == name or not same_plane:
+                continue
+            offset = centre_b - centre
+            if all(
+                abs(np.dot(offset, axis)) < half + sum(abs(np.dot(axis, b)) * h for b, h in extent_b) - 1e-9
+                for axis, half in extent
+            ):
+                clashes.append((name, other))
+    assert clashes == []

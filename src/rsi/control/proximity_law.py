@@ -57,7 +57,6 @@ MODES: dict[str, Callable[[FloatArray], FloatArray]] = {
 _MAX_SLOPE_TIMES_STEP = 0.5
 
 
-
 @dataclass(frozen=True)
 class ProximityLaw:
     """Breakpoints and speeds of the proximity law (seed §3.1, Fig. 5); see the module sketch.

@@ -83,7 +83,10 @@ COMPONENT_DISC_M = 0.05
 COMPONENT_CHANGE_MIN = 0.05  # changed fraction of the disc: discoloured 0.16-0.63, pristine <= 0.012
 DENT_RELIEF_MIN_M = 1.5e-3  # dents are 2-10 mm deep (seed §4 mock-up defects)
 STEREO_DISPARITY_NOISE_PX = 0.1
-SCREW_MATCH_M = 0.008  # a visual detection this close to a screw site is that screw's evidence
+IMPACT_MERGE_M = 0.008  # two views' sightings of one impact: their localisation errors are a few mm
+SCREW_MATCH_M = 0.008
+STROBE_TARGET_DN = 180.0  # metering: the brightest 0.5 % of the surface this far up the 8-bit range
+METER_PERCENTILE = 99.5  # a visual detection this close to a screw site is that screw's evidence
 THERMAL_THRESHOLD_K = 3.0  # pyrometer noise 0.1 K; a Peltier spot is 30 K (seed §4)
 GAS_THRESHOLD_PPM = 2.0  # MOS noise is ~0.02 ppm in clean air
 GAS_STANDOFF_M = 0.1
@@ -346,6 +349,62 @@ def _with_reference_interpolation(reference: Compensated, inspection: Compensate
 
 
 def _nuisance_scale(first: Compensated, second: Compensated) -> NDArray[np.float32]:
+    """The larger of the two references' excess and the reference's own sub-pixel-phase excess."""
+    return np.maximum(_pair_excess(first, second), _pair_excess(first, _half_pixel_shifted(first)))
+
+
+def _parallax_scale(reference: Compensated, view: View, shift_px: float) -> NDArray[np.float32]:
+    """Variance factor for surfaces off the plane one translation registers (seed §2.3, parallax).
+
+    A viewpoint error that shifts the image by ``shift_px`` at the median depth z0 shifts a surface at
+    depth z by ``shift_px * z0 / z``: it stays mis-registered by ``delta = shift_px |z0 / z - 1|``, which to
+    first order changes the difference by ``delta |grad I|`` (the detector's own mis-registration model).
+    """
+    import cv2
+
+    depth = view.depth_m
+    assert depth is not None
+    surface = depth < 10.0
+    if not surface.any():
+        return np.ones(depth.shape, np.float32)
+    z0 = float(np.median(depth[surface & reference.valid])) if (surface & reference.valid).any() else 1.0
+    delta = np.where(surface, shift_px * np.abs(z0 / np.maximum(depth, 1e-3) - 1.0), 0.0).astype(np.float32)
+    gx = cv2.Sobel(reference.image, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(reference.image, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+    extra = delta * delta * (gx * gx + gy * gy)
+    spread = np.ones((NUISANCE_SPREAD_PX, NUISANCE_SPREAD_PX), np.uint8)
+    extra = np.asarray(cv2.dilate(extra, spread), dtype=np.float32)
+    return (1.0 + extra / np.maximum(reference.variance, np.float32(1e-6))).astype(np.float32)
+
+
+def _half_pixel_shifted(image: Compensated) -> Compensated:
+    """`image` resampled half a pixel along both axes: the sub-pixel phase no second visit may have had.
+
+    A feature thinner than a pixel (a door gap, a grid line) renders differently at each sampling phase and
+    no interpolation predicts it; two reference visits show that only where their phases happened to differ.
+    """
+    import cv2
+
+    shape = (image.image.shape[1], image.image.shape[0])
+    matrix = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.5]], dtype=np.float32)
+
+    def moved(values: NDArray[np.float32]) -> NDArray[np.float32]:
+        warped = cv2.warpAffine(
+            values, matrix, shape, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        )
+        return np.asarray(warped, dtype=np.float32)
+
+    valid = moved(image.valid.astype(np.float32)) > 0.999
+    return replace(
+        image,
+        image=moved(image.image),
+        variance=moved(image.variance),
+        interpolation_variance=moved(image.interpolation_variance),
+        valid=valid,
+    )
+
+
+def _pair_excess(first: Compensated, second: Compensated) -> NDArray[np.float32]:
     """Per-pixel factor by which the noise model under-states what two pristine visits differ by.
 
     Seed §2.3-2.4: mis-registration and compensation errors "can be interpreted as increasing the noise".
@@ -771,6 +830,15 @@ def _size(size: object) -> tuple[int, int]:
     return (rows, cols)
 
 
+@dataclass(frozen=True)
+class _ReferencePass:
+    references: dict[str, Compensated]
+    seconds: dict[str, Compensated]
+    scales: dict[str, NDArray[np.float32]]
+    reliefs: dict[str, dict[str, float]]
+    energies: dict[str, float]
+
+
 def _reference_pass(
     world: World,
     plan: tuple[PlanPoint, ...],
@@ -779,16 +847,21 @@ def _reference_pass(
     *,
     stereo_rng: np.random.Generator,
     tour: Tour,
-) -> tuple[dict[str, Compensated], dict[str, Compensated], dict[str, Scale], dict[str, dict[str, float]]]:
-    """Two pristine visits per plan point: the reference, a second reference, their nuisance scale, and
-    the relief of every component site the reference sees (from the stereo range map)."""
+) -> _ReferencePass:
+    """Two pristine visits per plan point: the reference, a second reference, their nuisance scale, the
+    relief of every component site the reference sees (from the stereo range map) and the strobe energy."""
     references: dict[str, Compensated] = {}
     seconds: dict[str, Compensated] = {}
     scales: dict[str, NDArray[np.float32]] = {}
     reliefs: dict[str, dict[str, float]] = {}
+    energies: dict[str, float] = {}
     for point in plan:
         world.set_door(point.door_angle_rad)
+        world.set_strobe_energy(1.0)
         view = tour.visit(point.name, point.vista, state="reference")
+        energy = energies[point.name] = _metered_energy(world, view)
+        world.set_strobe_energy(energy)  # kept for this point's later visits, inspection pass included
+        view = _reflashed(world, view, energy)
         references[point.name] = _strobe_image(world, view)
         depth = _stereo_depth(view, stereo_rng)
         reliefs[point.name] = {
@@ -799,7 +872,38 @@ def _reference_pass(
         seconds[point.name] = _strobe_image(world, again)
         scales[point.name] = _nuisance_scale(references[point.name], seconds[point.name])
         report(f"reference {point.name}")
-    return references, seconds, scales, reliefs
+    return _ReferencePass(references, seconds, scales, reliefs, energies)
+
+
+def _metered_energy(world: World, view: View) -> float:
+    """Strobe energy that lifts the surface's brightest strobe pixels to STROBE_TARGET_DN (seed §2.1).
+
+    The view is the pre-flash at the seed's 1.3 lm s. Dark solar cells and Kapton then read a few tens of DN,
+    where read noise and 8-bit quantisation swamp a millimetre impact; more flash raises the contrast in
+    proportion and the shot noise only as its square root. Never less than the seed's energy.
+    """
+    from rsi.sim.world import MAX_STROBE_ENERGY
+
+    camera = world.camera
+    dn_per_lux_s = camera.electrons_per_lux_s / camera.gain_e_per_dn
+    region = _inspection_region(view)
+    if not region.any():
+        return 1.0
+    strobe = float(np.percentile(view.strobe_lux_s[region], METER_PERCENTILE)) * dn_per_lux_s
+    ambient_lux = float(np.percentile(view.ambient_lux[region], METER_PERCENTILE))
+    ambient = ambient_lux * view.frame.exposure_s * dn_per_lux_s
+    headroom = STROBE_TARGET_DN - camera.black_level_dn - ambient
+    if strobe <= 0.0:
+        return MAX_STROBE_ENERGY
+    return float(np.clip(headroom / strobe, 1.0, MAX_STROBE_ENERGY))
+
+
+def _reflashed(world: World, view: View, energy: float) -> View:
+    """The visit's frame taken again from the same pose with the strobe at `energy` times the pre-flash."""
+    if energy == 1.0:
+        return view
+    flashed = replace(view, strobe_lux_s=(view.strobe_lux_s * np.float32(energy)).astype(np.float32))
+    return replace(flashed, frame=world.next_frame(flashed, lit_field=view.frame.lit_field))
 
 
 def _seen_components(world: World, view: View) -> list[Site]:
@@ -887,9 +991,8 @@ def run_mission(
         # ---- reference pass: the pristine mock-up (seed §2.3: references taken once, revisited later)
         stereo_rng = np.random.default_rng(np.random.SeedSequence([seed, 11]))
         tour.start_pass("reference", starts[0])
-        references, seconds, scales, reliefs = _reference_pass(
-            world, plan, shape, report, stereo_rng=stereo_rng, tour=tour
-        )
+        stored = _reference_pass(world, plan, shape, report, stereo_rng=stereo_rng, tour=tour)
+        references = stored.references
         reference_s = time.perf_counter() - start_s
         run_id = _store_references(
             archive,
@@ -909,13 +1012,14 @@ def run_mission(
         tour.start_pass("inspection", starts[1])
         for point in plan:
             world.set_door(point.door_angle_rad)
+            world.set_strobe_energy(stored.energies[point.name])
             found, record = _inspect_point(
                 world,
                 point=point,
                 reference=references[point.name],
-                scale=scales[point.name],
-                other=seconds[point.name],
-                reliefs=reliefs[point.name],
+                scale=stored.scales[point.name],
+                other=stored.seconds[point.name],
+                reliefs=stored.reliefs[point.name],
                 stereo_rng=stereo_rng,
                 shape=shape,
                 active=active,
@@ -928,11 +1032,12 @@ def run_mission(
             visits.append(record)
             report(f"inspection {point.name}")
         world.set_door(0.0)
+        world.set_strobe_energy(1.0)
         inspection_s = time.perf_counter() - start_s - reference_s
 
         sensors_start = time.perf_counter()
         thermal, readings, gas, stations, gas_ppm = _sensor_passes(world, seed, report)
-        findings = tuple(_merge_components(visual) + thermal + gas)
+        findings = tuple(_merge_impacts(_merge_components(visual)) + thermal + gas)
         overview_rgb, overview_pose = world.overview(size=OVERVIEW_SIZE)
         if archive is not None and run_id is not None:
             _store_findings(archive, run_id, findings)
@@ -991,6 +1096,9 @@ def _inspect_point(
     pair = _compare(reference, pair_inspection, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
     registration = pair.detection.registration
     translation = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
+    # the registration's shift sets each surface's parallax; test again with that nuisance counted
+    scale = scale * _parallax_scale(reference, view, math.hypot(*translation))
+    pair = _compare(reference, pair_inspection, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
     findings: list[MissionFinding] = []
 
     # screws the frame sees: a bright head turned into a dark hole (seed §4: screws randomly removed)
@@ -1043,9 +1151,14 @@ def _inspect_point(
         second = tour.visit(point.name, point.vista, state="inspection")
         second_image = _restricted(_strobe_image(world, second), _inspection_region(second))
         second_pair = _compare(reference, second_image, P_PRELIMINARY, scale)
+        # against both pristine visits again: an artefact of one reference's sampling would confirm itself
+        second_other = _compare(other, second_image, P_PRELIMINARY, scale)
         for look in doubtful:
             second_looks += 1
-            again = _second_look_score(second_pair, second, look.position_m)
+            again = min(
+                _second_look_score(second_pair, second, look.position_m),
+                _second_look_score(second_other, second, look.position_m),
+            )
             # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3
             fused = (look.score + again) / math.sqrt(3.0)
             if fused > confirm:
@@ -1214,6 +1327,17 @@ def _merge_components(findings: list[MissionFinding]) -> list[MissionFinding]:
         best = max(group, key=lambda f: f.confidence)
         others.append(replace(best, position_m=site.position_m))
     return others
+
+
+def _merge_impacts(findings: list[MissionFinding]) -> list[MissionFinding]:
+    """One impact finding per site seen from overlapping vistas: the strongest sighting stands for it."""
+    impacts = sorted((f for f in findings if f.kind == "impact"), key=lambda f: -f.score)
+    kept: list[MissionFinding] = []
+    for finding in impacts:
+        here = np.asarray(finding.position_m)
+        if all(np.linalg.norm(here - np.asarray(k.position_m)) > IMPACT_MERGE_M for k in kept):
+            kept.append(finding)
+    return [f for f in findings if f.kind != "impact"] + kept
 
 
 def _component_of(position: tuple[float, float, float], sites: tuple[Site, ...]) -> Site | None:

@@ -40,7 +40,6 @@ def _as_concentrations_ppm(concentration_ppm: object, name: str) -> FloatArray:
     return values
 
 
-
 @dataclass(frozen=True)
 class MosGasSensor:
     """Settings of a MOS gas sensor (seed §3 H: "changes resistance as a vapor is absorbed").

@@ -40,7 +40,6 @@ from rsi.errors import InputError
 FloatArray = NDArray[np.float64]
 
 
-
 @dataclass(frozen=True)
 class HalogenLamp:
     """A halogen lamp on a switching regulator.

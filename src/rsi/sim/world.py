@@ -71,6 +71,7 @@ SCENES = ("truss",)
 # returns within 1-2 px; in orbit arm flexibility and thermal expansion give about 10 px.
 REPEATABILITY_PX: dict[str, tuple[float, float]] = {"lab": (1.0, 2.0), "space": (8.0, 12.0)}
 LAB_LAMP_LUX = LAB_SUN_FRACTION * SUN_ILLUMINANCE_LUX  # seed §4.1: 1.5 % of sunlight, 1950 lux
+MAX_STROBE_ENERGY = 8.0  # a xenon strobe's discharge spans about three stops
 STROBE_LUX_S = STROBE_LM_S / SCENE_AREA_M2  # seed §2.1: 1.3 lm s over 0.1 m^2 at the inspection standoff
 HALOGEN_LUX = 1500.0  # end-effector lamps' regulated illuminance at the standoff (rsi.sensors.LampController)
 DEFAULT_SIZE = (480, 640)  # the seed's video frame
@@ -125,9 +126,9 @@ class View:
     stereo : tuple of Frame or None
         Left and right frames (baseline :data:`rsi.sim.scene.STEREO_BASELINE_M`) when asked for.
     truss_mask : ndarray of shape (M, N), bool, or None
-        Pixels showing the truss frame (longerons, battens, nodes, diagonals) rather than a component: what
-        a robot's CAD model, projected with the known pose, tells it is not the inspected surface. None
-        from ``truth=False``.
+        Pixels showing the truss frame (longerons, battens, nodes, diagonals) or the robot's own arm rather
+        than a component: what a robot's CAD model and its joint angles, projected with the known pose,
+        tell it is not the inspected surface. None from ``truth=False``.
     """
 
     vista: str
@@ -196,6 +197,7 @@ class World:
         self._arm = Arm.bind(model, self.data, prefix=WORLD_ARM_PREFIX) if arm else None
         self.time_s = 0.0
         self.halogen_on = False
+        self.strobe_energy = 1.0
         self.lamp_on = True
         self._renderers: dict[tuple[int, int], SceneRenderer] = {}
         self._lights = {
@@ -203,11 +205,25 @@ class World:
         }
         self._truss_geoms = [
             self._id("geom", part.name) for part in mockup.parts if part.name.startswith(_TRUSS_PARTS)
-        ]
+        ] + self._arm_geoms()
         centre = (0.9, -0.47, 1.2)  # front of the middle bay
         # seed §4.1: the pan range (theta 90-180 deg) puts the lamp on the +x side of its spot
         self.lamp = inverse_kinematics(centre, intensity_lux=LAB_LAMP_LUX, rail_m=2.0)
         self.set_lamp(self.lamp)
+
+    def _arm_geoms(self) -> list[int]:
+        """Geoms of the robot's own arm and rail (bodies named with the arm's prefix), if it is loaded."""
+        from rsi.sim.arm import WORLD_ARM_PREFIX
+
+        model = self.model
+        bodies = {
+            body
+            for body in range(model.nbody)
+            if (self._mujoco.mj_id2name(model, self._mujoco.mjtObj.mjOBJ_BODY, body) or "").startswith(
+                WORLD_ARM_PREFIX
+            )
+        }
+        return [geom for geom in range(model.ngeom) if int(model.geom_bodyid[geom]) in bodies]
 
     # ------------------------------------------------------------------------------------------ state
 
@@ -307,6 +323,14 @@ class World:
     def door_angle_rad(self) -> float:
         """Opening angle of the ORU A door."""
         return float(self.data.qpos[self.model.jnt_qposadr[self._id("joint", "A_door_hinge")]])
+
+    def set_strobe_energy(self, factor: float) -> None:
+        """Flash energy of the ISEE strobe as a multiple of the seed's 1.3 lm s (seed §2.1), in [0.1, 8].
+
+        A xenon strobe's energy is set by its discharge; dark surfaces (solar cells, Kapton) take more so
+        that their strobe image rises above the camera's read noise and quantisation.
+        """
+        self.strobe_energy = v.in_range(factor, "factor", low=0.1, high=MAX_STROBE_ENERGY)
 
     def set_halogen(self, on: bool) -> None:
         """Switch the end-effector halogen lamps (seed §3); they add to the ambient term of every frame."""
@@ -565,7 +589,9 @@ class World:
             ambient = ambient + basis["lamps"] * np.float32(
                 HALOGEN_LUX / (255 * 2 * HALOGEN_LEVEL * at_reference)
             )
-        strobe = basis["strobe"] * np.float32(STROBE_LUX_S / (255 * STROBE_LEVEL * at_reference))
+        strobe = basis["strobe"] * np.float32(
+            self.strobe_energy * STROBE_LUX_S / (255 * STROBE_LEVEL * at_reference)
+        )
         frame = expose(
             ambient, strobe, exposure_s=seconds, camera=self.camera, lit_field=lit_field, rng=self._noise_rng
         )
