@@ -42,6 +42,8 @@ WorldCall = Callable[[World], Any]
         (lambda w: w.render("A_door", size=SMALL, truth=1), "truth"),
         (lambda w: w.set_door(3.0), "angle_rad"),
         (lambda w: w.set_halogen(1), "on"),
+        (lambda w: w.set_strobe_energy(20.0), "factor"),
+        (lambda w: w.set_strobe_energy(float("nan")), "factor"),
         (lambda w: w.switch_lamp("off"), "on"),
     ],
 )

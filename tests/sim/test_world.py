@@ -155,3 +155,15 @@ def test_the_lamp_switched_off_leaves_only_the_isee_lights(world: World) -> None
     # seed §4.1: in the Earth's shadow no sun and no room light; the strobe and the shutter stay
     assert lit.ambient_lux.any() and not dark.ambient_lux.any() and not dark.basis["sun"].any()
     assert dark.frame.exposure_s == lit.frame.exposure_s and dark.strobe_lux_s.any()
+
+
+def test_strobe_energy_scales_the_strobe_exposure_and_nothing_else(world: World) -> None:
+    strobe, ambient = [], []
+    for factor in (1.0, 2.5):
+        world.set_strobe_energy(factor)
+        view = world.render("B_tank", size=SMALL)  # lit by the sun and by the strobe
+        strobe.append(float(view.strobe_lux_s.sum() / view.basis["strobe"].sum()))
+        ambient.append(float(view.ambient_lux.sum() / view.basis["sun"].sum()))
+    world.set_strobe_energy(1.0)
+    assert strobe[1] / strobe[0] == pytest.approx(2.5, rel=1e-5)
+    assert ambient[1] == pytest.approx(ambient[0], rel=1e-6)  # the sun's lux per render unit is the flash's

@@ -164,3 +164,24 @@ def test_an_arm_bound_to_a_standalone_model_moves_like_the_standalone_arm() -> N
     np.testing.assert_array_equal(
         twin.step_velocity([0.0, 0.0, 0.05], DT_S, frame="tool").joint_velocity, step.joint_velocity
     )
+
+
+def test_the_arm_in_its_own_frame_counts_as_not_inspected(arm_world: World) -> None:
+    arm = _tool_at_oru_a(arm_world)
+    size = (120, 160)
+    view = arm_world.render_from_tool(size=size)
+    renderer = SceneRenderer(arm_world.model, *size)
+    try:
+        _, segments = renderer.depth_and_segments(arm_world.data, arm.camera_name("left"), state="inspection")
+    finally:
+        renderer.close()
+    model = arm_world.model
+    arm_geoms = [
+        g
+        for g in range(model.ngeom)
+        if model.body(int(model.geom_bodyid[g])).name.startswith(WORLD_ARM_PREFIX)
+    ]
+    on_arm = np.isin(segments, arm_geoms)
+    assert view.truss_mask is not None
+    assert on_arm.any()  # the gripper reaches into the ISEE's own view
+    assert view.truss_mask[on_arm].all()

@@ -1,0 +1,106 @@
+"""The mission's nuisance models and evidence fusion, on synthetic inputs with known answers."""
+
+from __future__ import annotations
+
+import os
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.imaging.compensation import Compensated
+from rsi.mission.mission import (
+    IMPACT_MERGE_M,
+    SHADOW_JAG_PX,
+    MissionFinding,
+    _half_pixel_shifted,
+    _merge_impacts,
+    _metered_energy,
+    _parallax_scale,
+    _with_shadow_edges,
+)
+
+SHAPE = (40, 60)
+
+
+def _image(values: np.ndarray) -> Compensated:
+    return Compensated(
+        image=values.astype(np.float32),
+        valid=np.ones(values.shape, bool),
+        variance=np.full(values.shape, 2.0, np.float32),
+        interpolation_variance=np.zeros(values.shape, np.float32),
+        row_step=1,
+    )
+
+
+def _finding(kind: str, x: float, score: float, source: str = "A_door") -> MissionFinding:
+    return MissionFinding(kind, (x, -0.472, 1.2), 0.002, 0.9, source, score)
+
+
+def test_half_pixel_shift_moves_a_ramp_by_half_its_slope() -> None:
+    ramp = np.tile(np.arange(SHAPE[1], dtype=np.float32) * 4.0, (SHAPE[0], 1))
+    shifted = _half_pixel_shifted(_image(ramp))
+    inner = (slice(2, -2), slice(2, -2))
+    np.testing.assert_allclose(shifted.image[inner], ramp[inner] - 2.0, atol=1e-3)
+    assert shifted.valid[inner].all()
+
+
+def test_parallax_scale_is_one_on_the_registered_plane_and_grows_off_it() -> None:
+    ramp = np.tile(np.arange(SHAPE[1], dtype=np.float32) * 3.0, (SHAPE[0], 1))
+    flat = SimpleNamespace(depth_m=np.full(SHAPE, 0.5, np.float32))
+    np.testing.assert_allclose(_parallax_scale(_image(ramp), flat, 2.0), 1.0)  # type: ignore[arg-type]
+    stepped = np.full(SHAPE, 0.5, np.float32)
+    stepped[:, 40:] = 0.4  # a part 10 cm proud of the plate: 2 px * (0.5 / 0.4 - 1) = 0.5 px of parallax
+    scale = _parallax_scale(_image(ramp), SimpleNamespace(depth_m=stepped), 2.0)  # type: ignore[arg-type]
+    # first order: 1 + (0.5 px * 3 DN/px)^2 / 2 DN^2
+    assert scale[20, 55] == pytest.approx(1.0 + (0.5 * 3.0) ** 2 / 2.0, rel=1e-3)
+    assert scale[20, 5] == pytest.approx(1.0)
+    no_shift = _parallax_scale(_image(ramp), SimpleNamespace(depth_m=stepped), 0.0)  # type: ignore[arg-type]
+    np.testing.assert_allclose(no_shift, 1.0)  # without a viewpoint error nothing is off the plane
+
+
+def test_shadow_edges_add_variance_along_the_reference_edge_only() -> None:
+    raw = np.full((SHAPE[0], SHAPE[1]), 8, np.uint8)
+    raw[:, 30:] = 120  # a vertical sun-shadow edge in the ambient (every row, lit or not)
+    frame = SimpleNamespace(raw=raw, lit_field="odd")
+    image = _image(np.full(SHAPE, 50.0))
+    edged = _with_shadow_edges(image, SimpleNamespace(frame=frame))  # type: ignore[arg-type]
+    extra = edged.interpolation_variance
+    assert extra[:, :25].max() == 0.0 and extra[:, 35:].max() == 0.0
+    # Sobel/8 across a 112 DN step peaks at 56 DN/px beside it: (0.5 px * 56)^2
+    assert extra[:, 29:31].max() == pytest.approx((SHADOW_JAG_PX * 112 / 2) ** 2, rel=1e-3)
+    np.testing.assert_allclose(edged.variance - image.variance, extra)
+    textured = SimpleNamespace(
+        raw=(8 + (np.indices(SHAPE).sum(axis=0) % 2) * 6).astype(np.uint8), lit_field="odd"
+    )
+    # a checkerboard texture of 6 DN (gradient below SHADOW_EDGE_DN_PX) is no shadow edge
+    assert _with_shadow_edges(image, SimpleNamespace(frame=textured)).interpolation_variance.max() == 0.0  # type: ignore[arg-type]
+
+
+def test_one_impact_seen_from_two_vistas_is_one_finding() -> None:
+    findings = [
+        _finding("impact", 0.300, 9.0, "A_door"),
+        _finding("impact", 0.300 + IMPACT_MERGE_M / 2, 12.0, "A_door_open"),
+        _finding("impact", 0.300 + 3 * IMPACT_MERGE_M, 7.0, "A_kapton"),
+        _finding("missing_screw", 0.300, 0.2, "A_door"),
+    ]
+    merged = _merge_impacts(findings)
+    impacts = sorted((f.source, f.score) for f in merged if f.kind == "impact")
+    assert impacts == [("A_door_open", 12.0), ("A_kapton", 7.0)]  # the stronger sighting stands
+    assert [f.kind for f in merged].count("missing_screw") == 1
+
+
+def test_metering_lifts_the_dark_panel_and_leaves_bright_aluminium() -> None:
+    from rsi.sim.world import MAX_STROBE_ENERGY, load
+
+    world: Any = load("truss", seed=0)
+    try:
+        panel = _metered_energy(world, world.render("C_panel", size=(120, 160)))
+        plate = _metered_energy(world, world.render("D_tubing", size=(120, 160)))
+    finally:
+        world.close()
+    assert 1.5 < panel <= MAX_STROBE_ENERGY  # solar cells read a few tens of DN at the seed's flash
+    assert plate == 1.0  # never dimmer than the seed's 1.3 lm s
