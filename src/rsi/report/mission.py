@@ -60,7 +60,7 @@ AMBIENT_K = 293.15
 THERMAL_THRESHOLD_K = 3.0
 GAS_THRESHOLD_PPM = 2.0
 # Every finding's score crop shares this range of the dark-flaw LRT score (noise sigmas), so strengths
-# compare across findings; the confirming threshold at P_F = 1e-7 is 5.2 sigma (seed §2.4).
+# compare across findings; the confirming threshold at P_F = 1e-9 is 6.0 sigma (seed §2.4).
 SCORE_RANGE_SIGMA = (0.0, 10.0)
 # A crop covers at least 48 x 48 frame pixels around a finding's box; an intra-frame field image holds
 # every other frame row (seed §2.2, row_step 2) and is shown stretched along rows to the frame's aspect.
