@@ -104,11 +104,3 @@ def test_metering_lifts_the_dark_panel_and_leaves_bright_aluminium() -> None:
         world.close()
     assert 1.5 < panel <= MAX_STROBE_ENERGY  # solar cells read a few tens of DN at the seed's flash
     assert plate == 1.0  # never dimmer than the seed's 1.3 lm s
-
-
-def test_calibrated_thresholds_cover_the_plan_and_stay_in_the_calibrated_range() -> None:
-    from rsi.mission.mission import CONFIRM_SIGMA_BY_POINT, PLAN, _threshold
-
-    assert set(CONFIRM_SIGMA_BY_POINT) == {point.name for point in PLAN}
-    # benchmarks/calibrate_thresholds.py searches [4.3, 8.0]: 4.3 sigma is the lowered test's own P_F = 1e-5
-    assert all(_threshold(1e-5) - 0.01 <= sigma <= 8.0 for sigma in CONFIRM_SIGMA_BY_POINT.values())

@@ -59,18 +59,6 @@ OVERVIEW_SIZE = (600, 800)
 # leave the statistic's tails heavier than N(0, 1), and 1e-9 (5.9 sigma) is the operating point at which
 # 20 seeds give at most one false finding per run (docs/mission.md).
 P_FALSE_ALARM = 1e-9
-# Confirming threshold per plan point, in sigma, where its H0 tail was calibrated on held-out seeds 20-39
-# (benchmarks/calibrate_thresholds.py: the lowest threshold leaving at most one false impact finding there);
-# plan points not listed use P_FALSE_ALARM's.
-CONFIRM_SIGMA_BY_POINT: dict[str, float] = {
-    "A_door": 6.16,
-    "A_door_open": 8.0,
-    "A_kapton": 5.17,
-    "B_tank": 6.19,
-    "C_panel_west": 4.82,
-    "C_panel_east": 5.17,
-    "D_tubing": 8.0,
-}
 # Preliminary threshold of active inspection (seed §2.5): a detection above this but below the confirming
 # threshold earns a second look.
 P_PRELIMINARY = 1e-4
@@ -1074,7 +1062,6 @@ def run_mission(
             found, record = _inspect_point(
                 world,
                 point=point,
-                confirm=CONFIRM_SIGMA_BY_POINT.get(point.name, confirm),
                 reference=references[point.name],
                 scale=stored.scales[point.name],
                 other=stored.seconds[point.name],
@@ -1082,6 +1069,7 @@ def run_mission(
                 stereo_rng=stereo_rng,
                 shape=shape,
                 active=active,
+                confirm=confirm,
                 preliminary=preliminary,
                 screws_done=screws_done,
                 tour=tour,
