@@ -49,14 +49,13 @@ if TYPE_CHECKING:
     from rsi.sim.world import View, World
 
 FloatArray = NDArray[np.float64]
-Scale = NDArray[np.float32]
 ProgressFn = Callable[[str, int, int], None]
 
 MISSION_SIZE = (480, 640)  # the seed's video frame (seed §2.1)
 OVERVIEW_SIZE = (600, 800)
 # Per-pixel false-alarm probability of the confirming test (seed §2.4: the threshold follows from the P_F
 # asked for). ~2e6 pixels are tested per mission; rendering nuisances (aliasing, parallax, shadow edges)
-# leave the statistic's tails heavier than N(0, 1), and 1e-9 (5.9 sigma) is the operating point at which
+# leave the statistic's tails heavier than N(0, 1), and 1e-9 (6.0 sigma) is the operating point at which
 # 20 seeds give at most one false finding per run (docs/mission.md).
 P_FALSE_ALARM = 1e-9
 # Preliminary threshold of active inspection (seed §2.5): a detection above this but below the confirming
@@ -371,9 +370,10 @@ def _parallax_scale(reference: Compensated, view: View, shift_px: float) -> NDAr
     depth = view.depth_m
     assert depth is not None
     surface = depth < 10.0
-    if not surface.any():
+    seen = surface & reference.valid
+    if not seen.any():
         return np.ones(depth.shape, np.float32)
-    z0 = float(np.median(depth[surface & reference.valid])) if (surface & reference.valid).any() else 1.0
+    z0 = float(np.median(depth[seen]))
     delta = np.where(surface, shift_px * np.abs(z0 / np.maximum(depth, 1e-3) - 1.0), 0.0).astype(np.float32)
     gx = cv2.Sobel(reference.image, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
     gy = cv2.Sobel(reference.image, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
