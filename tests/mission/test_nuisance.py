@@ -13,13 +13,20 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.imaging.compensation import Compensated
 from rsi.mission.mission import (
+    AMBIENT_TARGET_DN,
     IMPACT_MERGE_M,
     SHADOW_JAG_PX,
     MissionFinding,
+    _ambient_dn,
+    _explained_by,
+    _Explanation,
     _half_pixel_shifted,
+    _Look,
     _merge_impacts,
     _metered_energy,
+    _metered_shutter,
     _parallax_scale,
+    _screw_relief_m,
     _with_shadow_edges,
 )
 
@@ -104,3 +111,58 @@ def test_metering_lifts_the_dark_panel_and_leaves_bright_aluminium() -> None:
         world.close()
     assert 1.5 < panel <= MAX_STROBE_ENERGY  # solar cells read a few tens of DN at the seed's flash
     assert plate == 1.0  # never dimmer than the seed's 1.3 lm s
+
+
+def test_metering_shortens_the_shutter_on_sunlit_metal_only() -> None:
+    from rsi.sim.world import MIN_SHUTTER, load
+
+    world: Any = load("truss", seed=0)
+    try:
+        door = world.render("A_door", size=(120, 160))  # the lab sun on brushed aluminium
+        panel = world.render("C_panel", size=(120, 160))  # in the truss's shadow
+        shutter = _metered_shutter(world, door)
+        assert _ambient_dn(world, door) > 1.5 * AMBIENT_TARGET_DN
+        assert MIN_SHUTTER <= shutter < 1 / 1.5
+        assert _ambient_dn(world, door) * shutter == pytest.approx(AMBIENT_TARGET_DN, rel=1e-6)
+        assert _metered_shutter(world, panel) == 1.0
+        # the strobe gets the headroom the sun gave back
+        assert _metered_energy(world, door, shutter) >= _metered_energy(world, door)
+    finally:
+        world.close()
+
+
+def test_screw_relief_tells_a_head_from_its_hole() -> None:
+    from rsi.mission.mission import SCREW_RELIEF_LOST_M, plan_vistas
+    from rsi.sim.mockup import SCREW_HEIGHT_M
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=6)  # screws B_1 and B_3 removed
+    try:
+        plan_vistas(world)
+        view = world.render("B_tank")
+        assert view.depth_m is not None
+        sites = {s.name: s for s in world.mockup.candidates.screw_sites}
+        relief = {name: _screw_relief_m(view.depth_m, view, sites[name]) for name in sites if "_B_" in name}
+    finally:
+        world.close()
+    removed = {a.site for a in world.anomalies.anomalies if a.kind == "missing_screw"} & set(relief)
+    assert removed == {"screw_B_1", "screw_B_3"}
+    for name, height in relief.items():
+        expected = 0.0 if name in removed else SCREW_HEIGHT_M
+        assert height == pytest.approx(expected, abs=0.3 * SCREW_RELIEF_LOST_M)
+
+
+def test_a_discolouring_explains_only_blobs_on_its_own_pixels() -> None:
+    mask = np.zeros((60, 80), bool)
+    mask[:, :40] = True  # the discoloured component fills the left half
+    view = SimpleNamespace(component_masks={"B_tank": mask})
+    explanation = _Explanation((0.0, 0.0, 0.0), 0.2, "B_tank")
+    on_it = _Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 10, 22, 12), False)
+    beside = _Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False)
+    far = _Look((0.5, 0.0, 0.0), 2e-6, 9.0, (20, 10, 22, 12), False)
+    assert _explained_by(on_it, view, explanation)  # type: ignore[arg-type]
+    assert not _explained_by(beside, view, explanation)  # type: ignore[arg-type]
+    assert not _explained_by(far, view, explanation)  # type: ignore[arg-type]
+    dent = _Explanation((0.0, 0.0, 0.0), 0.07)
+    assert _explained_by(beside, view, dent)  # type: ignore[arg-type]
+    assert not _explained_by(on_it, SimpleNamespace(component_masks={}), explanation)  # type: ignore[arg-type]

@@ -44,6 +44,9 @@ WorldCall = Callable[[World], Any]
         (lambda w: w.set_halogen(1), "on"),
         (lambda w: w.set_strobe_energy(20.0), "factor"),
         (lambda w: w.set_strobe_energy(float("nan")), "factor"),
+        (lambda w: w.set_shutter(0.1), "fraction"),
+        (lambda w: w.set_shutter(1.5), "fraction"),
+        (lambda w: w.set_shutter(float("nan")), "fraction"),
         (lambda w: w.switch_lamp("off"), "on"),
     ],
 )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections import Counter
 
 import numpy as np
@@ -11,8 +12,8 @@ import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from rsi.sim.anomalies import AnomalySet, SwappedComponent
-from rsi.sim.dent import BoxMesh, Crater, box_mesh, crater_on_box, local_rotation
+from rsi.sim.anomalies import AnomalySet, Impact, SwappedComponent
+from rsi.sim.dent import BoxMesh, Crater, box_mesh, crater_on_box, crater_surface, local_rotation
 from rsi.sim.mockup import truss_mockup
 from rsi.sim.scene import scene_mjcf
 
@@ -152,3 +153,84 @@ def test_scene_draws_a_dented_panel_as_meshes_of_one_grid() -> None:
         for name in ("mesh_C_panel", "mesh_C_panel_swapped")
     )
     assert pristine.count(" ") == dented.count(" ") and pristine != dented
+
+
+def test_crater_surface_follows_the_mesh_and_its_slope() -> None:
+    pos, zaxis = (1.5, 0.0, 1.57), (0.0, 0.0, 1.0)
+    crater = Crater(axis=2, sign=1, centre=(0.05, -0.02), depth_m=0.008, radius_m=0.046)
+    mesh = box_mesh(SIZE, 10.0, crater)
+    top = mesh.vertices[mesh.vertices[:, 2] > 0]
+    for vertex in top[:: max(len(top) // 40, 1)]:  # every mesh vertex of the dented face lies on the surface
+        flat = np.array([vertex[0], vertex[1], SIZE[2]]) + pos
+        point, _ = crater_surface(crater, pos, zaxis, tuple(flat))
+        assert point == pytest.approx(vertex + pos, abs=1e-9)
+    centre = np.array([0.05, -0.02, SIZE[2]]) + pos
+    point, normal = crater_surface(crater, pos, zaxis, tuple(centre))
+    assert point[2] == pytest.approx(pos[2] + SIZE[2] - crater.depth_m) and normal == pytest.approx((0, 0, 1))
+    # the steepest wall, rho = R / sqrt(3): slope 8 d / (3 sqrt(3) R), tilted towards the centre
+    rho = crater.radius_m / math.sqrt(3)
+    _, normal = crater_surface(crater, pos, zaxis, tuple(centre + np.array([rho, 0.0, 0.0])))
+    slope = 8 * crater.depth_m / (3 * math.sqrt(3) * crater.radius_m)
+    assert normal == pytest.approx(np.array([-slope, 0.0, 1.0]) / math.hypot(slope, 1.0))
+    outside, flat_normal = crater_surface(crater, pos, zaxis, tuple(centre + np.array([0.1, 0.0, 0.0])))
+    assert outside == pytest.approx(centre + np.array([0.1, 0.0, 0.0])) and flat_normal == pytest.approx(
+        (0, 0, 1)
+    )
+
+
+def _impact_on(site: str, position: tuple[float, float, float], normal: tuple[float, float, float]) -> Impact:
+    return Impact(
+        site=site, position_m=position, normal=normal, size_m=0.002, surface="solar_cell", darkening=0.5
+    )
+
+
+def _attribute(xml: str, tag: str, name: str, attribute: str) -> np.ndarray:
+    element = re.search(rf'<{tag} name="{name}"[^>]*>', xml)
+    assert element is not None
+    value = re.search(rf'{attribute}="([^"]*)"', element.group(0))
+    assert value is not None
+    return np.array([float(x) for x in value.group(1).split()])
+
+
+def test_an_impact_on_a_dented_panel_lies_in_the_crater() -> None:
+    mockup = truss_mockup()
+    site = next(s for s in mockup.candidates.component_sites if s.name == "C_panel")
+    dent = SwappedComponent(
+        site="C_panel",
+        position_m=site.position_m,
+        normal=site.normal,
+        surface=site.surface,
+        size_m=site.size_m,
+        defect="dented",
+        dent_depth_m=0.008,
+    )
+    inside = _impact_on("C_cells", site.position_m, site.normal)
+    far = (site.position_m[0] + 0.2, site.position_m[1], site.position_m[2])
+    outside = _impact_on("C_cells", far, site.normal)
+    xml, _, _ = scene_mjcf(mockup, AnomalySet((dent, inside, outside)))
+    sunk, flat = _attribute(xml, "geom", "impact_1", "pos"), _attribute(xml, "geom", "impact_2", "pos")
+    assert sunk[2] == pytest.approx(flat[2] - 0.008, abs=1e-6)  # the crater's centre is 8 mm down
+    assert _attribute(xml, "geom", "impact_1", "pos")[:2] == pytest.approx(site.position_m[:2], abs=1e-6)
+
+
+def test_an_impact_darkens_a_discoloured_replacement_by_its_own_fraction() -> None:
+    mockup = truss_mockup()
+    site = next(s for s in mockup.candidates.component_sites if s.name == "C_panel")
+    faded = SwappedComponent(
+        site="C_panel",
+        position_m=site.position_m,
+        normal=site.normal,
+        surface=site.surface,
+        size_m=site.size_m,
+        defect="discoloured",
+        reflectance_factor=0.6,
+    )
+    spot = _impact_on("C_cells", site.position_m, site.normal)
+    plain, _, _ = scene_mjcf(mockup, AnomalySet((spot,)))
+    on_faded, _, _ = scene_mjcf(mockup, AnomalySet((faded, spot)))
+    assert _attribute(on_faded, "material", "impact_1", "rgba")[:3] == pytest.approx(
+        0.6 * _attribute(plain, "material", "impact_0", "rgba")[:3]
+    )
+    assert _attribute(on_faded, "material", "C_panel_swapped", "rgba")[:3] == pytest.approx(
+        0.6 * _attribute(plain, "material", "solar_cell", "rgba")[:3]
+    )

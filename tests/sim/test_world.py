@@ -4,6 +4,7 @@ test_bad_input.py)."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -155,6 +156,35 @@ def test_the_lamp_switched_off_leaves_only_the_isee_lights(world: World) -> None
     # seed §4.1: in the Earth's shadow no sun and no room light; the strobe and the shutter stay
     assert lit.ambient_lux.any() and not dark.ambient_lux.any() and not dark.basis["sun"].any()
     assert dark.frame.exposure_s == lit.frame.exposure_s and dark.strobe_lux_s.any()
+
+
+def test_shutter_scales_the_ambient_and_keeps_the_flash(world: World) -> None:
+    from rsi.sim.world import MIN_SHUTTER
+
+    views = []
+    for fraction in (1.0, MIN_SHUTTER):
+        world.set_shutter(fraction)
+        views.append(world.render("B_tank", size=SMALL))  # lit by the sun and by the strobe
+    world.set_shutter(1.0)
+    seeds, short = views
+    assert math.isclose(MIN_SHUTTER, 0.2)  # the ~20 us flash against the seed's 1/10000 s
+    assert short.frame.exposure_s == pytest.approx(MIN_SHUTTER * seeds.frame.exposure_s)
+    # the ~20 us flash lies inside either shutter: the same strobe light per render unit
+    flash = [float(view.strobe_lux_s.sum() / view.basis["strobe"].sum()) for view in views]
+    assert flash[1] == pytest.approx(flash[0], rel=1e-6)
+    black = seeds.frame.camera.black_level_dn
+    ambient = [float(view.frame.raw[0::2].astype(float).mean()) - black for view in views]  # unlit rows
+    assert ambient[1] / ambient[0] == pytest.approx(MIN_SHUTTER, rel=0.15)
+
+
+def test_component_masks_are_the_swappable_components_without_their_decals(world: World) -> None:
+    view = world.render("C_panel", size=(480, 640))  # millimetre spots cover pixel centres only at full size
+    panel = view.component_masks["C_panel"]
+    assert panel.mean() > 0.5 and set(view.component_masks) <= {"A_oru", "B_tank", "C_panel", "D_tank_0"}
+    impacts = [mask for mask in view.flaw_masks.values() if mask.any()]
+    assert impacts  # the conftest world's spots lie on the panel; their decals are not panel pixels
+    assert all((mask & ~panel).any() for mask in impacts)
+    assert not (panel & view.truss_mask).any()
 
 
 def test_strobe_energy_scales_the_strobe_exposure_and_nothing_else(world: World) -> None:

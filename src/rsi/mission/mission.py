@@ -34,6 +34,7 @@ from scipy import special
 
 from rsi import _validate as v
 from rsi.errors import InputError
+from rsi.sim.mockup import SCREW_HEIGHT_M
 from rsi.sim.orbit import orbital_period_s
 
 if TYPE_CHECKING:
@@ -72,6 +73,7 @@ NUISANCE_SPREAD_PX = 9
 # an impact: the planted impacts darken the surface by 30-70 % (seed §4), which a 3x3 window of 0.66 mm
 # pixels sees as >= 0.08 for a 1 mm impact on the dark solar cells; brightening residues lose nothing.
 IMPACT_DARKENING_MIN = 0.05
+SURROUND_PX = 3  # ring around a blob: the surface it lies on
 INSPECTION_GUARD_PX = 2
 DEPTH_JUMP_M = 0.02
 DOOR_OPEN_RAD = 1.4
@@ -79,7 +81,7 @@ DOOR_OPEN_RAD = 1.4
 COMPONENT_AREA_M2 = 1.0e-4
 # A missing screw leaves a 3.6 mm hole where the 8 mm head was: the head disc loses this fraction of its
 # brightness or more; a present screw seen again changes by a few per cent (misregistration, noise).
-SCREW_SIMILARITY_MIN = 0.4  # head-pattern correlation: present >= 0.45, removed <= 0.31 (seeds 0-5)
+SCREW_RELIEF_LOST_M = 1.0e-3  # half the 2 mm head: present heads and removed ones differ by ~20 sigma
 COMPONENT_DISC_M = 0.05
 COMPONENT_CHANGE_MIN = 0.05  # changed fraction of the disc: discoloured 0.16-0.63, pristine <= 0.012
 COMPONENT_DIMMING_MIN = 0.1  # discoloured replacements reflect 0.4-0.8 of the original (seed §4 defects)
@@ -91,6 +93,7 @@ SHADOW_EDGE_DN_PX = 10.0  # ambient gradient of a sun-shadow edge; brushed and g
 SHADOW_JAG_PX = 0.5
 STROBE_TARGET_DN = 180.0  # metering: the brightest 0.5 % of the surface this far up the 8-bit range
 METER_PERCENTILE = 99.5
+AMBIENT_TARGET_DN = 40.0  # metering: sunlight's share of the frame, below which the shutter stays the seed's
 MIN_STROBE_ENERGY = 1.0  # a dimmer flash loses more to noise than it saves from saturation (measured)
 THERMAL_THRESHOLD_K = 3.0  # pyrometer noise 0.1 K; a Peltier spot is 30 K (seed §4)
 GAS_THRESHOLD_PPM = 2.0  # MOS noise is ~0.02 ppm in clean air
@@ -583,31 +586,22 @@ def _disc(shape: tuple[int, ...], view: View, position_m: tuple[float, float, fl
     return _surface_distance_m(shape, view, position_m) <= radius_m
 
 
-def _screw_similarity(pair: PairResult, view: View, site: Site) -> float:
-    """How much of the screw head's pattern the inspection still shows (seed §4 screws): in [-1, 1].
+def _screw_relief_m(depth_m: NDArray[np.float32], view: View, site: Site) -> float:
+    """Height of the screw head above the plate around it in the stereo range map (seed §3, §4 screws).
 
-    The normalised correlation of the registered reference with the inspection over the head disc (one
-    pixel beyond the head), the best over one-pixel shifts (a residual mis-registration of the 2 mm relief).
-    A present head correlates (measured >= 0.45 over seeds 0-5); a removed one leaves a plain plate with a
-    small hole where the slot and rim were (<= 0.31). A mean brightness drop does not separate them: the
-    hole is as dark as the slot, the plate as bright as the head.
+    A head stands SCREW_HEIGHT_M proud; a removed one leaves the plate and a flat hole. The image alone
+    tells them apart poorly (the hole is as dark as the slot, the plate as bright as the head, and the
+    head's pattern correlates with the hole's at 0.43 against 0.42 for a present head, seeds 0-19);
+    the relief's median over ~45 head pixels has a noise of ~0.1 mm. NaN when the view holds too few.
     """
-    detection = pair.detection
-    radius_m = 0.5 * site.size_m + _pixel_m(view, site.position_m)
-    disc = _disc(detection.difference.shape, view, site.position_m, radius_m) & detection.valid
-    if disc.sum() < 12:
-        return 1.0
-    predicted = pair.inspection - detection.difference
-    rows, cols = np.nonzero(disc)
-    inspected = pair.inspection[rows, cols]
-    best = -1.0
-    height, width = predicted.shape
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
-            shifted = predicted[np.clip(rows + dr, 0, height - 1), np.clip(cols + dc, 0, width - 1)]
-            if shifted.std() > 0 and inspected.std() > 0:
-                best = max(best, float(np.corrcoef(shifted, inspected)[0, 1]))
-    return best
+    distance = _surface_distance_m(depth_m.shape, view, site.position_m)
+    radius = 0.5 * site.size_m
+    usable = np.isfinite(depth_m) & (depth_m < 10.0)
+    head = (distance <= 0.6 * radius) & usable
+    plate = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & usable
+    if head.sum() < 5 or plate.sum() < 10:
+        return math.nan
+    return float(np.median(depth_m[plate]) - np.median(depth_m[head]))
 
 
 def _component_change(pair: PairResult, view: View, site: Site) -> float:
@@ -883,6 +877,7 @@ class _ReferencePass:
     scales: dict[str, NDArray[np.float32]]
     reliefs: dict[str, dict[str, float]]
     energies: dict[str, float]
+    shutters: dict[str, float]
 
 
 def _reference_pass(
@@ -895,33 +890,69 @@ def _reference_pass(
     tour: Tour,
 ) -> _ReferencePass:
     """Two pristine visits per plan point: the reference, a second reference, their nuisance scale, the
-    relief of every component site the reference sees (from the stereo range map) and the strobe energy."""
+    relief of every component site the reference sees (from the stereo range map), the shutter and the
+    strobe energy."""
     references: dict[str, Compensated] = {}
     seconds: dict[str, Compensated] = {}
     scales: dict[str, NDArray[np.float32]] = {}
     reliefs: dict[str, dict[str, float]] = {}
     energies: dict[str, float] = {}
+    shutters: dict[str, float] = {}
     for point in plan:
-        world.set_door(point.door_angle_rad)
-        world.set_strobe_energy(1.0)
+        _settle(world, door_angle_rad=point.door_angle_rad)
         view = tour.visit(point.name, point.vista, state="reference")
-        energy = energies[point.name] = _metered_energy(world, view)
-        world.set_strobe_energy(energy)  # kept for this point's later visits, inspection pass included
-        view = _reflashed(world, view, energy)
+        shutter = shutters[point.name] = _metered_shutter(world, view)
+        energy = energies[point.name] = _metered_energy(world, view, shutter)
+        # kept for this point's later visits, inspection pass included
+        world.set_shutter(shutter)
+        world.set_strobe_energy(energy)
+        view = _reflashed(world, view, energy, shutter)
         references[point.name] = _with_shadow_edges(_strobe_image(world, view), view)
         depth = _stereo_depth(view, stereo_rng)
         reliefs[point.name] = {
             site.name: _relief_m(depth, view, site) for site in _seen_components(world, view)
-        }
+        } | {site.name: _screw_relief_m(depth, view, site) for site in _seen_screws(world, view)}
         # a second pristine visit: the nuisance map and the second reference of every detection
         again = tour.visit(point.name, point.vista, state="reference", truth=False)
         seconds[point.name] = _with_shadow_edges(_strobe_image(world, again), again)
         scales[point.name] = _nuisance_scale(references[point.name], seconds[point.name])
         report(f"reference {point.name}")
-    return _ReferencePass(references, seconds, scales, reliefs, energies)
+    return _ReferencePass(references, seconds, scales, reliefs, energies, shutters)
 
 
-def _metered_energy(world: World, view: View) -> float:
+def _ambient_dn(world: World, view: View) -> float:
+    """The pre-flash's ambient in DN at its METER_PERCENTILE over the inspection region (0 if none)."""
+    camera = world.camera
+    region = _inspection_region(view)
+    if not region.any():
+        return 0.0
+    lux = float(np.percentile(view.ambient_lux[region], METER_PERCENTILE))
+    return lux * view.frame.exposure_s * camera.electrons_per_lux_s / camera.gain_e_per_dn
+
+
+def _metered_shutter(world: World, view: View) -> float:
+    """Shutter (fraction of the pre-flash's) that holds the sunlit surface's ambient to AMBIENT_TARGET_DN.
+
+    Seed §2.2 subtracts the ambient, so sunlight is only noise and compensation error to the strobe image:
+    at the seed's shutter a sunlit aluminium face reads ~170 DN of ambient alone, and strobe plus ambient
+    saturate where an impact may be. The ~20 us flash fits in any shutter down to MIN_SHUTTER.
+    """
+    from rsi.sim.world import MIN_SHUTTER
+
+    ambient = _ambient_dn(world, view)
+    if ambient <= AMBIENT_TARGET_DN:
+        return 1.0
+    return float(np.clip(AMBIENT_TARGET_DN / ambient, MIN_SHUTTER, 1.0))
+
+
+def _settle(world: World, *, door_angle_rad: float) -> None:
+    """The door at `door_angle_rad`, the strobe and the shutter back at the seed's settings (seed §2.1)."""
+    world.set_door(door_angle_rad)
+    world.set_strobe_energy(1.0)
+    world.set_shutter(1.0)
+
+
+def _metered_energy(world: World, view: View, shutter: float = 1.0) -> float:
     """Strobe energy that lifts the surface's brightest strobe pixels to STROBE_TARGET_DN (seed §2.1).
 
     The view is the pre-flash at the seed's 1.3 lm s. Dark solar cells and Kapton then read a few tens of DN,
@@ -936,20 +967,29 @@ def _metered_energy(world: World, view: View) -> float:
     if not region.any():
         return 1.0
     strobe = float(np.percentile(view.strobe_lux_s[region], METER_PERCENTILE)) * dn_per_lux_s
-    ambient_lux = float(np.percentile(view.ambient_lux[region], METER_PERCENTILE))
-    ambient = ambient_lux * view.frame.exposure_s * dn_per_lux_s
-    headroom = STROBE_TARGET_DN - camera.black_level_dn - ambient
+    headroom = STROBE_TARGET_DN - camera.black_level_dn - _ambient_dn(world, view) * shutter
     if strobe <= 0.0:
         return MAX_STROBE_ENERGY
     return float(np.clip(headroom / strobe, MIN_STROBE_ENERGY, MAX_STROBE_ENERGY))
 
 
-def _reflashed(world: World, view: View, energy: float) -> View:
-    """The visit's frame taken again from the same pose with the strobe at `energy` times the pre-flash."""
-    if energy == 1.0:
+def _reflashed(world: World, view: View, energy: float, shutter: float) -> View:
+    """The visit's frame taken again from the same pose, the strobe at `energy` times the pre-flash and the
+    shutter at `shutter` times its own."""
+    if energy == 1.0 and shutter == 1.0:
         return view
-    flashed = replace(view, strobe_lux_s=(view.strobe_lux_s * np.float32(energy)).astype(np.float32))
+    flashed = replace(
+        view,
+        strobe_lux_s=(view.strobe_lux_s * np.float32(energy)).astype(np.float32),
+        frame=replace(view.frame, exposure_s=view.frame.exposure_s * shutter),
+    )
     return replace(flashed, frame=world.next_frame(flashed, lit_field=view.frame.lit_field))
+
+
+def _seen_screws(world: World, view: View) -> list[Site]:
+    sites = world.mockup.candidates.screw_sites
+    seen = _visible(view, np.asarray([site.position_m for site in sites]))
+    return [site for site, visible in zip(sites, seen, strict=True) if visible]
 
 
 def _seen_components(world: World, view: View) -> list[Site]:
@@ -1059,6 +1099,7 @@ def run_mission(
         for point in plan:
             world.set_door(point.door_angle_rad)
             world.set_strobe_energy(stored.energies[point.name])
+            world.set_shutter(stored.shutters[point.name])
             found, record = _inspect_point(
                 world,
                 point=point,
@@ -1077,8 +1118,7 @@ def run_mission(
             visual += found
             visits.append(record)
             report(f"inspection {point.name}")
-        world.set_door(0.0)
-        world.set_strobe_energy(1.0)
+        _settle(world, door_angle_rad=0.0)
         inspection_s = time.perf_counter() - start_s - reference_s
 
         sensors_start = time.perf_counter()
@@ -1147,28 +1187,28 @@ def _inspect_point(
     pair = _compare(reference, pair_inspection, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
     findings: list[MissionFinding] = []
 
-    # screws the frame sees: a bright head turned into a dark hole (seed §4: screws randomly removed)
+    # screws the frame sees: a head standing 2 mm off the plate, gone (seed §4: screws randomly removed)
+    depth = _stereo_depth(view, stereo_rng)
     screws = [s for s in world.mockup.candidates.screw_sites if s.name not in screws_done]
     seen = _visible(view, np.asarray([s.position_m for s in screws])) if screws else np.zeros(0, bool)
     for site, visible in zip(screws, seen, strict=True):
         if not visible:
             continue
         screws_done.add(site.name)
-        similarity = _screw_similarity(pair, view, site)
-        if similarity < SCREW_SIMILARITY_MIN:
+        before = reliefs.get(site.name, math.nan)
+        lost = (before if math.isfinite(before) else SCREW_HEIGHT_M) - _screw_relief_m(depth, view, site)
+        if lost > SCREW_RELIEF_LOST_M:
             findings.append(
                 MissionFinding(
                     kind="missing_screw",
                     position_m=site.position_m,
                     size_m=site.size_m,
-                    confidence=_confidence((SCREW_SIMILARITY_MIN - similarity) / 0.05),
+                    confidence=_confidence((lost - SCREW_RELIEF_LOST_M) / 2e-4),
                     source=point.name,
-                    score=similarity,
+                    score=lost,
                 )
             )
-    checks = _component_checks(
-        pair, view, point.name, reliefs=reliefs, depth_m=_stereo_depth(view, stereo_rng), world=world
-    )
+    checks = _component_checks(pair, view, point.name, reliefs=reliefs, depth_m=depth, world=world)
     findings += [finding for finding, _ in checks]
     screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
 
@@ -1176,7 +1216,7 @@ def _inspect_point(
         look
         for look in _blobs(pair, view)
         if np.min(np.linalg.norm(screw_positions - np.asarray(look.position_m), axis=1)) > SCREW_MATCH_M
-        and not any(_explained_by(look.position_m, finding, radius) for finding, radius in checks)
+        and not any(_explained_by(look, view, explanation) for _, explanation in checks)
     ]
     if looks:
         # a flaw is new against *both* pristine visits; a blob that one reference's sampling (aliasing, a
@@ -1306,10 +1346,30 @@ def _impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[f
     return tuple(strengths)
 
 
-def _explained_by(position_m: tuple[float, float, float], component: MissionFinding, radius_m: float) -> bool:
-    """Whether a blob lies where a component found swapped changed the difference image: not an impact."""
-    distance = float(np.linalg.norm(np.asarray(position_m) - np.asarray(component.position_m)))
-    return distance < radius_m
+@dataclass(frozen=True)
+class _Explanation:
+    """Where a swap found in a visit shows in its difference image: within `radius_m` of `centre_m`, and
+    only on `component`'s own pixels when given (a discoloured replacement's change ends at its outline)."""
+
+    centre_m: tuple[float, float, float]
+    radius_m: float
+    component: str | None = None
+
+
+def _explained_by(look: _Look, view: View, explanation: _Explanation) -> bool:
+    distance = float(np.linalg.norm(np.subtract(look.position_m, explanation.centre_m)))
+    if distance > explanation.radius_m:
+        return False
+    if explanation.component is None:
+        return True
+    mask = view.component_masks.get(explanation.component)
+    if mask is None:
+        return False
+    # the blob's own pixels may be a decal (an impact spot is not the component): its surround decides
+    row0, col0, row1, col1 = look.bbox
+    r0, c0 = max(row0 - SURROUND_PX, 0), max(col0 - SURROUND_PX, 0)
+    surround = mask[r0 : row1 + SURROUND_PX, c0 : col1 + SURROUND_PX]
+    return bool(surround.mean() > 0.5)
 
 
 def _component_checks(
@@ -1320,13 +1380,14 @@ def _component_checks(
     reliefs: Mapping[str, float],
     depth_m: NDArray[np.float32],
     world: World,
-) -> list[tuple[MissionFinding, float]]:
+) -> list[tuple[MissionFinding, _Explanation]]:
     """Each component site the view sees, checked for a swap (seed §4): discoloured or dented.
 
     A discoloured replacement changes the strobe image over the whole component, unless it fills the frame
     and the registration's gain absorbs it (then its raw brightness tells); a dent shows in the stereo range
     map, sunk below its surroundings by millimetres. Each finding comes with the radius around it within
-    which the difference image shows the swap itself: blobs there are not impacts, those elsewhere are.
+    which the difference image shows the swap itself (blobs there are not impacts, those elsewhere are); a
+    discolouring changed only the component's own surface, which the view's CAD projection tells.
     """
     found = []
     for site in _seen_components(world, view):
@@ -1335,13 +1396,13 @@ def _component_checks(
         if abs(sunk) > DENT_RELIEF_MIN_M:  # a dent: its disc changed, the rest of the skin did not
             score, margin = sunk, (abs(sunk) - DENT_RELIEF_MIN_M) / 2e-4
             size = min(site.size_m, 2 * COMPONENT_DISC_M)
-            explained = 0.5 * size + 0.02
+            explained = _Explanation(site.position_m, 0.5 * size + 0.02)
         elif change > COMPONENT_CHANGE_MIN:
             score, margin, size = change, (change - COMPONENT_CHANGE_MIN) / 0.01, site.size_m
-            explained = 0.5 * size + 0.02
+            explained = _Explanation(site.position_m, 0.5 * size + 0.02, site.name)
         elif abs(dimming := _component_dimming(pair, view, site)) > COMPONENT_DIMMING_MIN:
             score, margin, size = dimming, (abs(dimming) - COMPONENT_DIMMING_MIN) / 0.01, site.size_m
-            explained = 0.0
+            explained = _Explanation(site.position_m, 0.0)
         else:
             continue
         finding = MissionFinding(

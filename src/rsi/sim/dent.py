@@ -97,6 +97,32 @@ def crater_on_box(
     return Crater(axis, sign, (centre[0], centre[1]), min(depth_m, 1.9 * size[axis]), radius)
 
 
+def crater_surface(
+    crater: Crater,
+    pos: tuple[float, float, float],
+    zaxis: tuple[float, float, float],
+    point_m: tuple[float, float, float],
+) -> tuple[F64, F64]:
+    """World point and outward unit normal of the dented face under `point_m` (a point of the flat face).
+
+    A decal planted on the face before the blow (an impact spot, seed §4) follows the metal into the crater:
+    it sinks with the face and tilts with its slope.
+    """
+    rotation = local_rotation(zaxis)
+    local = rotation.T @ (np.asarray(point_m, dtype=float) - np.asarray(pos, dtype=float))
+    first, second = (k for k in range(3) if k != crater.axis)
+    offset = np.array([local[first] - crater.centre[0], local[second] - crater.centre[1]])
+    rho2 = float(offset @ offset) / crater.radius_m**2
+    inside = max(1.0 - rho2, 0.0)
+    local[crater.axis] -= crater.sign * crater.depth_m * inside**2
+    # slope of the sink along the face: d/dx [depth (1 - rho^2)^2] = -4 depth (1 - rho^2) x / radius^2
+    slope = -4.0 * crater.depth_m * inside * offset / crater.radius_m**2
+    normal = np.zeros(3)
+    normal[crater.axis] = crater.sign
+    normal[first], normal[second] = slope[0], slope[1]
+    return rotation @ local + np.asarray(pos, dtype=float), rotation @ (normal / np.linalg.norm(normal))
+
+
 def box_mesh(size: tuple[float, ...], repeat_per_m: float, crater: Crater | None = None) -> BoxMesh:
     """A closed box mesh of half sizes `size`, flat or with `crater` pressed into one face."""
     # one set of grid lines per axis, shared by the faces that meet at an edge: no T-junctions, no cracks

@@ -49,6 +49,7 @@ ORBIT_EXPOSURE_S = 1.0e-4  # seed §2.1: electronic shutter at 1/10000 s in orbi
 STROBE_LM_S = 1.3  # seed §2.1: the laboratory strobe's illumination
 SCENE_AREA_M2 = 0.1  # seed §2.1: a typical inspection scene
 FIELD_S = 1.0 / 60.0  # seed §2.1: one video field; the shutter cannot stay open longer
+FLASH_S = 2.0e-5  # seed §2.1: the strobe's ~20 us flash, the shortest shutter that still holds all of it
 
 # Default lab placement of the station's LVLH axes (columns: images of x, y, z LVLH in the world).
 DEFAULT_WORLD_FROM_LVLH: FloatArray = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])

@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from rsi.sim.anomalies import AnomalySet, Impact, MissingScrew, SwappedComponent
-from rsi.sim.dent import box_mesh, crater_on_box
+from rsi.sim.dent import Crater, box_mesh, crater_on_box, crater_surface, local_rotation
 from rsi.sim.mockup import (
     DOOR_HINGE_AXIS,
     SCREW_RADIUS_M,
@@ -207,9 +207,10 @@ def _decal(
     )
 
 
-def _impact_parts(index: int, impact: Impact) -> tuple[list[Part], list[str]]:
+def _impact_parts(
+    index: int, impact: Impact, centre: np.ndarray, normal: np.ndarray
+) -> tuple[list[Part], list[str]]:
     """Seed §2.4 flaw models: a uniformly darkened disc, or one with a darker crater centre ("peak")."""
-    centre, normal = np.asarray(impact.position_m), np.asarray(impact.normal)
     parts = [
         _decal(
             f"impact_{index}",
@@ -236,17 +237,51 @@ def _impact_parts(index: int, impact: Impact) -> tuple[list[Part], list[str]]:
     return parts, materials
 
 
-def _impact_materials(index: int, impact: Impact) -> list[str]:
+def _impact_materials(index: int, impact: Impact, surface_factor: float) -> list[str]:
     base = MATERIALS["kapton" if impact.surface == "kapton" else "aluminium"]
     if impact.site.startswith(("B_plate", "D_plate")):
         base = MATERIALS["plate"]
     if impact.site.startswith("C_"):
         base = MATERIALS["solar_cell"]
     flat = Material(base.rgb, 0.05, 0.1, None)  # tape and pen ink (seed §4) are matte
-    xml = [_material_xml(f"impact_{index}", flat, 1.0 - impact.darkening)]
+    # the darkening is relative to the surface under the spot: a discoloured replacement's, if swapped
+    xml = [_material_xml(f"impact_{index}", flat, surface_factor * (1.0 - impact.darkening))]
     if impact.profile == "peak":
-        xml.append(_material_xml(f"impact_{index}_core", flat, 1.0 - impact.centre_darkening))
+        xml.append(
+            _material_xml(f"impact_{index}_core", flat, surface_factor * (1.0 - impact.centre_darkening))
+        )
     return xml
+
+
+def _on_box(part: Part, point: np.ndarray, tolerance_m: float = 2e-3) -> bool:
+    if part.shape != "box":
+        return False
+    local = local_rotation(part.zaxis).T @ (point - np.asarray(part.pos))
+    return bool(np.all(np.abs(local) <= np.asarray(part.size) + tolerance_m))
+
+
+def _planted(
+    impact: Impact, swaps: list[SwappedComponent], mockup: Mockup
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Centre and normal of an impact's decal and the reflectance factor of the surface it lies on.
+
+    Seed §4: spots and swapped components are planted independently, so a spot may land on the replacement:
+    on a discoloured one it darkens the new finish, on a dented box face it follows the crater.
+    """
+    centre, normal = np.asarray(impact.position_m, dtype=float), np.asarray(impact.normal, dtype=float)
+    by_name = {part.name: part for part in mockup.parts}
+    for swap in swaps:
+        originals = [by_name[name] for name in mockup.components[swap.site]]
+        hosts = [part for part in originals if _on_box(part, centre)]
+        if not hosts:
+            continue
+        if swap.defect == "discoloured":
+            return centre, normal, swap.reflectance_factor
+        if hosts[0] is originals[0]:  # the dented box of :func:`_swapped`
+            host = hosts[0]
+            surface, tilted = crater_surface(_crater(swap, host), host.pos, host.zaxis, impact.position_m)
+            return surface, tilted, 1.0
+    return centre, normal, 1.0
 
 
 def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, bytes], SceneIndex]:
@@ -278,10 +313,12 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
     pristine_geoms: dict[int, tuple[str, ...]] = {}
     meshes: dict[str, str] = {}  # geom name -> mesh asset, for dented boxes and the boxes they replace
     mesh_xml: list[str] = []
+    swaps = [anomaly for anomaly in anomalies.anomalies if isinstance(anomaly, SwappedComponent)]
     for index, anomaly in enumerate(anomalies.anomalies):
         if isinstance(anomaly, Impact):
-            parts, _ = _impact_parts(index, anomaly)
-            materials += _impact_materials(index, anomaly)
+            centre, normal, surface_factor = _planted(anomaly, swaps, mockup)
+            parts, _ = _impact_parts(index, anomaly, centre, normal)
+            materials += _impact_materials(index, anomaly, surface_factor)
             (door_parts if anomaly.site == "A_door_face" else anomaly_parts).extend(parts)
             flaw_geoms[index] = tuple(part.name for part in parts)
         elif isinstance(anomaly, MissingScrew):
@@ -371,15 +408,8 @@ def _dent_radius_m(anomaly: SwappedComponent) -> float:
     return 0.03 + 2.0 * anomaly.dent_depth_m
 
 
-def _dented_box(
-    anomaly: SwappedComponent, part: Part, swapped_name: str, meshes: dict[str, str]
-) -> list[str]:
-    """Mesh assets of a dented box (seed §4) and of the flat box it replaces, registered in `meshes`.
-
-    The pristine box is drawn as a flat mesh too, so both states share one texture mapping: the reference
-    and the inspection images then differ by the crater alone.
-    """
-    crater = crater_on_box(
+def _crater(anomaly: SwappedComponent, part: Part) -> Crater:
+    return crater_on_box(
         part.size,
         part.pos,
         part.zaxis,
@@ -388,6 +418,17 @@ def _dented_box(
         depth_m=anomaly.dent_depth_m,
         radius_m=_dent_radius_m(anomaly),
     )
+
+
+def _dented_box(
+    anomaly: SwappedComponent, part: Part, swapped_name: str, meshes: dict[str, str]
+) -> list[str]:
+    """Mesh assets of a dented box (seed §4) and of the flat box it replaces, registered in `meshes`.
+
+    The pristine box is drawn as a flat mesh too, so both states share one texture mapping: the reference
+    and the inspection images then differ by the crater alone.
+    """
+    crater = _crater(anomaly, part)
     xml = []
     for geom, dent in ((part.name, replace(crater, depth_m=0.0)), (swapped_name, crater)):
         mesh = box_mesh(part.size, _TEXTURE_REPEAT_PER_M, dent)

@@ -37,7 +37,9 @@ from rsi.sim.mockup import (
     truss_mockup,
 )
 from rsi.sim.orbit import (
+    FLASH_S,
     LAB_SUN_FRACTION,
+    ORBIT_EXPOSURE_S,
     SCENE_AREA_M2,
     STROBE_LM_S,
     SUN_ILLUMINANCE_LUX,
@@ -72,6 +74,7 @@ SCENES = ("truss",)
 REPEATABILITY_PX: dict[str, tuple[float, float]] = {"lab": (1.0, 2.0), "space": (8.0, 12.0)}
 LAB_LAMP_LUX = LAB_SUN_FRACTION * SUN_ILLUMINANCE_LUX  # seed §4.1: 1.5 % of sunlight, 1950 lux
 MAX_STROBE_ENERGY = 8.0  # a xenon strobe's discharge spans about three stops
+MIN_SHUTTER = FLASH_S / ORBIT_EXPOSURE_S  # 0.2: a shorter shutter would cut the flash itself
 STROBE_LUX_S = STROBE_LM_S / SCENE_AREA_M2  # seed §2.1: 1.3 lm s over 0.1 m^2 at the inspection standoff
 HALOGEN_LUX = 1500.0  # end-effector lamps' regulated illuminance at the standoff (rsi.sensors.LampController)
 DEFAULT_SIZE = (480, 640)  # the seed's video frame
@@ -129,6 +132,9 @@ class View:
         Pixels showing the truss frame (longerons, battens, nodes, diagonals) or the robot's own arm rather
         than a component: what a robot's CAD model and its joint angles, projected with the known pose,
         tell it is not the inspected surface. None from ``truth=False``.
+    component_masks : dict of str to ndarray of shape (M, N), bool
+        Pixels of each swappable component in view (``Mockup.components``, its replacement included), from
+        the same CAD projection; decals on it (impact spots) are not its pixels. Empty from ``truth=False``.
     """
 
     vista: str
@@ -143,6 +149,7 @@ class View:
     pose_error_px: tuple[float, float]
     stereo: tuple[Frame, Frame] | None = field(default=None)
     truss_mask: BoolArray | None = field(default=None, repr=False)
+    component_masks: dict[str, BoolArray] = field(default_factory=dict, repr=False)
 
     @property
     def flaw_mask(self) -> BoolArray:
@@ -198,6 +205,7 @@ class World:
         self.time_s = 0.0
         self.halogen_on = False
         self.strobe_energy = 1.0
+        self.shutter = 1.0
         self.lamp_on = True
         self._renderers: dict[tuple[int, int], SceneRenderer] = {}
         self._lights = {
@@ -206,10 +214,30 @@ class World:
         self._truss_geoms = [
             self._id("geom", part.name) for part in mockup.parts if part.name.startswith(_TRUSS_PARTS)
         ] + self._arm_geoms()
+        self._component_geoms = self._swappable_geoms()
         centre = (0.9, -0.47, 1.2)  # front of the middle bay
         # seed §4.1: the pan range (theta 90-180 deg) puts the lamp on the +x side of its spot
         self.lamp = inverse_kinematics(centre, intensity_lux=LAB_LAMP_LUX, rail_m=2.0)
         self.set_lamp(self.lamp)
+
+    def _swappable_geoms(self) -> dict[str, list[int]]:
+        """Geoms of each swappable component: its parts, their replacements and a dent's facet."""
+        swaps = {
+            index: anomaly.site
+            for index, anomaly in enumerate(self.anomalies.anomalies)
+            if anomaly.kind == "swapped_component"
+        }
+        geoms: dict[str, list[int]] = {}
+        for site, parts in self.mockup.components.items():
+            names = [*parts, *(f"{part}_swapped" for part in parts)]
+            names += [
+                name
+                for index, replacement in self.index.flaw_geoms.items()
+                if swaps.get(index) == site
+                for name in replacement
+            ]
+            geoms[site] = sorted({self._id("geom", name) for name in names} - {-1})
+        return geoms
 
     def _arm_geoms(self) -> list[int]:
         """Geoms of the robot's own arm and rail (bodies named with the arm's prefix), if it is loaded."""
@@ -331,6 +359,16 @@ class World:
         that their strobe image rises above the camera's read noise and quantisation.
         """
         self.strobe_energy = v.in_range(factor, "factor", low=0.1, high=MAX_STROBE_ENERGY)
+
+    def set_shutter(self, fraction: float) -> None:
+        """Electronic shutter as a fraction of the seed's 1/10000 s, in [MIN_SHUTTER, 1] (seed §2.1).
+
+        The ~20 us flash fits in any shutter down to its own length, so a shorter shutter takes the same
+        strobe light and less sunlight: a sunlit surface that saturates the frame at the seed's shutter
+        (strobe plus ambient beyond the top DN) is measured again. The lab keeps the orbit's ratio: the
+        fraction scales the lamp's compensating exposure (:func:`rsi.sim.orbit.compensating_exposure`).
+        """
+        self.shutter = v.in_range(fraction, "fraction", low=MIN_SHUTTER, high=1.0)
 
     def set_halogen(self, on: bool) -> None:
         """Switch the end-effector halogen lamps (seed §3); they add to the ambient term of every frame."""
@@ -520,7 +558,7 @@ class World:
             raise InputError(f"truth must be True or False; got {truth!r}.")
         intensity = self.lamp_task.intensity_lux
         seconds = (
-            compensating_exposure(intensity).lab_exposure_s
+            compensating_exposure(intensity).lab_exposure_s * self.shutter
             if exposure_s is None
             else v.in_range(exposure_s, "exposure_s", low=0.0, low_inclusive=False)
         )
@@ -551,16 +589,34 @@ class World:
         depth: F32 | None = None
         masks: dict[int, BoolArray] = {}
         truss: BoolArray | None = None
+        components: dict[str, BoolArray] = {}
         if truth:
             depth, segments = self._renderer(shape).depth_and_segments(self.data, main, state=state)
             truss = np.isin(segments, self._truss_geoms)
+            components = {
+                site: mask
+                for site, ids in self._component_geoms.items()
+                if (mask := np.isin(segments, ids)).any()
+            }
             if state == "inspection":
                 masks = self._truth(pose, depth, segments, state, camera=main)
         pair = None
         if stereo:
             pair = (self._frame(left, shape, **settings)[0], self._frame(right, shape, **settings)[0])
         return View(
-            vista, state, frame, basis, ambient, strobe, depth, masks, pose, pose_error_px, pair, truss
+            vista,
+            state,
+            frame,
+            basis,
+            ambient,
+            strobe,
+            depth,
+            masks,
+            pose,
+            pose_error_px,
+            pair,
+            truss,
+            components,
         )
 
     def _frame(
