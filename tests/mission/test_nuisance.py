@@ -165,4 +165,9 @@ def test_a_discolouring_explains_only_blobs_on_its_own_pixels() -> None:
     assert not _explained_by(far, view, explanation)  # type: ignore[arg-type]
     dent = _Explanation((0.0, 0.0, 0.0), 0.07)
     assert _explained_by(beside, view, dent)  # type: ignore[arg-type]
+    spot = _Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.3)
+    assert not _explained_by(spot, view, dent)  # type: ignore[arg-type]  # an impact on the crater
+    faint = _Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.1)
+    wide = _Look((0.05, 0.0, 0.0), 5e-5, 9.0, (20, 60, 30, 70), False, darkening=0.3)
+    assert _explained_by(faint, view, dent) and _explained_by(wide, view, dent)  # type: ignore[arg-type]
     assert not _explained_by(on_it, SimpleNamespace(component_masks={}), explanation)  # type: ignore[arg-type]

@@ -74,6 +74,8 @@ NUISANCE_SPREAD_PX = 9
 # pixels sees as >= 0.08 for a 1 mm impact on the dark solar cells; brightening residues lose nothing.
 IMPACT_DARKENING_MIN = 0.05
 SURROUND_PX = 3  # ring around a blob: the surface it lies on
+SPOT_AREA_MAX_M2 = 1.5e-5  # a spot on a dent: 4.4 mm across, a 3 mm impact (seed §4) and 2 px of blur
+DENT_SPOT_DARKENING_MIN = 0.15
 INSPECTION_GUARD_PX = 2
 DEPTH_JUMP_M = 0.02
 DOOR_OPEN_RAD = 1.4
@@ -1361,7 +1363,9 @@ def _explained_by(look: _Look, view: View, explanation: _Explanation) -> bool:
     if distance > explanation.radius_m:
         return False
     if explanation.component is None:
-        return True
+        # a dent's crater changes the image over centimetres: a millimetre spot much darker than the
+        # reference there is an impact on the dented face (seed §4 plants both independently)
+        return look.area_m2 > SPOT_AREA_MAX_M2 or look.darkening < DENT_SPOT_DARKENING_MIN
     mask = view.component_masks.get(explanation.component)
     if mask is None:
         return False
