@@ -74,6 +74,7 @@ NUISANCE_SPREAD_PX = 9
 # pixels sees as >= 0.08 for a 1 mm impact on the dark solar cells; brightening residues lose nothing.
 IMPACT_DARKENING_MIN = 0.05
 SURROUND_PX = 3  # ring around a blob: the surface it lies on
+DISCOLOURED_MARGIN_PX = 4  # a found discolouring's pixels leave the photometric fit with this margin
 SPOT_AREA_MAX_M2 = 1.5e-5  # a spot on a dent: 4.4 mm across, a 3 mm impact (seed §4) and 2 px of blur
 DENT_SPOT_DARKENING_MIN = 0.15
 INSPECTION_GUARD_PX = 2
@@ -709,6 +710,71 @@ def _blobs(pair: PairResult, view: View) -> list[_Look]:
     return looks
 
 
+def _screw_checks(
+    world: World,
+    view: View,
+    source: str,
+    *,
+    depth_m: NDArray[np.float32],
+    reliefs: Mapping[str, float],
+    done: set[str],
+) -> list[MissionFinding]:
+    """Screws the frame sees and no earlier visit checked: a head 2 mm proud of the plate, or gone (seed §4:
+    screws randomly removed), by its relief in the stereo range map against the reference's."""
+    findings = []
+    screws = [s for s in world.mockup.candidates.screw_sites if s.name not in done]
+    seen = _visible(view, np.asarray([s.position_m for s in screws])) if screws else np.zeros(0, bool)
+    for site, visible in zip(screws, seen, strict=True):
+        if not visible:
+            continue
+        done.add(site.name)
+        before = reliefs.get(site.name, math.nan)
+        lost = (before if math.isfinite(before) else SCREW_HEIGHT_M) - _screw_relief_m(depth_m, view, site)
+        if lost > SCREW_RELIEF_LOST_M:
+            findings.append(
+                MissionFinding(
+                    kind="missing_screw",
+                    position_m=site.position_m,
+                    size_m=site.size_m,
+                    confidence=_confidence((lost - SCREW_RELIEF_LOST_M) / 2e-4),
+                    source=source,
+                    score=lost,
+                )
+            )
+    return findings
+
+
+def _without_discoloured(
+    view: View,
+    explanations: list[_Explanation],
+    images: tuple[Compensated, Compensated, Compensated],
+    *,
+    pair: PairResult,
+    scale: NDArray[np.float32],
+    p_false_alarm: float,
+) -> tuple[Compensated, Compensated, Compensated, PairResult]:
+    """Reference, second reference, inspection and their comparison without a discoloured component.
+
+    Seed §2.3 fits one gain and bias to the whole frame: a replacement that reflects half as much and fills
+    half the frame drags that fit, and the rest of the view (a plate beside a discoloured tank) is left
+    +12 DN off, which inflates the comparison's robust noise scale 15-fold and hides impacts there. Once
+    the swap is found, its pixels (the CAD projection, a few pixels wider for the pose error) leave the fit.
+    """
+    import cv2
+
+    masks = [
+        view.component_masks[e.component]
+        for e in explanations
+        if e.component is not None and e.component in view.component_masks
+    ]
+    if not masks:
+        return (*images, pair)
+    band = np.ones((2 * DISCOLOURED_MARGIN_PX + 1, 2 * DISCOLOURED_MARGIN_PX + 1), np.uint8)
+    changed = cv2.dilate(np.logical_or.reduce(masks).astype(np.uint8), band).astype(bool)
+    reference, other, inspection = (_restricted(image, ~changed) for image in images)
+    return reference, other, inspection, _compare(reference, inspection, p_false_alarm, scale)
+
+
 def _second_look_score(pair: PairResult, view: View, position: tuple[float, float, float]) -> float:
     """Peak score of the second look within 2 px of where the first look's blob is (seed §2.5)."""
     row, col, _ = _to_field(view, np.asarray([position]))
@@ -1189,29 +1255,18 @@ def _inspect_point(
     pair = _compare(reference, pair_inspection, P_PRELIMINARY if active else P_FALSE_ALARM, scale)
     findings: list[MissionFinding] = []
 
-    # screws the frame sees: a head standing 2 mm off the plate, gone (seed §4: screws randomly removed)
     depth = _stereo_depth(view, stereo_rng)
-    screws = [s for s in world.mockup.candidates.screw_sites if s.name not in screws_done]
-    seen = _visible(view, np.asarray([s.position_m for s in screws])) if screws else np.zeros(0, bool)
-    for site, visible in zip(screws, seen, strict=True):
-        if not visible:
-            continue
-        screws_done.add(site.name)
-        before = reliefs.get(site.name, math.nan)
-        lost = (before if math.isfinite(before) else SCREW_HEIGHT_M) - _screw_relief_m(depth, view, site)
-        if lost > SCREW_RELIEF_LOST_M:
-            findings.append(
-                MissionFinding(
-                    kind="missing_screw",
-                    position_m=site.position_m,
-                    size_m=site.size_m,
-                    confidence=_confidence((lost - SCREW_RELIEF_LOST_M) / 2e-4),
-                    source=point.name,
-                    score=lost,
-                )
-            )
+    findings += _screw_checks(world, view, point.name, depth_m=depth, reliefs=reliefs, done=screws_done)
     checks = _component_checks(pair, view, point.name, reliefs=reliefs, depth_m=depth, world=world)
     findings += [finding for finding, _ in checks]
+    reference, other, pair_inspection, pair = _without_discoloured(
+        view,
+        [explanation for _, explanation in checks],
+        (reference, other, pair_inspection),
+        pair=pair,
+        scale=scale,
+        p_false_alarm=P_PRELIMINARY if active else P_FALSE_ALARM,
+    )
     screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
 
     looks = [
