@@ -104,6 +104,32 @@ def test_plan_covers_every_component_and_screw() -> None:
         world.close()
 
 
+def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> None:
+    from rsi.mission.mission import PANEL_STANDOFF_M, _pixel_m, _visible, plan_vistas
+
+    world = load("truss", seed=SEED)
+    try:
+        panels = [point for point in plan_vistas(world) if point.name.startswith("C_panel")]
+        patch = next(p for p in truss_mockup().candidates.impact_patches if p.name == "C_cells")
+        half_u, half_v = patch.half_extent_m
+        grid = np.array(
+            [
+                (patch.centre_m[0] + u, patch.centre_m[1] + w, patch.centre_m[2])
+                for u in np.linspace(-half_u, half_u, 9)
+                for w in np.linspace(-half_v, half_v, 7)
+            ]
+        )
+        seen = np.zeros(len(grid), dtype=bool)
+        for point in panels:
+            view = world.render(point.vista, state="reference")
+            seen |= _visible(view, grid)
+            assert _pixel_m(view, patch.centre_m) < 0.5e-3  # a 1 mm impact spans two pixels or more
+        assert world.vista(panels[0].vista).standoff_m == PANEL_STANDOFF_M
+    finally:
+        world.close()
+    assert seen.all()  # every part of the cells that may carry an impact is in some close view
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [

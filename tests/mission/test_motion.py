@@ -73,10 +73,10 @@ def test_the_arm_reaches_the_front_views_and_not_the_panel_from_above(
 ) -> None:
     reached = {name for name, moved in tour_transits.items() if moved.reached}
     assert reached == REACHABLE
-    for name in ("C_panel_west", "C_panel_east"):
+    for name in ("C_panel_west_front", "C_panel_west_back", "C_panel_east_front", "C_panel_east_back"):
         moved = tour_transits[name]
-        # the camera 0.5 m above the panel top (z = 2.08 m) is ~1.2 m beyond the wrist's reach from the rail
-        assert not moved.reach.reachable and 1.1 < moved.reach.shortfall_m < 1.3
+        # the camera 0.35 m above the panel top (z = 1.93 m) is ~1.1 m beyond the wrist's reach from the rail
+        assert not moved.reach.reachable and 0.9 < moved.reach.shortfall_m < 1.3
         assert moved.time_s.size == 0 and moved.pose is None and math.isnan(moved.position_error_m)
     for name in REACHABLE:
         assert tour_transits[name].reach.shortfall_m < -0.2  # 20 cm or more inside the reach
@@ -191,8 +191,8 @@ def test_a_visit_takes_the_frame_from_where_the_arm_holds_the_camera(world: Worl
     assert sun.time_s == pytest.approx(400.0 + moved.duration_s)
     assert tour.clock_s == pytest.approx(sun.time_s + 1 / 30)
     # out of reach: the free camera of World.render, the shortfall recorded
-    panel = tour.visit("C_panel_west", "C_panel_west", state="reference", truth=False)
-    assert panel.vista == "C_panel_west" and not tour.transits[-1].reach.reachable
+    panel = tour.visit("C_panel_west_front", "C_panel_west_front", state="reference", truth=False)
+    assert panel.vista == "C_panel_west_front" and not tour.transits[-1].reach.reachable
 
 
 def test_the_mission_moves_the_arm_and_follows_the_sun() -> None:
@@ -238,7 +238,7 @@ def test_an_unreachable_sun_gets_the_nearest_lamp_direction_recorded(world: Worl
     assert not setting.reachable and setting.direction_error_rad == pytest.approx(measured, abs=1e-9)
     assert setting.direction_error_rad == pytest.approx(2 * math.pi * 300.0 / PERIOD_S, abs=1e-6)
     # the panel's top lies out of the rail's plane through ORU A: recorded, not hidden
-    top = world.vista("C_panel_west").target_m
+    top = world.vista("C_panel_west_front").target_m
     panel = sun_setting(top, 400.0)
     light_by_sun(world, panel)
     assert not panel.reachable and panel.direction_error_rad > math.radians(5)

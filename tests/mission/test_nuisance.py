@@ -28,6 +28,7 @@ from rsi.mission.mission import (
     _parallax_scale,
     _screw_relief_m,
     _with_shadow_edges,
+    _without_discoloured,
 )
 
 SHAPE = (40, 60)
@@ -165,9 +166,44 @@ def test_a_discolouring_explains_only_blobs_on_its_own_pixels() -> None:
     assert not _explained_by(far, view, explanation)  # type: ignore[arg-type]
     dent = _Explanation((0.0, 0.0, 0.0), 0.07)
     assert _explained_by(beside, view, dent)  # type: ignore[arg-type]
-    spot = _Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.3)
+    spot = _Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.5)
     assert not _explained_by(spot, view, dent)  # type: ignore[arg-type]  # an impact on the crater
-    faint = _Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.1)
-    wide = _Look((0.05, 0.0, 0.0), 5e-5, 9.0, (20, 60, 30, 70), False, darkening=0.3)
+    faint = _Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.3)
+    wide = _Look((0.05, 0.0, 0.0), 5e-5, 9.0, (20, 60, 30, 70), False, darkening=0.5)
     assert _explained_by(faint, view, dent) and _explained_by(wide, view, dent)  # type: ignore[arg-type]
     assert not _explained_by(on_it, SimpleNamespace(component_masks={}), explanation)  # type: ignore[arg-type]
+
+
+def test_a_found_discolouring_leaves_the_photometric_fit() -> None:
+    import cv2
+
+    from rsi.mission.mission import _compare
+
+    rng = np.random.default_rng(5)
+    texture = cv2.GaussianBlur(rng.standard_normal((120, 160)).astype(np.float32), (0, 0), 2.0)
+    reference = 80.0 + 40.0 * texture / texture.std()
+    inspection = reference + rng.normal(0.0, 1.0, reference.shape)
+    inspection[:, :90] *= 0.45  # a replacement tank reflecting 0.45 of the original fills the left
+    inspection[60:63, 130:133] -= 25.0  # a spot on the plate beside it
+    tank = np.zeros(reference.shape, bool)
+    tank[:, :90] = True
+    images = (_image(reference), _image(reference), _image(inspection))
+    scale = np.ones(reference.shape, np.float32)
+    whole = _compare(images[0], images[2], 1e-4, scale)
+    view = SimpleNamespace(component_masks={"B_tank": tank})
+    explanation = _Explanation((0.0, 0.0, 0.0), 0.2, "B_tank")
+    *kept, pair = _without_discoloured(
+        view,  # type: ignore[arg-type]
+        [explanation],
+        images,
+        pair=whole,
+        scale=scale,
+        p_false_alarm=1e-4,
+    )
+    assert not kept[2].valid[:, :90].any() and kept[2].valid[:, 100:].all()
+    spot = (slice(59, 64), slice(129, 134))
+    assert pair.detection.score[spot].max() > max(8.0, 2 * whole.detection.score[spot].max())
+    unchanged = _without_discoloured(
+        view, [_Explanation((0.0, 0.0, 0.0), 0.07)], images, pair=whole, scale=scale, p_false_alarm=1e-4
+    )  # type: ignore[arg-type]
+    assert unchanged[3] is whole  # a dent leaves the fit alone

@@ -76,10 +76,11 @@ IMPACT_DARKENING_MIN = 0.05
 SURROUND_PX = 3  # ring around a blob: the surface it lies on
 DISCOLOURED_MARGIN_PX = 4  # a found discolouring's pixels leave the photometric fit with this margin
 SPOT_AREA_MAX_M2 = 1.5e-5  # a spot on a dent: 4.4 mm across, a 3 mm impact (seed §4) and 2 px of blur
-DENT_SPOT_DARKENING_MIN = 0.15
+DENT_SPOT_DARKENING_MIN = 0.4  # a crater's slopes shade compact patches down by up to 0.35 (seeds 5, 12, 13)
 INSPECTION_GUARD_PX = 2
 DEPTH_JUMP_M = 0.02
 DOOR_OPEN_RAD = 1.4
+PANEL_STANDOFF_M = 0.35
 # A dark blob bigger than this (world area) is a changed component, not a ~1 mm impact.
 COMPONENT_AREA_M2 = 1.0e-4
 # A missing screw leaves a 3.6 mm hole where the 8 mm head was: the head disc loses this fraction of its
@@ -304,16 +305,25 @@ class MissionResult:
 
 
 def _extra_vistas() -> tuple[Vista, ...]:
-    """Views the mock-up does not list: the solar panel is wider than one 0.5 m view (its corner screws lie
-    outside ``C_panel``), so two views with the image's rows along the truss cover it (seed §4 C)."""
-    from rsi.sim.mockup import VISTA_STANDOFF_M, truss_mockup, vista
+    """Views the mock-up does not list: four close views of the solar panel (seed §4 C).
+
+    At the 0.5 m standoff a pixel is 0.66 mm on the dark cells: a millimetre impact covers two pixels and
+    the cells' 0.8 mm texels alias from visit to visit. At PANEL_STANDOFF_M a pixel is 0.46 mm; four views,
+    the image's rows across the truss, cover the panel and its corner screws.
+    """
+    from rsi.sim.mockup import truss_mockup, vista
 
     centre = truss_mockup().vistas["C_panel"].target_m
     return tuple(
         vista(
-            name, (centre[0] + dx, centre[1], centre[2]), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0), VISTA_STANDOFF_M
+            f"C_panel_{side}_{edge}",
+            (centre[0] + dx, centre[1] + dy, centre[2]),
+            (0.0, 0.0, 1.0),
+            (0.0, 1.0, 0.0),
+            PANEL_STANDOFF_M,
         )
-        for name, dx in (("C_panel_west", -0.11), ("C_panel_east", 0.11))
+        for side, dx in (("west", -0.125), ("east", 0.125))
+        for edge, dy in (("front", -0.095), ("back", 0.095))
     )
 
 
@@ -322,8 +332,10 @@ PLAN: tuple[PlanPoint, ...] = (
     PlanPoint("A_door_open", "A_door", DOOR_OPEN_RAD),
     PlanPoint("A_kapton", "A_kapton"),
     PlanPoint("B_tank", "B_tank"),
-    PlanPoint("C_panel_west", "C_panel_west"),
-    PlanPoint("C_panel_east", "C_panel_east"),
+    PlanPoint("C_panel_west_front", "C_panel_west_front"),
+    PlanPoint("C_panel_west_back", "C_panel_west_back"),
+    PlanPoint("C_panel_east_front", "C_panel_east_front"),
+    PlanPoint("C_panel_east_back", "C_panel_east_back"),
     PlanPoint("D_tubing", "D_tubing"),
 )
 
@@ -1159,34 +1171,10 @@ def run_mission(
         )
 
         # ---- inspection pass
-        confirm, preliminary = _threshold(P_FALSE_ALARM), _threshold(P_PRELIMINARY)
-        visual: list[MissionFinding] = []
-        visits: list[VisitRecord] = []
-        screws_done: set[str] = set()
         tour.start_pass("inspection", starts[1])
-        for point in plan:
-            world.set_door(point.door_angle_rad)
-            world.set_strobe_energy(stored.energies[point.name])
-            world.set_shutter(stored.shutters[point.name])
-            found, record = _inspect_point(
-                world,
-                point=point,
-                reference=references[point.name],
-                scale=stored.scales[point.name],
-                other=stored.seconds[point.name],
-                reliefs=stored.reliefs[point.name],
-                stereo_rng=stereo_rng,
-                shape=shape,
-                active=active,
-                confirm=confirm,
-                preliminary=preliminary,
-                screws_done=screws_done,
-                tour=tour,
-            )
-            visual += found
-            visits.append(record)
-            report(f"inspection {point.name}")
-        _settle(world, door_angle_rad=0.0)
+        visual, visits = _inspection_pass(
+            world, plan, stored, shape=shape, active=active, stereo_rng=stereo_rng, tour=tour, report=report
+        )
         inspection_s = time.perf_counter() - start_s - reference_s
 
         sensors_start = time.perf_counter()
@@ -1225,6 +1213,48 @@ def run_mission(
         transits=tuple(tour.transits),
         suns=tuple(tour.suns),
     )
+
+
+def _inspection_pass(
+    world: World,
+    plan: tuple[PlanPoint, ...],
+    stored: _ReferencePass,
+    *,
+    shape: tuple[int, int],
+    active: bool,
+    stereo_rng: np.random.Generator,
+    tour: Tour,
+    report: Callable[[str], None],
+) -> tuple[list[MissionFinding], list[VisitRecord]]:
+    """Every plan point visited again after the anomalies appeared, with the reference pass's settings."""
+    confirm, preliminary = _threshold(P_FALSE_ALARM), _threshold(P_PRELIMINARY)
+    visual: list[MissionFinding] = []
+    visits: list[VisitRecord] = []
+    screws_done: set[str] = set()
+    for point in plan:
+        world.set_door(point.door_angle_rad)
+        world.set_strobe_energy(stored.energies[point.name])
+        world.set_shutter(stored.shutters[point.name])
+        found, record = _inspect_point(
+            world,
+            point=point,
+            reference=stored.references[point.name],
+            scale=stored.scales[point.name],
+            other=stored.seconds[point.name],
+            reliefs=stored.reliefs[point.name],
+            stereo_rng=stereo_rng,
+            shape=shape,
+            active=active,
+            confirm=confirm,
+            preliminary=preliminary,
+            screws_done=screws_done,
+            tour=tour,
+        )
+        visual += found
+        visits.append(record)
+        report(f"inspection {point.name}")
+    _settle(world, door_angle_rad=0.0)
+    return visual, visits
 
 
 def _inspect_point(
@@ -1269,12 +1299,8 @@ def _inspect_point(
     )
     screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
 
-    looks = [
-        look
-        for look in _blobs(pair, view)
-        if np.min(np.linalg.norm(screw_positions - np.asarray(look.position_m), axis=1)) > SCREW_MATCH_M
-        and not any(_explained_by(look, view, explanation) for _, explanation in checks)
-    ]
+    explanations = [explanation for _, explanation in checks]
+    looks = _unexplained(_blobs(pair, view), view, explanations, screw_positions)
     if looks:
         # a flaw is new against *both* pristine visits; a blob that one reference's sampling (aliasing, a
         # compensation artefact of that visit) made is not: the weaker of the two comparisons is kept
@@ -1411,6 +1437,21 @@ class _Explanation:
     centre_m: tuple[float, float, float]
     radius_m: float
     component: str | None = None
+
+
+def _unexplained(
+    looks: list[_Look], view: View, explanations: list[_Explanation], screw_positions: FloatArray
+) -> list[_Look]:
+    """Looks that are no screw's evidence and no part of a swap found in the view."""
+    kept = []
+    for look in looks:
+        here = np.asarray(look.position_m)
+        if np.min(np.linalg.norm(screw_positions - here, axis=1)) <= SCREW_MATCH_M:
+            continue
+        if any(_explained_by(look, view, explanation) for explanation in explanations):
+            continue
+        kept.append(look)
+    return kept
 
 
 def _explained_by(look: _Look, view: View, explanation: _Explanation) -> bool:
