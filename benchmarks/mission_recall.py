@@ -55,7 +55,7 @@ def main() -> None:
             recall = found / truth if truth else 1.0
             error = f"{1e3 * error_sum / matched:.1f}" if matched else "-"
             print(
-                f"| {name:<18} | {found:>4}/{truth:<4} | {recall:6.2f} | {false / runs:18.2f} | {error:>5} |"
+                f"| {name:<18} | {found:>4}/{truth:<4} | {recall:6.3f} | {false / runs:18.2f} | {error:>5} |"
             )
         false_total = sum(row[2] for row in totals.values())
         print(f"| all types | | | {false_total / runs:.2f} | |")

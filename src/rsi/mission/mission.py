@@ -150,7 +150,7 @@ class MissionFinding:
         Plan point (visual), ``"pyrometer"`` or ``"gas"``.
     score : float
         The evidence: LRT peak (the weaker of the comparisons with the two pristine visits; fused over both
-        looks for a second look), head-disc brightness drop,
+        looks for a second look), the screw head's lost relief (m),
         temperature difference (K) or peak concentration (ppm).
     second_look : bool
         Whether active inspection took a second look before this was reported.
@@ -710,9 +710,17 @@ def _darkening(pair: PairResult, bbox: tuple[int, int, int, int]) -> float:
 
 
 def _blobs(pair: PairResult, view: View) -> list[_Look]:
+    """Each dark blob of the comparison as a look at its peak: the preliminary threshold grows a millimetre
+    spot's blob into the noise around it, and its centroid can leave the 5x5 window in which the other
+    reference's comparison and the second look are read (:func:`_second_look_score`)."""
     looks: list[_Look] = []
+    score = pair.detection.score
     for flaw in pair.flaws:
-        position = _field_to_world(view, flaw.row, flaw.col)
+        row0, col0, row1, col1 = flaw.bbox
+        peak_row, peak_col = np.unravel_index(
+            np.argmax(score[row0:row1, col0:col1]), (row1 - row0, col1 - col0)
+        )
+        position = _field_to_world(view, float(row0 + peak_row), float(col0 + peak_col))
         if position is None:
             continue
         pixel = _pixel_m(view, position)

@@ -410,7 +410,7 @@ def findings_section(result: MissionResult, score: MissionScore) -> str:
     table = _table(headers, rows, row_classes=classes, text_columns=(1, 5, 8))
     return (
         "<h2>Findings</h2>\n<p class='note'>Score: LRT peak in noise sigmas (impacts, components), the head "
-        "disc's brightness drop (screws), the temperature difference in K (pyrometer) or the peak ppm "
+        "relief lost in m (screws), the temperature difference in K (pyrometer) or the peak ppm "
         f"(gas).</p>\n{table}"
     )
 
