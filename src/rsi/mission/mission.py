@@ -305,25 +305,31 @@ class MissionResult:
 
 
 def _extra_vistas() -> tuple[Vista, ...]:
-    """Views the mock-up does not list: four close views of the solar panel (seed §4 C).
+    """Views the mock-up does not list: five close views of the solar panel (seed §4 C).
 
     At the 0.5 m standoff a pixel is 0.66 mm on the dark cells: a millimetre impact covers two pixels and
     the cells' 0.8 mm texels alias from visit to visit. At PANEL_STANDOFF_M a pixel is 0.46 mm; four views,
-    the image's rows across the truss, cover the panel and its corner screws.
+    the image's rows across the truss, cover the panel and its corner screws, and a fifth looks straight at
+    the component's site, where a replacement's dent would be: in the corners of the other four a crater is
+    seen obliquely and its shading hides the spots in it.
     """
     from rsi.sim.mockup import truss_mockup, vista
 
     centre = truss_mockup().vistas["C_panel"].target_m
+    corners = [
+        (f"C_panel_{side}_{edge}", dx, dy)
+        for side, dx in (("west", -0.125), ("east", 0.125))
+        for edge, dy in (("front", -0.095), ("back", 0.095))
+    ]
     return tuple(
         vista(
-            f"C_panel_{side}_{edge}",
+            name,
             (centre[0] + dx, centre[1] + dy, centre[2]),
             (0.0, 0.0, 1.0),
             (0.0, 1.0, 0.0),
             PANEL_STANDOFF_M,
         )
-        for side, dx in (("west", -0.125), ("east", 0.125))
-        for edge, dy in (("front", -0.095), ("back", 0.095))
+        for name, dx, dy in [*corners, ("C_panel_centre", 0.0, 0.0)]
     )
 
 
@@ -336,6 +342,7 @@ PLAN: tuple[PlanPoint, ...] = (
     PlanPoint("C_panel_west_back", "C_panel_west_back"),
     PlanPoint("C_panel_east_front", "C_panel_east_front"),
     PlanPoint("C_panel_east_back", "C_panel_east_back"),
+    PlanPoint("C_panel_centre", "C_panel_centre"),
     PlanPoint("D_tubing", "D_tubing"),
 )
 
