@@ -1015,10 +1015,10 @@ def _reference_pass(
     return _ReferencePass(references, seconds, scales, reliefs, energies, shutters)
 
 
-def _ambient_dn(world: World, view: View) -> float:
+def _ambient_dn(world: World, view: View, region: NDArray[np.bool_] | None = None) -> float:
     """The pre-flash's ambient in DN at its METER_PERCENTILE over the inspection region (0 if none)."""
     camera = world.camera
-    region = _inspection_region(view)
+    region = _inspection_region(view) if region is None else region
     if not region.any():
         return 0.0
     lux = float(np.percentile(view.ambient_lux[region], METER_PERCENTILE))
@@ -1062,7 +1062,7 @@ def _metered_energy(world: World, view: View, shutter: float = 1.0) -> float:
     if not region.any():
         return 1.0
     strobe = float(np.percentile(view.strobe_lux_s[region], METER_PERCENTILE)) * dn_per_lux_s
-    headroom = STROBE_TARGET_DN - camera.black_level_dn - _ambient_dn(world, view) * shutter
+    headroom = STROBE_TARGET_DN - camera.black_level_dn - _ambient_dn(world, view, region) * shutter
     if strobe <= 0.0:
         return MAX_STROBE_ENERGY
     return float(np.clip(headroom / strobe, MIN_STROBE_ENERGY, MAX_STROBE_ENERGY))
