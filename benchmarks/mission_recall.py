@@ -14,7 +14,7 @@ import argparse
 import math
 import time
 
-from rsi.mission.mission import SCORED_TYPES, run_mission, score_mission
+from rsi.mission import SCORED_TYPES, run_mission, score_mission
 
 
 def main() -> None:

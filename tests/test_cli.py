@@ -21,9 +21,9 @@ from rsi import cli
 from rsi.cli import app
 from rsi.datasets.synthetic import synthetic_pair
 from rsi.detection.flaw_models import FLAW_MODELS
+from rsi.detection.pair import score_flaws
 from rsi.imaging.io import write_image
 from rsi.imaging.registration import MODELS
-from rsi.mission.pair import score_flaws
 from rsi.sim.isee_demo import DemoFigures, ProximityDemoResult
 
 runner = CliRunner()
@@ -66,12 +66,12 @@ class MissionRuns:
 @pytest.fixture(scope="module")
 def mission_runs(tmp_path_factory: pytest.TempPathFactory) -> MissionRuns:
     """`rsi demo` twice into one folder (seeds 0 and 1), at a quarter of the frame size to stay quick."""
-    import rsi.mission.mission
+    import rsi.mission.run
 
     out = tmp_path_factory.mktemp("mission") / "results"
-    small = functools.partial(rsi.mission.mission.run_mission, size=(240, 320))
+    small = functools.partial(rsi.mission.run.run_mission, size=(240, 320))
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(rsi.mission.mission, "run_mission", small)
+        patch.setattr(rsi.mission.run, "run_mission", small)
         first = invoke("demo", "--seed", "0", "--out", out)
         second = invoke("demo", "--seed", "1", "--out", out)
     return MissionRuns(first, second, out)
@@ -310,12 +310,12 @@ def test_bad_input_exits_with_its_documented_code(
 def test_a_bug_exits_internal_with_one_line(
     png_pair: PngPair, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import rsi.mission.pair
+    import rsi.detection.pair
 
     def broken(*args: object, **kwargs: object) -> None:
         raise ZeroDivisionError("division by zero")
 
-    monkeypatch.setattr(rsi.mission.pair, "inspect_pair", broken)
+    monkeypatch.setattr(rsi.detection.pair, "inspect_pair", broken)
     result = invoke("inspect", png_pair.reference, png_pair.inspection, "--out", tmp_path)
     assert result.exit_code == cli.EXIT_INTERNAL
     assert result.stderr.strip() == "rsi: error: internal error (ZeroDivisionError): division by zero"

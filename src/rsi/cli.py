@@ -22,10 +22,11 @@ from rsi.errors import FileError, InputError
 if TYPE_CHECKING:
     from rich.console import Console
 
+    from rsi.datasets.demo import DemoResult
     from rsi.detection.detect import Flaw
+    from rsi.detection.pair import PairResult
     from rsi.detection.roc import RocCurve
-    from rsi.mission.mission import MissionResult, MissionScore
-    from rsi.mission.pair import DemoResult, PairResult
+    from rsi.mission import MissionResult, MissionScore
     from rsi.sim.isee_demo import Check
 
 EXIT_OK = 0
@@ -211,7 +212,7 @@ def demo(
         import time
 
         from rsi.archive import Archive
-        from rsi.mission.mission import run_mission, score_mission
+        from rsi.mission import run_mission, score_mission
         from rsi.report.mission import write_mission_report
 
         start_s = time.perf_counter()
@@ -324,7 +325,7 @@ def demo_pair(
 ) -> None:
     """One synthetic reference/inspection pair with seeded ~1 mm flaws: found, pictured and scored."""
     with _errors():
-        from rsi.mission.pair import simulate_demo
+        from rsi.datasets.demo import simulate_demo
         from rsi.report.writers import write_demo_report
 
         with _progress_bar("demo") as update:
@@ -374,8 +375,8 @@ def inspect_command(
 ) -> None:
     """Register REFERENCE to INSPECTION, detect flaws, write flaws.json/.csv and PNG pictures to --out."""
     with _errors():
+        from rsi.detection.pair import inspect_pair
         from rsi.imaging.io import read_image
-        from rsi.mission.pair import inspect_pair
         from rsi.report.writers import write_pair_report
 
         result = inspect_pair(

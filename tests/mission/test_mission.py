@@ -12,7 +12,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.archive import Archive
 from rsi.errors import InputError
-from rsi.mission.mission import (
+from rsi.mission import (
     PLAN,
     SCORED_TYPES,
     MissionResult,
@@ -91,21 +91,25 @@ def test_plan_covers_every_component_and_screw() -> None:
     assert any(point.door_angle_rad > 1.0 for point in PLAN)  # inside the electrical ORU
     world = load("truss", seed=SEED)
     try:
-        from rsi.mission.mission import _visible, plan_vistas
+        from rsi.mission import plan_vistas
+        from rsi.mission.views import visible
 
         screws = truss_mockup().candidates.screw_sites
         positions = np.asarray([site.position_m for site in screws])
         seen = np.zeros(len(screws), dtype=bool)
         for point in plan_vistas(world):
             world.set_door(point.door_angle_rad)
-            seen |= _visible(world.render(point.vista, size=SMALL, state="reference"), positions)
+            seen |= visible(world.render(point.vista, size=SMALL, state="reference"), positions)
         assert seen.all(), [site.name for site, ok in zip(screws, seen, strict=True) if not ok]
     finally:
         world.close()
 
 
 def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> None:
-    from rsi.mission.mission import PANEL_STANDOFF_M, _pixel_m, _visible, plan_vistas
+    from rsi.mission import MissionSettings, plan_vistas
+    from rsi.mission.views import pixel_size_m, visible
+
+    PANEL_STANDOFF_M = MissionSettings().panel_standoff_m
 
     world = load("truss", seed=SEED)
     try:
@@ -122,8 +126,8 @@ def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> N
         seen = np.zeros(len(grid), dtype=bool)
         for point in panels:
             view = world.render(point.vista, state="reference")
-            seen |= _visible(view, grid)
-            assert _pixel_m(view, patch.centre_m) < 0.5e-3  # a 1 mm impact spans two pixels or more
+            seen |= visible(view, grid)
+            assert pixel_size_m(view, patch.centre_m) < 0.5e-3  # a 1 mm impact spans two pixels or more
         assert world.vista(panels[0].vista).standoff_m == PANEL_STANDOFF_M
     finally:
         world.close()
@@ -142,11 +146,47 @@ def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> N
         ({"seed": 0, "archive": "archive.db"}, "archive"),
         ({"seed": 0, "size": (10, 10)}, "size"),
         ({"seed": 0, "size": [240, 320]}, "size"),
+        ({"seed": 0, "settings": {"p_false_alarm": 1e-6}}, "settings"),
+        ({"seed": 0, "arm": 1}, "arm"),
+        ({"seed": 0, "orbit": None}, "orbit"),
     ],
 )
 def test_bad_input_names_the_argument(kwargs: dict[str, object], message: str) -> None:
     with pytest.raises(InputError, match=message):
         run_mission(**kwargs)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"p_false_alarm": 0.7}, "p_false_alarm"),
+        ({"p_false_alarm": -1e-9}, "p_false_alarm"),
+        ({"p_preliminary": 1e-12}, "p_preliminary"),
+        ({"flaw_model": "blob"}, "flaw_model"),
+        ({"flaw_size_px": 3.0}, "flaw_size_px"),
+        ({"gas_dwell_s": float("nan")}, "gas_dwell_s"),
+        ({"depth_jump_m": 0.0}, "depth_jump_m"),
+        ({"nuisance_window_px": True}, "nuisance_window_px"),
+    ],
+)
+def test_settings_refuse_bad_values_by_name(changes: dict[str, object], message: str) -> None:
+    from rsi.mission import MissionSettings
+
+    with pytest.raises(InputError, match=message):
+        MissionSettings(**changes)  # type: ignore[arg-type]
+
+
+def test_settings_reach_the_result_and_change_the_plan() -> None:
+    from rsi.mission import MissionSettings, plan_vistas
+
+    settings = MissionSettings(door_open_rad=1.0, panel_standoff_m=0.4)
+    world = load("truss", seed=SEED)
+    try:
+        plan = plan_vistas(world, settings)
+        assert next(p for p in plan if p.name == "A_door_open").door_angle_rad == 1.0
+        assert world.vista("C_panel_centre").standoff_m == 0.4
+    finally:
+        world.close()
 
 
 def test_score_needs_a_mission_result() -> None:
@@ -201,14 +241,17 @@ def test_overview_pose_projects_every_anomaly_into_the_picture(archived: tuple[M
 
 
 def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -> None:
-    from rsi.mission.mission import DEPTH_JUMP_M, _inspection_region
+    from rsi.mission import MissionSettings
+    from rsi.mission.views import inspection_region
+
+    DEPTH_JUMP_M = MissionSettings().depth_jump_m
 
     world = load("truss", seed=SEED)
     try:
         view = world.render("B_tank", size=SMALL)
     finally:
         world.close()
-    region = _inspection_region(view)
+    region = inspection_region(view, MissionSettings())
     assert view.truss_mask is not None and view.depth_m is not None
     assert not (region & view.truss_mask).any()
     # no kept pixel has a neighbour across a depth jump (the tank's silhouette against its plate)

@@ -15,7 +15,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.control.blending import proximity_term
 from rsi.errors import InputError
-from rsi.mission.mission import PLAN, PlanPoint, plan_vistas, run_mission
+from rsi.mission import PLAN, PlanPoint, plan_vistas, run_mission
 from rsi.mission.motion import (
     ARRIVAL_TOLERANCE_M,
     ARRIVAL_TOLERANCE_RAD,

@@ -21,15 +21,11 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.errors import InputError
-from rsi.mission import mission
-from rsi.mission.mission import MissionResult, MissionScore, run_mission, score_mission
+from rsi.mission import MissionResult, MissionScore, run_mission, score_mission
 from rsi.report import figures
 from rsi.report.mission import (
-    AMBIENT_K,
     FINDING_COLUMNS,
-    GAS_THRESHOLD_PPM,
     REPORT_FILE,
-    THERMAL_THRESHOLD_K,
     crop_window,
     mission_html,
     proximity_section,
@@ -143,12 +139,6 @@ def test_text_from_the_record_is_escaped(report: Report) -> None:
     page = mission_html(result, score_mission(result))
     assert "<script" not in page
     assert "&lt;script&gt;alert(&#x27;x&#x27;)&lt;/script&gt;" in page
-
-
-def test_sensor_thresholds_are_the_missions() -> None:
-    assert AMBIENT_K == mission._AMBIENT_K
-    assert THERMAL_THRESHOLD_K == mission.THERMAL_THRESHOLD_K
-    assert GAS_THRESHOLD_PPM == mission.GAS_THRESHOLD_PPM
 
 
 @dataclass(frozen=True)

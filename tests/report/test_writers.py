@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from rsi.detection.detect import Detection, Flaw
+from rsi.detection.pair import PairResult
 from rsi.detection.roc import RocCurve
 from rsi.errors import InputError
-from rsi.mission.pair import PairResult
 from rsi.report import figures, writers
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -1,24 +1,87 @@
-"""Application layer: one inspection pass over a pair, scoring against ground truth, the synthetic demo.
+"""Application layer: the inspection mission and its parts, one pair's inspection, the batch.
 
-Importing this package stays cheap; the algorithms load when a function runs.
+- :func:`run_mission` (:mod:`rsi.mission.run`) - the passes over the mock-up as a list of steps;
+  :class:`MissionSettings` (:mod:`~rsi.mission.settings`) every tuned number with its reason;
+- :mod:`~rsi.mission.plan` the vista points, :mod:`~rsi.mission.exposure` metering,
+  :mod:`~rsi.mission.visual` one visit, :mod:`~rsi.mission.evidence` what a comparison shows,
+  :mod:`~rsi.mission.views` a view's geometry, :mod:`~rsi.mission.surveys` pyrometer and gas,
+  :mod:`~rsi.mission.store` the archive writes;
+- :func:`score_mission` (:mod:`~rsi.mission.score`) against ground truth; the records in
+  :mod:`~rsi.mission.records`;
+- :func:`inspect_pair` (from :mod:`rsi.detection.pair`) one reference/inspection pair;
+  :mod:`~rsi.mission.batch` many pairs on dask.
+
+Importing this package loads no simulator, renderer or image library; they load when a function runs.
 """
 
 from __future__ import annotations
 
-from rsi.mission.pair import (
-    DemoResult,
-    PairResult,
-    Score,
-    inspect_pair,
-    score_flaws,
-    simulate_demo,
+from typing import TYPE_CHECKING, Any
+
+from rsi.mission.records import (
+    IMPACT_MIN_SIZE_M,
+    SCORED_TYPES,
+    MissionFinding,
+    MissionResult,
+    PlanPoint,
+    VisitImages,
+    VisitRecord,
+    counts_towards_recall,
 )
+from rsi.mission.settings import MISSION_SIZE, MissionSettings
+
+if TYPE_CHECKING:
+    from rsi.detection.pair import PairResult, Score, inspect_pair, score_flaws
+    from rsi.mission.plan import PLAN, plan_vistas
+    from rsi.mission.run import ORBIT_START_S, run_mission
+    from rsi.mission.score import Miss, MissionScore, TypeScore, score_mission
+
+# the names that load the simulator or the image libraries, resolved on first use (PEP 562)
+_LAZY = {
+    "PairResult": "rsi.detection.pair",
+    "Score": "rsi.detection.pair",
+    "inspect_pair": "rsi.detection.pair",
+    "score_flaws": "rsi.detection.pair",
+    "PLAN": "rsi.mission.plan",
+    "plan_vistas": "rsi.mission.plan",
+    "ORBIT_START_S": "rsi.mission.run",
+    "run_mission": "rsi.mission.run",
+    "Miss": "rsi.mission.score",
+    "MissionScore": "rsi.mission.score",
+    "TypeScore": "rsi.mission.score",
+    "score_mission": "rsi.mission.score",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'rsi.mission' has no attribute {name!r}")
+
 
 __all__ = [
-    "DemoResult",
+    "IMPACT_MIN_SIZE_M",
+    "MISSION_SIZE",
+    "ORBIT_START_S",
+    "PLAN",
+    "SCORED_TYPES",
+    "Miss",
+    "MissionFinding",
+    "MissionResult",
+    "MissionScore",
+    "MissionSettings",
     "PairResult",
+    "PlanPoint",
     "Score",
+    "TypeScore",
+    "VisitImages",
+    "VisitRecord",
+    "counts_towards_recall",
     "inspect_pair",
+    "plan_vistas",
+    "run_mission",
     "score_flaws",
-    "simulate_demo",
+    "score_mission",
 ]

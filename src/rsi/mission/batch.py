@@ -3,7 +3,7 @@
 A manifest (CSV) lists the pairs; :func:`read_manifest` checks it whole before anything runs, and
 :func:`run_batch` sends one task per pair to a cluster: local worker processes by default (one
 single-threaded process per core), or an existing cluster by its scheduler address, with the same code.
-Each task reads its two images, runs :func:`rsi.mission.pair.inspect_pair` (seed §2.3-2.4: register, then
+Each task reads its two images, runs :func:`rsi.detection.pair.inspect_pair` (seed §2.3-2.4: register, then
 test every pixel at a chosen false-alarm probability) and returns a plain :class:`PairRecord`: the flaws and
 timings, or the error that stopped the pair. A task never raises, so a bad pair is reported and skipped and
 never stops the batch. Only the driver writes to the archive (one writer, one run), in short transactions as
@@ -76,7 +76,7 @@ _MAX_ID = 200
 
 @dataclass(frozen=True)
 class PairSettings:
-    """Detection settings of one pair: the keywords of :func:`rsi.mission.pair.inspect_pair`.
+    """Detection settings of one pair: the keywords of :func:`rsi.detection.pair.inspect_pair`.
 
     A run's settings apply to every pair; a manifest row may override any of them in a column of the same
     name. Checked when built, so a bad value fails before the batch starts.
@@ -478,7 +478,7 @@ def inspect_item(item: BatchItem, settings: PairSettings) -> PairRecord:
         return _failed(item, "read", error, read_s=time.perf_counter() - start_s, worker=worker)
     read_s = time.perf_counter() - start_s
     try:
-        from rsi.mission.pair import inspect_pair
+        from rsi.detection.pair import inspect_pair
 
         result = inspect_pair(reference, inspection, **asdict(settings))
         detection = result.detection

@@ -20,7 +20,7 @@ The solar simulator (:func:`sun_setting`, :func:`light_by_sun`) is put, at a vis
 where the orbit's sun direction says (seed §4.1): lit from the sun's direction onto the vista's target, or
 the nearest direction its rail can give (recorded), and off in the Earth's shadow.
 
-:class:`Tour` drives both for :func:`rsi.mission.mission.run_mission`. See docs/mission.md.
+:class:`Tour` drives both for :func:`rsi.mission.run_mission`. See docs/mission.md.
 """
 
 from __future__ import annotations
@@ -114,7 +114,7 @@ def _vista_of(world: World, vista: object) -> Vista:
     if not isinstance(vista, str) or vista not in world.vistas:
         raise InputError(
             f"vista must be one of this world's vistas {sorted(world.vistas)}; got {vista!r}. A mission's "
-            "extra views are added by rsi.mission.mission.plan_vistas(world)."
+            "extra views are added by rsi.mission.plan_vistas(world)."
         )
     return world.vista(vista)
 

@@ -1,7 +1,7 @@
 """The mission's report: one self-contained HTML page per run (issue 5 item 5), plus findings.csv/.json.
 
-A view only: every number drawn or written here was computed by :func:`rsi.mission.mission.run_mission`
-and :func:`rsi.mission.mission.score_mission`. The page carries every picture inline as a base64 PNG data
+A view only: every number drawn or written here was computed by :func:`rsi.mission.run_mission`
+and :func:`rsi.mission.score_mission`. The page carries every picture inline as a base64 PNG data
 URI and its style inline, and has no script and no external address, so it opens from disk in any browser
 with no server and can be mailed or archived as one file (docs/report.md). Plots are bare matplotlib
 ``Figure`` objects on the Agg canvas (no pyplot, no GUI backend, no global state).
@@ -21,12 +21,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi.constants import ROOM_TEMPERATURE_K
 from rsi.errors import InputError
 from rsi.report.figures import figure_png, mapped_png, roc_png
 from rsi.report.writers import atomic_write_text, csv_text, to_json, write_files
 
 if TYPE_CHECKING:
-    from rsi.mission.mission import MissionFinding, MissionResult, MissionScore, VisitImages
+    from rsi.mission.records import MissionFinding, MissionResult, VisitImages
+    from rsi.mission.score import MissionScore
     from rsi.sim.anomalies import Anomaly
 
 REPORT_FILE = "report.html"
@@ -54,11 +56,6 @@ FINDING_COLUMNS = (
 # The issue's targets (issue 5): per type recall >= 0.95, at most one false finding per run.
 RECALL_TARGET = 0.95
 FALSE_FINDINGS_TARGET = 1
-# The mission's sensor thresholds, drawn on the traces (the report may not import rsi.mission at run
-# time; tests/report/test_mission_report.py checks these equal the mission's own constants).
-AMBIENT_K = 293.15
-THERMAL_THRESHOLD_K = 3.0
-GAS_THRESHOLD_PPM = 2.0
 # Every finding's score crop shares this range of the dark-flaw LRT score (noise sigmas), so strengths
 # compare across findings; the confirming threshold at P_F = 1e-9 is 6.0 sigma (seed §2.4).
 SCORE_RANGE_SIGMA = (0.0, 10.0)
@@ -76,7 +73,6 @@ KIND_COLOURS: Mapping[str, str] = {
 }
 _OTHER_COLOUR = "#ffffff"
 _TYPE_OF = {"hot_spot": "thermal_spot", "cold_spot": "thermal_spot"}
-_IMPACT_MIN_SIZE_M = 1e-3  # issue 5: impacts of at least 1 mm count towards recall
 _OVERVIEW_DARK = 12  # overview pixels at most this bright (all channels) are empty space, cropped away
 _OVERVIEW_MARGIN_PX = 24
 _LABEL_OFFSETS_PT = ((6, 6), (6, -14), (-18, 6), (-18, -14))
@@ -115,7 +111,7 @@ def write_mission_report(
     out_dir : Path or str
         Folder (created if missing); every file is written atomically.
     result : MissionResult
-        From :func:`rsi.mission.mission.run_mission`.
+        From :func:`rsi.mission.run_mission`.
     score : MissionScore
         ``score_mission(result)``.
     timings_s : mapping of str to float, optional
@@ -172,20 +168,16 @@ def finding_records(result: MissionResult, score: MissionScore) -> list[dict[str
                 "col1": col1,
                 "truth_index": matched,
                 "truth_site": anomaly.site if anomaly is not None else None,
-                "verdict": _verdict(anomaly),
+                "verdict": _verdict(anomaly, matched, result),
             }
         )
     return records
 
 
-def _verdict(anomaly: Anomaly | None) -> str:
-    if anomaly is None:
+def _verdict(anomaly: Anomaly | None, index: int | None, result: MissionResult) -> str:
+    if anomaly is None or index is None:
         return "FALSE"
-    return "found" if _counts(anomaly) else "matches an impact < 1 mm (not counted)"
-
-
-def _counts(anomaly: Anomaly) -> bool:
-    return anomaly.kind != "impact" or anomaly.size_m >= _IMPACT_MIN_SIZE_M
+    return "found" if result.counts[index] else "matches an impact < 1 mm (not counted)"
 
 
 # ------------------------------------------------------------------------------------------------ page
@@ -323,9 +315,9 @@ def overview_png(result: MissionResult) -> tuple[bytes, int]:
     axes = figure.add_axes((0.0, 0.0, 1.0, 1.0))
     axes.imshow(picture[row0:row1, col0:col1], extent=(col0 - 0.5, col1 - 0.5, row1 - 0.5, row0 - 0.5))
     axes.set_axis_off()
-    for anomaly, (x, y) in zip(result.truth.anomalies, truth_xy, strict=True):
+    for anomaly, counts, (x, y) in zip(result.truth.anomalies, result.counts, truth_xy, strict=True):
         if np.isfinite(x):
-            style = "-" if _counts(anomaly) else "--"
+            style = "-" if counts else "--"
             colour = KIND_COLOURS.get(anomaly.kind, _OTHER_COLOUR)
             axes.scatter([x], [y], s=260, facecolors="none", edgecolors=colour, linewidths=2, linestyle=style)
     for number, (finding, (x, y)) in enumerate(zip(result.findings, finding_xy, strict=True), start=1):
@@ -427,7 +419,7 @@ def truth_section(result: MissionResult, score: MissionScore) -> str:
             status, css = f"MISSED: {reasons[index]}", "missed"
         else:
             status, css = "not counted (impact < 1 mm)", ""
-        if index in found_by and not _counts(anomaly):
+        if index in found_by and not result.counts[index]:
             status += " (impact < 1 mm, not counted)"
         size = _mm(anomaly.size_m)
         rows.append((index, anomaly.kind, anomaly.site, _position_mm(anomaly.position_m), size, status))
@@ -593,11 +585,12 @@ def pyrometer_png(result: MissionResult) -> bytes:
     truth = {a.site: a.kind for a in result.truth.anomalies if a.kind in ("hot_spot", "cold_spot")}
     figure = Figure(figsize=(7.0, 3.6), dpi=100)
     axes = figure.subplots()
-    band = (AMBIENT_K - THERMAL_THRESHOLD_K, AMBIENT_K + THERMAL_THRESHOLD_K)
+    threshold_k = result.settings.thermal_threshold_k
+    band = (ROOM_TEMPERATURE_K - threshold_k, ROOM_TEMPERATURE_K + threshold_k)
     axes.axhspan(
-        *band, color="#9ecae1", alpha=0.4, label=f"normal: {AMBIENT_K} K ± {THERMAL_THRESHOLD_K:g} K"
+        *band, color="#9ecae1", alpha=0.4, label=f"normal: {ROOM_TEMPERATURE_K} K ± {threshold_k:g} K"
     )
-    axes.axhline(AMBIENT_K, color="#3182bd", linewidth=0.8)
+    axes.axhline(ROOM_TEMPERATURE_K, color="#3182bd", linewidth=0.8)
     colours = [KIND_COLOURS.get(truth.get(site, ""), "#444444") for site in sites]
     axes.scatter(range(len(sites)), readings, s=60, c=colours, edgecolors="black", zorder=3)
     for position, site in enumerate(sites):
@@ -625,8 +618,9 @@ def gas_png(result: MissionResult) -> bytes:
     for number, (first, stop) in enumerate(itertools.pairwise(starts)):
         label = "estimate per station" if number == 0 else None
         axes.plot(along[first:stop], ppm[first:stop], ".-", color="C0", markersize=3, label=label)
-    axes.axhline(GAS_THRESHOLD_PPM, color="black", linestyle="--", linewidth=0.8,
-                 label=f"threshold {GAS_THRESHOLD_PPM:g} ppm")  # fmt: skip
+    threshold_ppm = result.settings.gas_threshold_ppm
+    axes.axhline(threshold_ppm, color="black", linestyle="--", linewidth=0.8,
+                 label=f"threshold {threshold_ppm:g} ppm")  # fmt: skip
     for start in np.flatnonzero(breaks):
         axes.axvline(along[start], color="grey", linewidth=0.6, linestyle=":")
     for anomaly in result.truth.anomalies:

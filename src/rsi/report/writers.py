@@ -22,10 +22,11 @@ from rsi._files import atomic_write_bytes
 from rsi.report import figures
 
 if TYPE_CHECKING:
+    from rsi.datasets.demo import DemoResult
     from rsi.detection.detect import Detection, Flaw
+    from rsi.detection.pair import PairResult
     from rsi.detection.roc import RocCurve
     from rsi.imaging.registration import Registration
-    from rsi.mission.pair import DemoResult, PairResult
 
 FLAW_COLUMNS = ("number", "row", "col", "row0", "col0", "row1", "col1", "area_px", "score", "polarity")
 """Columns of flaws.csv (and keys of each flaw in flaws.json); ``number`` matches the overlay labels."""

@@ -1,0 +1,314 @@
+"""Evidence read from one visit's comparison (seed §2.4, §4 anomalies): dark blobs and how much they
+darkened, screw heads by their stereo relief, components by their change, dimming or dent, and what
+explains a blob that is no impact.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import special
+
+from rsi.mission.records import MissionFinding
+from rsi.mission.settings import MissionSettings
+from rsi.mission.views import (
+    disc,
+    field_to_world,
+    pixel_size_m,
+    seen_components,
+    surface_distance_m,
+    to_field,
+    visible,
+)
+from rsi.sim.mockup import SCREW_HEIGHT_M
+
+if TYPE_CHECKING:
+    from rsi.detection.pair import PairResult
+    from rsi.sim.anomalies import Site
+    from rsi.sim.world import View, World
+
+FloatArray = NDArray[np.float64]
+
+
+def confidence(margin: float) -> float:
+    """Confidence from a margin over the threshold in noise sigmas: Phi(margin), in [0.5, 1)."""
+    return float(0.5 * special.erfc(-margin / math.sqrt(2.0)))
+
+
+@dataclass
+class Look:
+    """One dark blob of a visit, kept until it is classified."""
+
+    position_m: tuple[float, float, float]
+    area_m2: float
+    score: float
+    bbox: tuple[int, int, int, int]
+    second_look: bool
+    darkening: float = 0.0
+
+
+def darkening(pair: PairResult, bbox: tuple[int, int, int, int]) -> float:
+    """Largest fraction of the reference's brightness a 3x3 window of the blob lost (0: none)."""
+    import cv2
+
+    detection = pair.detection
+    row0, col0, row1, col1 = bbox
+    r0, c0 = max(row0 - 1, 0), max(col0 - 1, 0)
+    r1, c1 = min(row1 + 1, detection.difference.shape[0]), min(col1 + 1, detection.difference.shape[1])
+    difference = np.where(detection.valid[r0:r1, c0:c1], detection.difference[r0:r1, c0:c1], 0.0)
+    predicted = pair.inspection[r0:r1, c0:c1] - detection.difference[r0:r1, c0:c1]
+    lost = cv2.blur(-difference.astype(np.float32), (3, 3), borderType=cv2.BORDER_REPLICATE)
+    bright = cv2.blur(np.maximum(predicted, 0.0).astype(np.float32), (3, 3), borderType=cv2.BORDER_REPLICATE)
+    fraction = lost / np.maximum(bright, np.float32(1.0))
+    return float(fraction.max()) if fraction.size else 0.0
+
+
+def blobs(pair: PairResult, view: View) -> list[Look]:
+    """Each dark blob of the comparison as a look at its peak: the preliminary threshold grows a millimetre
+    spot's blob into the noise around it, and its centroid can leave the 5x5 window in which the other
+    reference's comparison and the second look are read (:func:`second_look_score`)."""
+    looks: list[Look] = []
+    score = pair.detection.score
+    for flaw in pair.flaws:
+        row0, col0, row1, col1 = flaw.bbox
+        peak_row, peak_col = np.unravel_index(
+            np.argmax(score[row0:row1, col0:col1]), (row1 - row0, col1 - col0)
+        )
+        position = field_to_world(view, float(row0 + peak_row), float(col0 + peak_col))
+        if position is None:
+            continue
+        pixel = pixel_size_m(view, position)
+        look = Look(position, flaw.area_px * pixel * pixel, flaw.score, flaw.bbox, False)
+        look.darkening = darkening(pair, flaw.bbox)
+        looks.append(look)
+    return looks
+
+
+def screw_relief_m(depth_m: NDArray[np.float32], view: View, site: Site) -> float:
+    """Height of the screw head above the plate around it in the stereo range map (seed §3, §4 screws).
+
+    A head stands SCREW_HEIGHT_M proud; a removed one leaves the plate and a flat hole. The image alone
+    tells them apart poorly (the hole is as dark as the slot, the plate as bright as the head, and the
+    head's pattern correlates with the hole's at 0.43 against 0.42 for a present head, seeds 0-19);
+    the relief's median over ~45 head pixels has a noise of ~0.1 mm. NaN when the view holds too few.
+    """
+    distance = surface_distance_m(depth_m.shape, view, site.position_m)
+    radius = 0.5 * site.size_m
+    usable = np.isfinite(depth_m) & (depth_m < 10.0)
+    head = (distance <= 0.6 * radius) & usable
+    plate = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & usable
+    if head.sum() < 5 or plate.sum() < 10:
+        return math.nan
+    return float(np.median(depth_m[plate]) - np.median(depth_m[head]))
+
+
+def screw_checks(
+    world: World,
+    view: View,
+    source: str,
+    *,
+    settings: MissionSettings,
+    depth_m: NDArray[np.float32],
+    reliefs: Mapping[str, float],
+    done: frozenset[str],
+) -> tuple[list[MissionFinding], frozenset[str]]:
+    """Screws the frame sees and no earlier visit checked (`done`): a head 2 mm proud of the plate, or gone
+    (seed §4: screws randomly removed), by its relief in the stereo range map against the reference's.
+
+    Returns the missing screws' findings and the names of the screws this view checked.
+    """
+    findings = []
+    screws = [s for s in world.mockup.candidates.screw_sites if s.name not in done]
+    seen = visible(view, np.asarray([s.position_m for s in screws])) if screws else np.zeros(0, bool)
+    checked = [site for site, in_view in zip(screws, seen, strict=True) if in_view]
+    for site in checked:
+        before = reliefs.get(site.name, math.nan)
+        lost = (before if math.isfinite(before) else SCREW_HEIGHT_M) - screw_relief_m(depth_m, view, site)
+        if lost > settings.screw_relief_lost_m:
+            findings.append(
+                MissionFinding(
+                    kind="missing_screw",
+                    position_m=site.position_m,
+                    size_m=site.size_m,
+                    confidence=confidence((lost - settings.screw_relief_lost_m) / 2e-4),
+                    source=source,
+                    score=lost,
+                )
+            )
+    return findings, frozenset(site.name for site in checked)
+
+
+def relief_m(depth_m: NDArray[np.float32], view: View, site: Site) -> float:
+    """Depth of the site's centre below its surroundings: central 3 cm disc against a 4.5-7 cm ring."""
+    distance = surface_distance_m(depth_m.shape, view, site.position_m)
+    inner, ring = distance <= 0.03, (distance >= 0.045) & (distance <= 0.07)
+    usable = np.isfinite(depth_m) & (depth_m < 10.0)
+    inner, ring = inner & usable, ring & usable
+    if inner.sum() < 20 or ring.sum() < 20:
+        return 0.0
+    return float(np.median(depth_m[inner]) - np.median(depth_m[ring]))
+
+
+def component_change(pair: PairResult, view: View, site: Site, settings: MissionSettings) -> float:
+    """Fraction of the component's central disc whose difference exceeds 3 noise sigmas (seed §4 swaps).
+
+    A discoloured replacement darkens the whole component (measured 0.16-0.63 over seeds 0-5 where one
+    was, <= 0.012 on pristine ones); a 5 cm disc at the site's centre is the part every view of it shows.
+    """
+    detection = pair.detection
+    centre = disc(detection.difference.shape, view, site.position_m, settings.component_disc_m)
+    centre &= detection.valid
+    if centre.sum() < 50:
+        return 0.0
+    z = np.abs(detection.difference[centre]) / np.maximum(detection.sigma[centre], np.float32(1e-6))
+    return float(np.mean(z > 3.0))
+
+
+def component_dimming(pair: PairResult, view: View, site: Site, settings: MissionSettings) -> float:
+    """Relative change of the component's brightness in its central disc, before photometric matching.
+
+    Seed §2.3 registration fits a gain and a bias, and where one component fills the frame (the solar
+    panel) that fit absorbs its discolouring whole. The strobe's energy is the same on both passes
+    (metered once per vista), so the raw ratio of the medians is the reflectance change itself.
+    """
+    detection = pair.detection
+    registration = detection.registration
+    centre = disc(detection.difference.shape, view, site.position_m, settings.component_disc_m)
+    centre &= detection.valid
+    if registration is None or centre.sum() < 50:
+        return 0.0
+    predicted = pair.inspection[centre] - detection.difference[centre]
+    warped = (predicted - np.float32(registration.bias)) / np.float32(registration.gain)
+    before = float(np.median(warped))
+    return float(np.median(pair.inspection[centre])) / before - 1.0 if before > 1.0 else 0.0
+
+
+@dataclass(frozen=True)
+class Explanation:
+    """Where a swap found in a visit shows in its difference image: within `radius_m` of `centre_m`, and
+    only on `component`'s own pixels when given (a discoloured replacement's change ends at its outline)."""
+
+    centre_m: tuple[float, float, float]
+    radius_m: float
+    component: str | None = None
+
+
+def unexplained(
+    looks: list[Look],
+    view: View,
+    explanations: list[Explanation],
+    screw_positions: FloatArray,
+    settings: MissionSettings,
+) -> list[Look]:
+    """Looks that are no screw's evidence and no part of a swap found in the view."""
+    kept = []
+    for look in looks:
+        here = np.asarray(look.position_m)
+        if np.min(np.linalg.norm(screw_positions - here, axis=1)) <= settings.screw_match_m:
+            continue
+        if any(explained_by(look, view, explanation, settings) for explanation in explanations):
+            continue
+        kept.append(look)
+    return kept
+
+
+def explained_by(look: Look, view: View, explanation: Explanation, settings: MissionSettings) -> bool:
+    distance = float(np.linalg.norm(np.subtract(look.position_m, explanation.centre_m)))
+    if distance > explanation.radius_m:
+        return False
+    if explanation.component is None:
+        # a dent's crater changes the image over centimetres: a millimetre spot much darker than the
+        # reference there is an impact on the dented face (seed §4 plants both independently)
+        return look.area_m2 > settings.spot_area_max_m2 or look.darkening < settings.dent_spot_darkening_min
+    mask = view.component_masks.get(explanation.component)
+    if mask is None:
+        return False
+    # the blob's own pixels may be a decal (an impact spot is not the component): its surround decides
+    row0, col0, row1, col1 = look.bbox
+    r0, c0 = max(row0 - settings.surround_px, 0), max(col0 - settings.surround_px, 0)
+    surround = mask[r0 : row1 + settings.surround_px, c0 : col1 + settings.surround_px]
+    return bool(surround.mean() > 0.5)
+
+
+def component_checks(
+    pair: PairResult,
+    view: View,
+    source: str,
+    *,
+    reliefs: Mapping[str, float],
+    depth_m: NDArray[np.float32],
+    world: World,
+    settings: MissionSettings,
+) -> list[tuple[MissionFinding, Explanation]]:
+    """Each component site the view sees, checked for a swap (seed §4): discoloured or dented.
+
+    A discoloured replacement changes the strobe image over the whole component, unless it fills the frame
+    and the registration's gain absorbs it (then its raw brightness tells); a dent shows in the stereo range
+    map, sunk below its surroundings by millimetres. Each finding comes with the radius around it within
+    which the difference image shows the swap itself (blobs there are not impacts, those elsewhere are); a
+    discolouring changed only the component's own surface, which the view's CAD projection tells.
+    """
+    found = []
+    for site in seen_components(world, view):
+        change = component_change(pair, view, site, settings)
+        sunk = relief_m(depth_m, view, site) - reliefs.get(site.name, math.nan)
+        if abs(sunk) > settings.dent_relief_min_m:  # a dent: its disc changed, the rest of the skin did not
+            score, margin = sunk, (abs(sunk) - settings.dent_relief_min_m) / 2e-4
+            size = min(site.size_m, 2 * settings.component_disc_m)
+            explained = Explanation(site.position_m, 0.5 * size + 0.02)
+        elif change > settings.component_change_min:
+            score, margin, size = change, (change - settings.component_change_min) / 0.01, site.size_m
+            explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name)
+        elif abs(dimming := component_dimming(pair, view, site, settings)) > settings.component_dimming_min:
+            score, margin, size = dimming, (abs(dimming) - settings.component_dimming_min) / 0.01, site.size_m
+            explained = Explanation(site.position_m, 0.0)
+        else:
+            continue
+        finding = MissionFinding(
+            kind="swapped_component",
+            position_m=site.position_m,
+            size_m=size,
+            confidence=confidence(margin),
+            source=source,
+            score=score,
+        )
+        found.append((finding, explained))
+    return found
+
+
+def discoloured_pixels(
+    view: View, explanations: list[Explanation], settings: MissionSettings
+) -> NDArray[np.bool_] | None:
+    """Pixels of the discoloured components found in the view, a margin wider (None when there are none).
+
+    Seed §2.3 fits one gain and bias to the whole frame: a replacement that reflects half as much and fills
+    half the frame drags that fit, and the rest of the view (a plate beside a discoloured tank) is left
+    +12 DN off, which inflates the comparison's robust noise scale 15-fold and hides impacts there. Once
+    the swap is found, its pixels (the CAD projection, a few pixels wider for the pose error) leave the fit.
+    """
+    import cv2
+
+    masks = [
+        view.component_masks[e.component]
+        for e in explanations
+        if e.component is not None and e.component in view.component_masks
+    ]
+    if not masks:
+        return None
+    side = 2 * settings.discoloured_margin_px + 1
+    changed = cv2.dilate(np.logical_or.reduce(masks).astype(np.uint8), np.ones((side, side), np.uint8))
+    return np.asarray(changed, dtype=bool)
+
+
+def second_look_score(pair: PairResult, view: View, position: tuple[float, float, float]) -> float:
+    """Peak score of the second look within 2 px of where the first look's blob is (seed §2.5)."""
+    row, col, _ = to_field(view, np.asarray([position]))
+    score = pair.detection.score
+    r, c = round(row[0]), round(col[0])
+    window = score[max(r - 2, 0) : r + 3, max(c - 2, 0) : c + 3]
+    return float(window.max()) if window.size else 0.0

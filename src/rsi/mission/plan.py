@@ -1,0 +1,72 @@
+"""The mission's plan: the vista points that cover every component of the mock-up (seed §4).
+
+The mock-up's own vistas cover its components; the solar panel's dark cells need closer views (see
+:func:`panel_vistas`), and the electrical ORU's inside is seen with its door open (seed §4 A).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rsi.mission.records import PlanPoint
+from rsi.mission.settings import MissionSettings
+
+if TYPE_CHECKING:
+    from rsi.sim.mockup import Vista
+    from rsi.sim.world import World
+
+# the panel's four quarters (rows across the truss) and its centre, offsets from its vista's target
+_PANEL_OFFSETS_M = {
+    "C_panel_west_front": (-0.125, -0.095),
+    "C_panel_west_back": (-0.125, 0.095),
+    "C_panel_east_front": (0.125, -0.095),
+    "C_panel_east_back": (0.125, 0.095),
+    "C_panel_centre": (0.0, 0.0),
+}
+
+
+def panel_vistas(standoff_m: float) -> tuple[Vista, ...]:
+    """Five close views of the solar panel at `standoff_m` that the mock-up does not list (seed §4 C).
+
+    At the 0.5 m standoff a pixel is 0.66 mm on the dark cells: a millimetre impact covers two pixels and
+    the cells' 0.8 mm texels alias from visit to visit. At 0.35 m a pixel is 0.46 mm; four views, the
+    image's rows across the truss, cover the panel and its corner screws, and a fifth looks straight at
+    the component's site, where a replacement's dent would be: in the corners of the other four a crater is
+    seen obliquely and its shading hides the spots in it.
+    """
+    from rsi.sim.mockup import truss_mockup, vista
+
+    centre = truss_mockup().vistas["C_panel"].target_m
+    return tuple(
+        vista(name, (centre[0] + dx, centre[1] + dy, centre[2]), (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), standoff_m)
+        for name, (dx, dy) in _PANEL_OFFSETS_M.items()
+    )
+
+
+def plan_points(settings: MissionSettings) -> tuple[PlanPoint, ...]:
+    """The plan's vista points in visiting order: the electrical ORU closed, open and its Kapton, the
+    tank ORU, the five panel views, the tubing."""
+    panel = [PlanPoint(name, name) for name in _PANEL_OFFSETS_M]
+    return (
+        PlanPoint("A_door", "A_door"),
+        PlanPoint("A_door_open", "A_door", settings.door_open_rad),
+        PlanPoint("A_kapton", "A_kapton"),
+        PlanPoint("B_tank", "B_tank"),
+        *panel,
+        PlanPoint("D_tubing", "D_tubing"),
+    )
+
+
+PLAN: tuple[PlanPoint, ...] = plan_points(MissionSettings())
+
+
+def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[PlanPoint, ...]:
+    """Add the plan's panel vistas to `world` (once) and return the plan (every component covered)."""
+    settings = MissionSettings() if settings is None else settings
+    for point in panel_vistas(settings.panel_standoff_m):
+        if point.name not in world.vistas:
+            world.add_vista(point)
+    return plan_points(settings)
+
+
+__all__ = ["PLAN", "panel_vistas", "plan_points", "plan_vistas"]

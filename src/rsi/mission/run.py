@@ -1,0 +1,362 @@
+"""Seed §2-§4 together: one inspection mission over the truss mock-up, as a list of steps.
+
+A mission plans vista points that cover every component (the inside of the electrical ORU with its door
+open included), takes a *reference pass* on the pristine mock-up, then an *inspection pass* after the seeded
+anomalies appeared, and fuses what it sees and senses into findings:
+
+- **visual** (seed §2, :mod:`rsi.mission.visual`): each visit's strobe image is compensated (seed §2.2),
+  registered to its references and tested by the calibrated likelihood-ratio test (seed §2.3-2.4);
+- **temperature** and **gas** (seed §3-4, :mod:`rsi.mission.surveys`): the pyrometer over the Kapton
+  circles, the MOS sensor along the tubing;
+- **active inspection** (seed §2.5): a doubtful detection gets a second look.
+
+:func:`rsi.mission.score_mission` matches the findings to the world's ground truth. See docs/mission.md.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rsi import _validate as v
+from rsi.errors import InputError
+from rsi.mission.evidence import relief_m, screw_relief_m
+from rsi.mission.exposure import metered_energy, metered_shutter, reflashed, settle
+from rsi.mission.plan import plan_vistas
+from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
+from rsi.mission.score import run_roc
+from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, MissionSettings
+from rsi.mission.surveys import gas_pass, pyrometer_pass
+from rsi.mission.views import seen_components, seen_screws, stereo_depth, strobe_image
+from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit
+from rsi.sim.orbit import orbital_period_s
+
+if TYPE_CHECKING:
+    from rsi.archive import Archive
+    from rsi.imaging.compensation import Compensated
+    from rsi.mission.motion import Tour
+    from rsi.sim.world import View, World
+
+ProgressFn = Callable[[str, int, int], None]
+
+# The reference pass begins 26 deg past orbit noon, the inspection pass one orbit later at the same phase:
+# a sun 20 deg apart between the passes raised false impacts 4 -> 15 on seed 0 (docs/mission.md).
+ORBIT_START_S = (400.0, 400.0 + orbital_period_s())
+
+
+def run_mission(
+    seed: int,
+    *,
+    settings: MissionSettings | None = None,
+    archive: Archive | None = None,
+    repeatability: str = "lab",
+    active: bool = True,
+    progress: ProgressFn | None = None,
+    size: tuple[int, int] = MISSION_SIZE,
+    arm: bool = True,
+    orbit: bool = True,
+    orbit_start_s: tuple[float, float] = ORBIT_START_S,
+) -> MissionResult:
+    """Reference pass, inspection pass and sensor passes over the seeded mock-up (seed §2-§4).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the world (anomalies, viewpoint errors, camera and sensor noise), >= 0. The same seed gives
+        the same findings.
+    settings : MissionSettings, optional
+        Detection, evidence, metering and survey settings; ``MissionSettings()`` by default.
+    archive : Archive, optional
+        Receives the plan's vista points, the reference images (compensated, float32) and one finished
+        inspection run with its findings.
+    repeatability : {"lab", "space"}
+        Viewpoint repeatability of each visit (seed §2.3).
+    active : bool
+        Active inspection (seed §2.5): detections between the preliminary and confirming thresholds get a
+        second look and are confirmed or rejected on the fused evidence. False: one look, one threshold.
+    progress : callable, optional
+        ``progress(stage, done, total)`` after each visit and sensor pass.
+    size : (int, int)
+        Frame (rows, cols), each >= 64.
+    arm : bool
+        Move the ISEE with the arm and rail to each reachable vista (retract, transfer, approach under the
+        proximity law; seed §3.1) and take the frame from where the arm holds the camera; vistas out of
+        reach (the solar panel's, from above) keep the free camera. False: the free camera teleported to
+        each vista.
+    orbit : bool
+        Light each visit by the orbit's sun at its mission-clock time (seed §4.1); False keeps the lamp
+        where the world put it.
+    orbit_start_s : (float, float)
+        Orbit time (s after orbit noon) at which the reference and the inspection pass begin, each >= 0;
+        by default 400 s and one orbit (5553.6 s) later, so both passes see about the same sun.
+
+    Returns
+    -------
+    MissionResult
+
+    Raises
+    ------
+    InputError
+        Naming the argument: a negative or non-integer seed, settings that are not MissionSettings, an
+        unknown repeatability, a non-bool `active`, `arm` or `orbit`, a non-callable `progress`, a bad
+        `size`, something that is not an Archive, or `orbit_start_s` not two times >= 0 s.
+    """
+    from rsi.mission.motion import Tour, pass_starts
+    from rsi.sim.world import load
+
+    settings = _checked(seed, settings, archive, repeatability, progress, active=active, arm=arm, orbit=orbit)
+    seed = int(seed)
+    shape, starts = _size(size), pass_starts(orbit_start_s)
+    clock = _Clock()
+    world = load("truss", seed=seed, repeatability=repeatability, arm=arm)
+    plan = plan_vistas(world, settings)
+    tour = Tour(world, seed=seed, size=shape, arm=arm, orbit=orbit)
+    report = _progress_reporter(progress, total=2 * len(plan) + 2)
+    stereo_rng = np.random.default_rng(np.random.SeedSequence([seed, 11]))
+    sensor_rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
+    try:
+        tour.start_pass("reference", starts[0])
+        stored = _reference_pass(world, plan, tour, report, stereo_rng=stereo_rng, settings=settings)
+        clock.lap("reference")
+        tour.start_pass("inspection", starts[1])
+        visual, visits = _inspection_pass(
+            world, plan, stored, tour, report, stereo_rng=stereo_rng, active=active, settings=settings
+        )
+        clock.lap("inspection")
+        thermal, readings = pyrometer_pass(world, sensor_rng, settings)
+        report("pyrometer")
+        gas, stations, gas_ppm = gas_pass(world, sensor_rng, settings)
+        report("gas")
+        findings = (*fuse_findings(visual, world.mockup.candidates.component_sites, settings), *thermal, *gas)
+        overview_rgb, overview_pose = world.overview(size=OVERVIEW_SIZE)
+        run_id = _archived(
+            archive,
+            world,
+            plan,
+            stored,
+            findings,
+            seed=seed,
+            repeatability=repeatability,
+            active=active,
+            settings=settings,
+        )
+        clock.lap("sensors")
+    finally:
+        world.close()
+    return MissionResult(
+        seed=seed,
+        repeatability=repeatability,
+        active=active,
+        size=shape,
+        plan=plan,
+        findings=findings,
+        visits=visits,
+        truth=world.anomalies,
+        pyrometer_k=readings,
+        gas_ppm=gas_ppm,
+        gas_stations_m=stations,
+        run_id=run_id,
+        timings_s=clock.timings(transits_s=sum(transit.wall_s for transit in tour.transits)),
+        roc=run_roc(visits, settings),
+        overview_rgb=overview_rgb,
+        overview_pose=overview_pose,
+        transits=tuple(tour.transits),
+        suns=tuple(tour.suns),
+        settings=settings,
+    )
+
+
+def _reference_pass(
+    world: World,
+    plan: tuple[PlanPoint, ...],
+    tour: Tour,
+    report: Callable[[str], None],
+    *,
+    stereo_rng: np.random.Generator,
+    settings: MissionSettings,
+) -> dict[str, StoredView]:
+    """Two pristine visits per plan point: the reference and a second reference (the nuisance map and the
+    second opinion of every detection), the relief of every site the reference sees in the stereo range
+    map, and the metered shutter and strobe energy."""
+    from rsi.detection.nuisance import nuisance_scale
+
+    stored: dict[str, StoredView] = {}
+    for point in plan:
+        settle(world, door_angle_rad=point.door_angle_rad)
+        view = tour.visit(point.name, point.vista, state="reference")
+        shutter = metered_shutter(world, view, settings)
+        energy = metered_energy(world, view, settings, shutter)
+        # kept for this point's later visits, inspection pass included
+        world.set_shutter(shutter)
+        world.set_strobe_energy(energy)
+        view = reflashed(world, view, energy, shutter)
+        reference = _with_shadow_edges(strobe_image(world, view), view, settings)
+        depth = stereo_depth(view, stereo_rng, settings)
+        reliefs = {site.name: relief_m(depth, view, site) for site in seen_components(world, view)} | {
+            site.name: screw_relief_m(depth, view, site) for site in seen_screws(world, view)
+        }
+        again = tour.visit(point.name, point.vista, state="reference", truth=False)
+        second = _with_shadow_edges(strobe_image(world, again), again, settings)
+        scale = nuisance_scale(
+            reference,
+            second,
+            flaw_model=settings.flaw_model,
+            size=settings.flaw_size_px,
+            misregistration_std_px=settings.misregistration_std_px,
+            window_px=settings.nuisance_window_px,
+            spread_px=settings.nuisance_spread_px,
+        )
+        stored[point.name] = StoredView(reference, second, scale, reliefs, energy, shutter)
+        report(f"reference {point.name}")
+    return stored
+
+
+def _with_shadow_edges(image: Compensated, view: View, settings: MissionSettings) -> Compensated:
+    """The image with the compensation error of its frame's sharp ambient edges at another visit added."""
+    from rsi.detection.nuisance import shadow_edge_variance
+
+    return shadow_edge_variance(
+        image,
+        view.frame.raw,
+        lit_field=view.frame.lit_field,
+        edge_dn_px=settings.shadow_edge_dn_px,
+        jag_px=settings.shadow_jag_px,
+    )
+
+
+def _inspection_pass(
+    world: World,
+    plan: tuple[PlanPoint, ...],
+    stored: dict[str, StoredView],
+    tour: Tour,
+    report: Callable[[str], None],
+    *,
+    stereo_rng: np.random.Generator,
+    active: bool,
+    settings: MissionSettings,
+) -> tuple[list[MissionFinding], tuple[VisitRecord, ...]]:
+    """Every plan point visited again after the anomalies appeared, with the reference pass's exposure."""
+    findings: list[MissionFinding] = []
+    records: list[VisitRecord] = []
+    checked: frozenset[str] = frozenset()
+    for point in plan:
+        world.set_door(point.door_angle_rad)
+        world.set_strobe_energy(stored[point.name].strobe_energy)
+        world.set_shutter(stored[point.name].shutter)
+        visit: Visit = inspect_visit(
+            world,
+            point,
+            stored[point.name],
+            screws_checked=checked,
+            active=active,
+            settings=settings,
+            stereo_rng=stereo_rng,
+            tour=tour,
+        )
+        findings += visit.findings
+        records.append(visit.record)
+        checked = visit.screws_checked
+        report(f"inspection {point.name}")
+    settle(world, door_angle_rad=0.0)
+    return findings, tuple(records)
+
+
+def _archived(
+    archive: Archive | None,
+    world: World,
+    plan: tuple[PlanPoint, ...],
+    stored: dict[str, StoredView],
+    findings: tuple[MissionFinding, ...],
+    *,
+    seed: int,
+    repeatability: str,
+    active: bool,
+    settings: MissionSettings,
+) -> int | None:
+    """The references, the run and its findings in `archive` (None: nothing stored, no run id)."""
+    from rsi.mission.store import store_findings, store_references
+
+    if archive is None:
+        return None
+    run_id = store_references(
+        archive,
+        world=world,
+        plan=plan,
+        references={name: view.reference for name, view in stored.items()},
+        seed=seed,
+        run_settings={"repeatability": repeatability, "active": active},
+        settings=settings,
+    )
+    store_findings(archive, run_id, findings)
+    return run_id
+
+
+class _Clock:
+    """Wall time of the mission's stages: each lap from the previous one, and the total."""
+
+    def __init__(self) -> None:
+        self._start_s = self._last_s = time.perf_counter()
+        self._laps: dict[str, float] = {}
+
+    def lap(self, stage: str) -> None:
+        now = time.perf_counter()
+        self._laps[stage], self._last_s = now - self._last_s, now
+
+    def timings(self, *, transits_s: float) -> dict[str, float]:
+        return {**self._laps, "total": time.perf_counter() - self._start_s, "transits": transits_s}
+
+
+def _progress_reporter(progress: ProgressFn | None, *, total: int) -> Callable[[str], None]:
+    done = 0
+
+    def report(stage: str) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(stage, done, total)
+
+    return report
+
+
+def _checked(
+    seed: object,
+    settings: object,
+    archive: object,
+    repeatability: object,
+    progress: object,
+    **flags: object,
+) -> MissionSettings:
+    """The settings to run with, once every argument of run_mission has been checked by name."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed must be an integer >= 0; got {seed!r}.")
+    if settings is not None and not isinstance(settings, MissionSettings):
+        raise InputError(
+            f"settings must be None or an rsi.mission.MissionSettings; got {type(settings).__name__}."
+        )
+    v.choice(repeatability, "repeatability", REPEATABILITY)
+    for name, flag in flags.items():
+        if not isinstance(flag, bool):
+            raise InputError(f"{name} must be True or False; got {flag!r}.")
+    if progress is not None and not callable(progress):
+        raise InputError(
+            f"progress must be None or a callable progress(stage, done, total); got {progress!r}."
+        )
+    if archive is not None:
+        from rsi.archive import Archive
+
+        if not isinstance(archive, Archive):
+            raise InputError(
+                f"archive must be None or an rsi.archive.Archive; got {type(archive).__name__}. "
+                "Open one with rsi.archive.Archive.open(path)."
+            )
+    return MissionSettings() if settings is None else settings
+
+
+def _size(size: object) -> tuple[int, int]:
+    if not isinstance(size, tuple) or len(size) != 2:
+        raise InputError(f"size must be a (rows, cols) tuple; got {size!r}. Try size=(480, 640).")
+    rows, cols = (v.positive_int(side, "size", minimum=64) for side in size)
+    return (rows, cols)

@@ -1,0 +1,169 @@
+"""Every tuned number of the mission, with what holds it up: :class:`MissionSettings`.
+
+A setting's reason is one of: the seed paper (cited), the physics or the sensor model (the arithmetic is
+given), or a measurement, in which case the cases it was measured on are named (docs/mission.md has the
+tables). ``run_mission(seed, settings=MissionSettings(...))`` runs with other values; the defaults are the
+operating point of the 20-seed figures in docs/mission.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from rsi.errors import InputError
+
+MISSION_SIZE = (480, 640)  # the seed's video frame (seed §2.1)
+OVERVIEW_SIZE = (600, 800)
+REPEATABILITY = ("lab", "space")
+
+
+@dataclass(frozen=True)
+class MissionSettings:
+    """The mission's detection, evidence, metering and survey settings (SI units, pixels named ``_px``).
+
+    Attributes
+    ----------
+    p_false_alarm : float
+        Per-pixel false-alarm probability of the confirming test (seed §2.4: the threshold follows from the
+        P_F asked for). ~2e6 pixels are tested per mission; rendering nuisances leave the statistic's tails
+        heavier than N(0, 1), and 1e-9 (6.0 sigma) is the operating point at which seeds 0-19 give at most
+        one false finding per run.
+    p_preliminary : float
+        Preliminary threshold of active inspection (seed §2.5): a detection above it but below the
+        confirming threshold earns a second look.
+    flaw_model, flaw_size_px : str, int
+        Seed §2.4 uniform flaw model over a 3x3 window: a 1 mm impact covers 2-3 pixels at the standoff.
+    misregistration_std_px : float
+        Floor of the residual shift std in the detector's noise model (seed §2.3: lab repeatability leaves
+        a fraction of a pixel after Gauss-Newton).
+    nuisance_window_px, nuisance_spread_px : int
+        Averaging box and dilation of the two-visit excess (:func:`rsi.detection.nuisance.pair_excess`):
+        the box holds ~80 samples of z^2 (relative error ~0.16); the spread covers the next visit's pose
+        error (lab: up to ~4 px).
+    impact_darkening_min : float
+        A small dark blob must lose this fraction of the reference's brightness over a 3x3 window to be an
+        impact: the seed's impacts are black tape on the surface (seed §4), which a 3x3 window of 0.66 mm
+        pixels sees as >= 0.08 for a 1 mm impact on the dark solar cells; brightening residues lose nothing.
+    surround_px : int
+        Ring around a blob read as the surface it lies on (the blob's own pixels may be a decal).
+    discoloured_margin_px : int
+        A found discolouring's CAD pixels leave the photometric fit with this margin (the pose error).
+    spot_area_max_m2 : float
+        A spot on a dent: 4.4 mm across, a 3 mm impact and 2 px of blur.
+    dent_spot_darkening_min : float
+        A crater's slopes shade compact patches down by up to 0.35 (measured, seeds 5, 12, 13): a spot
+        inside a dent's disc must lose more to be an impact.
+    inspection_guard_px, depth_jump_m : int, float
+        Guard band around the truss and around depth jumps larger than 2 cm (seed §2.3: one registration
+        cannot align surfaces at different depths; parallax over 2 cm at 0.5 m exceeds a pixel for the
+        lab's few-mm pose error).
+    component_area_m2 : float
+        A dark blob bigger than 1 cm^2 is a changed component, not a ~1 mm impact (seed §4).
+    screw_relief_lost_m : float
+        Half the 2 mm head height: present heads and removed ones differ by ~20 sigma of the stereo relief.
+    component_disc_m : float
+        Central disc of a component every view of it shows.
+    component_change_min : float
+        Changed fraction of that disc that makes a swap: discoloured 0.16-0.63, pristine <= 0.012
+        (measured, seeds 0-5).
+    component_dimming_min : float
+        Discoloured replacements reflect 0.4-0.8 of the original (seed §4 defective components).
+    dent_relief_min_m : float
+        Dents are 2-10 mm deep (seed §4 defects); the stereo relief's noise is ~0.2 mm.
+    stereo_disparity_noise_px : float
+        Disparity noise of the ISEE stereo pair's matching (seed §3 D), sub-pixel matching of textured
+        surfaces.
+    impact_merge_m, screw_match_m : float
+        Two views' sightings of one impact, or a blob and a screw site, closer than this are one thing:
+        their localisation errors are a few mm.
+    shadow_edge_dn_px, shadow_jag_px : float
+        Ambient gradient of a sun-shadow edge (brushed and grained skins stay below 10 DN/px) and its
+        sampling jitter between visits (:func:`rsi.detection.nuisance.shadow_edge_variance`).
+    strobe_target_dn, meter_percentile : float
+        Metering: the brightest 0.5 % of the surface lifted this far up the 8-bit range (seed §2.2: the
+        sensor must not saturate under strobe plus ambient).
+    ambient_target_dn : float
+        Sunlight's share of the frame below which the shutter stays the seed's 1/10000 s.
+    min_strobe_energy : float
+        Fraction of the seed's 1.3 lm s never undercut: a dimmer flash loses more to noise than it saves
+        from saturation (measured, seeds 0-19).
+    thermal_threshold_k : float
+        Pyrometer noise 0.1 K; a Peltier spot is tens of kelvin (seed §4): 30 sigma.
+    gas_threshold_ppm : float
+        MOS noise is ~0.02 ppm in clean air (seed §3 H): 100 sigma.
+    gas_standoff_m, gas_station_spacing_m, gas_dwell_s, gas_survey_start_s : float
+        The gas survey: 0.1 m in front of the tubing, a station per centimetre (the jet's half-width is a
+        few cm), 20 s per station (the sensor's time constant is a few s), starting after the visual pass
+        (the leaks start within 30 s, seed §4).
+    door_open_rad : float
+        Opening of the electrical ORU's door for the view of its inside (seed §4 A).
+    panel_standoff_m : float
+        Standoff of the close solar-panel views: 0.46 mm pixels, where the cells' 0.8 mm texels no longer
+        alias between visits.
+    """
+
+    p_false_alarm: float = 1e-9
+    p_preliminary: float = 1e-4
+    flaw_model: str = "uniform"
+    flaw_size_px: int = 3
+    misregistration_std_px: float = 0.3
+    nuisance_window_px: int = 9
+    nuisance_spread_px: int = 9
+    impact_darkening_min: float = 0.05
+    surround_px: int = 3
+    discoloured_margin_px: int = 4
+    spot_area_max_m2: float = 1.5e-5
+    dent_spot_darkening_min: float = 0.4
+    inspection_guard_px: int = 2
+    depth_jump_m: float = 0.02
+    component_area_m2: float = 1.0e-4
+    screw_relief_lost_m: float = 1.0e-3
+    component_disc_m: float = 0.05
+    component_change_min: float = 0.05
+    component_dimming_min: float = 0.1
+    dent_relief_min_m: float = 1.5e-3
+    stereo_disparity_noise_px: float = 0.1
+    impact_merge_m: float = 0.008
+    screw_match_m: float = 0.008
+    shadow_edge_dn_px: float = 10.0
+    shadow_jag_px: float = 0.5
+    strobe_target_dn: float = 180.0
+    meter_percentile: float = 99.5
+    ambient_target_dn: float = 40.0
+    min_strobe_energy: float = 1.0
+    thermal_threshold_k: float = 3.0
+    gas_threshold_ppm: float = 2.0
+    gas_standoff_m: float = 0.1
+    gas_station_spacing_m: float = 0.01
+    gas_dwell_s: float = 20.0
+    gas_survey_start_s: float = 60.0
+    door_open_rad: float = 1.4
+    panel_standoff_m: float = 0.35
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if item.name == "flaw_model":
+                _check_flaw_model(value)
+            elif isinstance(item.default, int) and (isinstance(value, bool) or not isinstance(value, int)):
+                raise InputError(
+                    f"{item.name} must be an integer; got {value!r}. The default is {item.default}."
+                )
+            elif isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise InputError(f"{item.name} must be a finite number; got {value!r}.")
+            elif value <= 0 and item.name != "impact_darkening_min":
+                raise InputError(f"{item.name} must be > 0; got {value!r}. The default is {item.default!r}.")
+        for name in ("p_false_alarm", "p_preliminary"):
+            if not getattr(self, name) < 0.5:
+                raise InputError(f"{name} must lie in (0, 0.5); got {getattr(self, name)!r}.")
+        if self.p_preliminary < self.p_false_alarm:
+            raise InputError(
+                f"p_preliminary={self.p_preliminary!r} must be >= p_false_alarm={self.p_false_alarm!r}: "
+                "the preliminary threshold of a second look lies below the confirming one (seed §2.5)."
+            )
+
+
+def _check_flaw_model(value: object) -> None:
+    if value not in ("single", "uniform", "peak"):
+        raise InputError(f"flaw_model must be 'single', 'uniform' or 'peak'; got {value!r}.")

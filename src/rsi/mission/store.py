@@ -1,0 +1,63 @@
+"""The mission's archive writes: the plan's vistas and references once, then the run and its findings."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rsi.mission.records import MissionFinding, PlanPoint
+from rsi.mission.settings import MissionSettings
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from rsi.archive import Archive
+    from rsi.imaging.compensation import Compensated
+    from rsi.sim.world import World
+
+# the non-visual findings are filed under the vista their instrument reads (seed §3-4)
+_VISTA_OF_SENSOR = {"pyrometer": "A_kapton", "gas": "D_tubing"}
+
+
+def store_references(
+    archive: Archive,
+    *,
+    world: World,
+    plan: tuple[PlanPoint, ...],
+    references: Mapping[str, Compensated],
+    seed: int,
+    run_settings: Mapping[str, object],
+    settings: MissionSettings,
+) -> int:
+    """Every plan point's vista and reference image (seed §2.3: references taken once, revisited later),
+    then a new run with the mission's settings; returns the run's id."""
+    for point in plan:
+        archive.add_vista(replace(world.vista(point.vista), name=point.name), replace=True)
+        archive.store_reference(point.name, np.ascontiguousarray(references[point.name].image))
+    stored = {**run_settings, **asdict(settings)}
+    return archive.start_run(label="mission inspection pass", seed=seed, settings=stored)
+
+
+def store_findings(archive: Archive, run_id: int, findings: tuple[MissionFinding, ...]) -> None:
+    """The run's findings, then the run marked finished."""
+    from rsi.archive import Finding
+
+    archive.add_findings(
+        run_id,
+        [
+            Finding(
+                vista=_VISTA_OF_SENSOR.get(f.source, f.source),
+                kind=f.kind,
+                confidence=f.confidence,
+                position_m=f.position_m,
+                bbox=f.bbox,
+                size_m=f.size_m,
+                score=f.score,
+                extras={"source": f.source, "second_look": f.second_look},
+            )
+            for f in findings
+        ],
+    )
+    archive.finish_run(run_id)

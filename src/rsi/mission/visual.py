@@ -1,0 +1,410 @@
+"""One inspection visit of a plan point (seed §2.2-2.5): compare with the references, read the evidence,
+take a second look at doubtful blobs, and report findings; then the findings of all visits fused.
+
+A visit's steps, in order:
+
+1. the strobe image (two frames, strobes in opposite fields) restricted to the inspection region;
+2. the comparison with the reference, the parallax of the registered shift counted as noise (seed §2.3);
+3. the stereo range map: screws by their relief, components by their change, dimming or dent (seed §4);
+4. a discoloured component's pixels leave the photometric fit;
+5. dark blobs that nothing explains, kept only if new against *both* pristine references;
+6. doubtful blobs get a second look (seed §2.5 active inspection);
+7. what is still above the confirming threshold becomes an impact or a swapped-component finding.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi.mission.evidence import (
+    Explanation,
+    Look,
+    blobs,
+    component_checks,
+    confidence,
+    discoloured_pixels,
+    screw_checks,
+    second_look_score,
+    unexplained,
+)
+from rsi.mission.records import MissionFinding, PlanPoint, VisitImages, VisitRecord, counts_towards_recall
+from rsi.mission.settings import MissionSettings
+from rsi.mission.views import inspection_region, stereo_depth, strobe_image
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from rsi.detection.detect import Detection
+    from rsi.detection.pair import PairResult
+    from rsi.imaging.compensation import Compensated
+    from rsi.mission.transit import Tour
+    from rsi.sim.anomalies import AnomalySet, Site
+    from rsi.sim.world import View, World
+
+
+@dataclass(frozen=True)
+class StoredView:
+    """What the reference pass kept of one plan point for its inspection visits.
+
+    Attributes
+    ----------
+    reference, second : Compensated
+        The two pristine visits' full-resolution strobe images, shadow-edge variance included.
+    scale : ndarray of shape (M, N), float32
+        Their nuisance factor on the variance (:func:`rsi.detection.nuisance.nuisance_scale`).
+    reliefs : mapping of str to float
+        Stereo relief of every component and screw site the reference saw, metres.
+    strobe_energy, shutter : float
+        The metered flash energy and shutter, kept for every later visit of the point.
+    """
+
+    reference: Compensated
+    second: Compensated
+    scale: NDArray[np.float32]
+    reliefs: Mapping[str, float]
+    strobe_energy: float
+    shutter: float
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Score thresholds (noise sigmas) of the confirming and the preliminary test (seed §2.4-2.5)."""
+
+    confirm: float
+    preliminary: float
+
+
+@dataclass(frozen=True)
+class Visit:
+    """One visit's findings and record, and the screws checked so far (each screw is checked once)."""
+
+    findings: tuple[MissionFinding, ...]
+    record: VisitRecord
+    screws_checked: frozenset[str]
+
+
+@dataclass
+class _Comparison:
+    """The images one visit compares, and their comparison (kept together while a discolouring is removed)."""
+
+    reference: Compensated
+    second: Compensated
+    inspection: Compensated
+    scale: NDArray[np.float32]
+    pair: PairResult
+
+
+def compare(
+    reference: Compensated,
+    inspection: Compensated,
+    p_false_alarm: float,
+    settings: MissionSettings,
+    scale: NDArray[np.float32] | None = None,
+) -> PairResult:
+    """Register `reference` onto `inspection` and test for dark flaws, the variance times `scale`."""
+    from rsi.detection.nuisance import shared_interpolation
+    from rsi.detection.pair import inspect_pair
+
+    ref, insp = shared_interpolation(reference, inspection)
+    if scale is not None:
+        ref = replace(ref, variance=(ref.variance * scale).astype(np.float32))
+        insp = replace(insp, variance=(insp.variance * scale).astype(np.float32))
+    return inspect_pair(
+        ref,
+        insp,
+        flaw_model=settings.flaw_model,
+        size=settings.flaw_size_px,
+        p_false_alarm=p_false_alarm,
+        polarity="dark",
+        misregistration_std_px=settings.misregistration_std_px,
+    )
+
+
+def thresholds(settings: MissionSettings) -> Thresholds:
+    """The confirming and preliminary score thresholds of the settings' false-alarm probabilities."""
+    from rsi.detection.flaw_models import flaw_kernel
+    from rsi.detection.roc import thresholds as roc_thresholds
+
+    weights = flaw_kernel(settings.flaw_model, size=settings.flaw_size_px)
+    probabilities = np.array([settings.p_false_alarm, settings.p_preliminary])
+    confirm, preliminary = roc_thresholds(probabilities, polarity="dark", method="lrt", weights=weights)
+    return Thresholds(float(confirm), float(preliminary))
+
+
+def inspect_visit(
+    world: World,
+    point: PlanPoint,
+    stored: StoredView,
+    *,
+    screws_checked: frozenset[str],
+    active: bool,
+    settings: MissionSettings,
+    stereo_rng: np.random.Generator,
+    tour: Tour,
+) -> Visit:
+    """One visit: compare with the references, read the evidence, take second looks (seed §2.3-2.5)."""
+    view = tour.visit(point.name, point.vista, state="inspection")
+    inspection = _restricted(strobe_image(world, view), inspection_region(view, settings))
+    p_first = settings.p_preliminary if active else settings.p_false_alarm
+    comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
+
+    depth = stereo_depth(view, stereo_rng, settings)
+    screws, checked = screw_checks(
+        world, view, point.name, settings=settings, depth_m=depth, reliefs=stored.reliefs, done=screws_checked
+    )
+    checks = component_checks(
+        comparison.pair,
+        view,
+        point.name,
+        reliefs=stored.reliefs,
+        depth_m=depth,
+        world=world,
+        settings=settings,
+    )
+    explanations = [explanation for _, explanation in checks]
+    comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
+
+    limits = thresholds(settings)
+    looks = _new_dark_blobs(
+        comparison, view, world, explanations, active=active, limits=limits, settings=settings
+    )
+    counts = (
+        _second_looks(comparison, looks, point, world, limits=limits, settings=settings, tour=tour)
+        if active
+        else (0, 0, 0)
+    )
+    findings = screws + [finding for finding, _ in checks]
+    findings += [
+        _visual_finding(look, point.name, limits, settings) for look in looks if look.score > limits.confirm
+    ]
+    record = VisitRecord(
+        point=point.name,
+        translation_xy=translation,
+        detections=len(looks),
+        second_looks=counts[0],
+        confirmed=counts[1],
+        rejected=counts[2],
+        visible=tuple(sorted(view.flaw_masks)),
+        images=visit_images(comparison.pair, view, world.anomalies),
+    )
+    return Visit(tuple(findings), record, screws_checked | checked)
+
+
+def _restricted(image: Compensated, region: NDArray[np.bool_]) -> Compensated:
+    return replace(image, valid=image.valid & region)
+
+
+def _with_parallax(
+    stored: StoredView, inspection: Compensated, view: View, p_false_alarm: float, settings: MissionSettings
+) -> tuple[_Comparison, tuple[float, float]]:
+    """The comparison with the reference, tested again once the registered shift's parallax is counted.
+
+    Seed §2.3: one translation registers one depth; the shift it found sets how far every other surface
+    stays mis-registered (:func:`rsi.detection.nuisance.parallax_scale`).
+    """
+    from rsi.detection.nuisance import parallax_scale
+
+    pair = compare(stored.reference, inspection, p_false_alarm, settings, stored.scale)
+    registration = pair.detection.registration
+    translation = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
+    depth = view.depth_m
+    assert depth is not None
+    parallax = parallax_scale(
+        stored.reference, depth, math.hypot(*translation), spread_px=settings.nuisance_spread_px
+    )
+    scale = stored.scale * parallax
+    pair = compare(stored.reference, inspection, p_false_alarm, settings, scale)
+    comparison = _Comparison(stored.reference, stored.second, inspection, scale, pair)
+    return comparison, (translation[0], translation[1])
+
+
+def _without_discoloured(
+    comparison: _Comparison,
+    view: View,
+    explanations: list[Explanation],
+    p_false_alarm: float,
+    settings: MissionSettings,
+) -> _Comparison:
+    """The comparison again without a discoloured component's pixels (:func:`discoloured_pixels`)."""
+    changed = discoloured_pixels(view, explanations, settings)
+    if changed is None:
+        return comparison
+    reference, second, inspection = (
+        _restricted(image, ~changed)
+        for image in (comparison.reference, comparison.second, comparison.inspection)
+    )
+    pair = compare(reference, inspection, p_false_alarm, settings, comparison.scale)
+    return _Comparison(reference, second, inspection, comparison.scale, pair)
+
+
+def _new_dark_blobs(
+    comparison: _Comparison,
+    view: View,
+    world: World,
+    explanations: list[Explanation],
+    *,
+    active: bool,
+    limits: Thresholds,
+    settings: MissionSettings,
+) -> list[Look]:
+    """Dark blobs that no screw or swap explains, new against *both* pristine visits, that darkened enough.
+
+    A blob that one reference's sampling made (aliasing, a compensation artefact of that visit) is not new:
+    the weaker of the two comparisons is kept.
+    """
+    screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
+    looks = unexplained(blobs(comparison.pair, view), view, explanations, screw_positions, settings)
+    if not looks:
+        return looks
+    other = compare(
+        comparison.second, comparison.inspection, settings.p_preliminary, settings, comparison.scale
+    )
+    for look in looks:
+        look.score = min(look.score, second_look_score(other, view, look.position_m))
+    floor = limits.preliminary if active else limits.confirm
+    return [
+        look
+        for look in looks
+        if look.score > floor
+        and (look.area_m2 > settings.component_area_m2 or look.darkening >= settings.impact_darkening_min)
+    ]
+
+
+def _second_looks(
+    comparison: _Comparison,
+    looks: list[Look],
+    point: PlanPoint,
+    world: World,
+    *,
+    limits: Thresholds,
+    settings: MissionSettings,
+    tour: Tour,
+) -> tuple[int, int, int]:
+    """Seed §2.5 active inspection: another visit (new viewpoint error, new noise) of the same vista for the
+    doubtful looks, whose scores are fused in place; returns (second looks, confirmed, rejected)."""
+    doubtful = [look for look in looks if look.score <= limits.confirm]
+    if not doubtful:
+        return (0, 0, 0)
+    second = tour.visit(point.name, point.vista, state="inspection")
+    image = _restricted(strobe_image(world, second), inspection_region(second, settings))
+    # against both pristine visits again: an artefact of one reference's sampling would confirm itself
+    pairs = [
+        compare(reference, image, settings.p_preliminary, settings, comparison.scale)
+        for reference in (comparison.reference, comparison.second)
+    ]
+    confirmed = 0
+    for look in doubtful:
+        again = min(second_look_score(pair, second, look.position_m) for pair in pairs)
+        # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3
+        fused = (look.score + again) / math.sqrt(3.0)
+        # the second look must see the blob itself: a fused score carried by the first alone is no echo
+        if fused > limits.confirm and again > limits.preliminary:
+            confirmed += 1
+            look.score = fused
+            look.second_look = True
+    return (len(doubtful), confirmed, len(doubtful) - confirmed)
+
+
+def _visual_finding(look: Look, source: str, limits: Thresholds, settings: MissionSettings) -> MissionFinding:
+    """A confirmed look as a finding: a blob larger than a component's least area is a swap, else impact."""
+    kind = "swapped_component" if look.area_m2 > settings.component_area_m2 else "impact"
+    return MissionFinding(
+        kind=kind,
+        position_m=look.position_m,
+        size_m=2.0 * math.sqrt(look.area_m2 / math.pi),
+        confidence=confidence(look.score - limits.confirm),
+        source=source,
+        score=look.score,
+        second_look=look.second_look,
+        bbox=look.bbox,
+    )
+
+
+def visit_images(pair: PairResult, view: View, truth: AnomalySet) -> VisitImages:
+    """The comparison's images for the report, and the truth of the impacts that count (for the ROC)."""
+    detection = pair.detection
+    impacts = np.zeros_like(detection.valid)
+    for index, mask in view.flaw_masks.items():
+        anomaly = truth.anomalies[index]
+        if anomaly.kind == "impact" and counts_towards_recall(anomaly):
+            impacts |= mask
+    inspection = np.asarray(pair.inspection, dtype=np.float32)
+    return VisitImages(
+        reference=(inspection - detection.difference).astype(np.float32),
+        inspection=inspection,
+        difference=detection.difference,
+        score=detection.score,
+        valid=detection.valid,
+        impact_truth=impacts,
+        impact_strengths=impact_strengths(detection, impacts),
+    )
+
+
+def impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[float, ...]:
+    """Each truth impact's strength: the difference at its darkest pixel over that pixel's noise sigma."""
+    import cv2
+
+    count, labels = cv2.connectedComponents(truth.astype(np.uint8), connectivity=8)
+    strengths = []
+    for label in range(1, count):
+        inside = (labels == label) & detection.valid
+        if not inside.any():
+            continue
+        darkest = int(np.argmin(np.where(inside, detection.difference, np.inf)))
+        sigma = float(detection.sigma.flat[darkest])
+        strengths.append(max(-float(detection.difference.flat[darkest]), 0.0) / max(sigma, 1e-6))
+    return tuple(strengths)
+
+
+def fuse_findings(
+    findings: list[MissionFinding], sites: tuple[Site, ...], settings: MissionSettings
+) -> list[MissionFinding]:
+    """One swapped-component finding per component site, one impact finding per impact site."""
+    return _merge_impacts(_merge_components(findings, sites), settings)
+
+
+def _merge_components(findings: list[MissionFinding], sites: tuple[Site, ...]) -> list[MissionFinding]:
+    """One swapped-component finding per component site: its blobs (from several views) merged; a large
+    blob on no component is an impact."""
+    merged: dict[str, list[MissionFinding]] = {}
+    others: list[MissionFinding] = []
+    for finding in findings:
+        if finding.kind != "swapped_component":
+            others.append(finding)
+            continue
+        site = _component_of(finding.position_m, sites)
+        if site is None:
+            others.append(replace(finding, kind="impact"))
+            continue
+        merged.setdefault(site.name, []).append(finding)
+    for name, group in merged.items():
+        site = next(s for s in sites if s.name == name)
+        best = max(group, key=lambda f: f.confidence)
+        others.append(replace(best, position_m=site.position_m))
+    return others
+
+
+def _merge_impacts(findings: list[MissionFinding], settings: MissionSettings) -> list[MissionFinding]:
+    """One impact finding per site seen from overlapping vistas: the strongest sighting stands for it."""
+    impacts = sorted((f for f in findings if f.kind == "impact"), key=lambda f: -f.score)
+    kept: list[MissionFinding] = []
+    for finding in impacts:
+        here = np.asarray(finding.position_m)
+        if all(np.linalg.norm(here - np.asarray(k.position_m)) > settings.impact_merge_m for k in kept):
+            kept.append(finding)
+    return [f for f in findings if f.kind != "impact"] + kept
+
+
+def _component_of(position: tuple[float, float, float], sites: tuple[Site, ...]) -> Site | None:
+    """The component site nearest to `position` within its half extent plus 5 cm."""
+    best, best_distance = None, math.inf
+    for site in sites:
+        distance = float(np.linalg.norm(np.asarray(position) - np.asarray(site.position_m)))
+        if distance < 0.5 * site.size_m + 0.05 and distance < best_distance:
+            best, best_distance = site, distance
+    return best

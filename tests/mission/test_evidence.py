@@ -1,0 +1,152 @@
+"""What one visit's comparison shows (rsi.mission evidence, exposure, visual), on known answers."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.imaging.compensation import Compensated
+from rsi.mission import MissionFinding, MissionSettings
+from rsi.mission.evidence import Explanation, Look, discoloured_pixels, explained_by, screw_relief_m
+from rsi.mission.exposure import ambient_dn, metered_energy, metered_shutter
+from rsi.mission.visual import compare, fuse_findings
+
+SETTINGS = MissionSettings()
+SHAPE = (40, 60)
+
+
+def _image(values: np.ndarray) -> Compensated:
+    return Compensated(
+        image=values.astype(np.float32),
+        valid=np.ones(values.shape, bool),
+        variance=np.full(values.shape, 2.0, np.float32),
+        interpolation_variance=np.zeros(values.shape, np.float32),
+        row_step=1,
+    )
+
+
+def _finding(kind: str, x: float, score: float, source: str = "A_door") -> MissionFinding:
+    return MissionFinding(kind, (x, -0.472, 1.2), 0.002, 0.9, source, score)
+
+
+def test_one_impact_seen_from_two_vistas_is_one_finding() -> None:
+    findings = [
+        _finding("impact", 0.300, 9.0, "A_door"),
+        _finding("impact", 0.300 + SETTINGS.impact_merge_m / 2, 12.0, "A_door_open"),
+        _finding("impact", 0.300 + 3 * SETTINGS.impact_merge_m, 7.0, "A_kapton"),
+        _finding("missing_screw", 0.300, 0.2, "A_door"),
+    ]
+    merged = fuse_findings(findings, (), SETTINGS)
+    impacts = sorted((f.source, f.score) for f in merged if f.kind == "impact")
+    assert impacts == [("A_door_open", 12.0), ("A_kapton", 7.0)]  # the stronger sighting stands
+    assert [f.kind for f in merged].count("missing_screw") == 1
+
+
+def test_metering_lifts_the_dark_panel_and_leaves_bright_aluminium() -> None:
+    from rsi.sim.world import MAX_STROBE_ENERGY, load
+
+    world: Any = load("truss", seed=0)
+    try:
+        panel = metered_energy(world, world.render("C_panel", size=(120, 160)), SETTINGS)
+        plate = metered_energy(world, world.render("D_tubing", size=(120, 160)), SETTINGS)
+    finally:
+        world.close()
+    assert 1.5 < panel <= MAX_STROBE_ENERGY  # solar cells read a few tens of DN at the seed's flash
+    assert plate == 1.0  # never dimmer than the seed's 1.3 lm s
+
+
+def test_metering_shortens_the_shutter_on_sunlit_metal_only() -> None:
+    from rsi.sim.world import MIN_SHUTTER, load
+
+    world: Any = load("truss", seed=0)
+    try:
+        door = world.render("A_door", size=(120, 160))  # the lab sun on brushed aluminium
+        panel = world.render("C_panel", size=(120, 160))  # in the truss's shadow
+        shutter = metered_shutter(world, door, SETTINGS)
+        assert ambient_dn(world, door, SETTINGS) > 1.5 * SETTINGS.ambient_target_dn
+        assert MIN_SHUTTER <= shutter < 1 / 1.5
+        assert ambient_dn(world, door, SETTINGS) * shutter == pytest.approx(
+            SETTINGS.ambient_target_dn, rel=1e-6
+        )
+        assert metered_shutter(world, panel, SETTINGS) == 1.0
+        # the strobe gets the headroom the sun gave back
+        assert metered_energy(world, door, SETTINGS, shutter) >= metered_energy(world, door, SETTINGS)
+    finally:
+        world.close()
+
+
+def test_screw_relief_tells_a_head_from_its_hole() -> None:
+    from rsi.mission import plan_vistas
+    from rsi.sim.mockup import SCREW_HEIGHT_M
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=6)  # screws B_1 and B_3 removed
+    try:
+        plan_vistas(world)
+        view = world.render("B_tank")
+        assert view.depth_m is not None
+        sites = {s.name: s for s in world.mockup.candidates.screw_sites}
+        relief = {name: screw_relief_m(view.depth_m, view, sites[name]) for name in sites if "_B_" in name}
+    finally:
+        world.close()
+    removed = {a.site for a in world.anomalies.anomalies if a.kind == "missing_screw"} & set(relief)
+    assert removed == {"screw_B_1", "screw_B_3"}
+    for name, height in relief.items():
+        expected = 0.0 if name in removed else SCREW_HEIGHT_M
+        assert height == pytest.approx(expected, abs=0.3 * SETTINGS.screw_relief_lost_m)
+
+
+def test_a_discolouring_explains_only_blobs_on_its_own_pixels() -> None:
+    mask = np.zeros((60, 80), bool)
+    mask[:, :40] = True  # the discoloured component fills the left half
+    view = SimpleNamespace(component_masks={"B_tank": mask})
+    explanation = Explanation((0.0, 0.0, 0.0), 0.2, "B_tank")
+    on_it = Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 10, 22, 12), False)
+    beside = Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False)
+    far = Look((0.5, 0.0, 0.0), 2e-6, 9.0, (20, 10, 22, 12), False)
+    assert explained_by(on_it, view, explanation, SETTINGS)  # type: ignore[arg-type]
+    assert not explained_by(beside, view, explanation, SETTINGS)  # type: ignore[arg-type]
+    assert not explained_by(far, view, explanation, SETTINGS)  # type: ignore[arg-type]
+    dent = Explanation((0.0, 0.0, 0.0), 0.07)
+    assert explained_by(beside, view, dent, SETTINGS)  # type: ignore[arg-type]
+    spot = Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.5)
+    assert not explained_by(spot, view, dent, SETTINGS)  # type: ignore[arg-type]  # an impact on the crater
+    faint = Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.3)
+    wide = Look((0.05, 0.0, 0.0), 5e-5, 9.0, (20, 60, 30, 70), False, darkening=0.5)
+    assert explained_by(faint, view, dent, SETTINGS) and explained_by(wide, view, dent, SETTINGS)  # type: ignore[arg-type]
+    assert not explained_by(on_it, SimpleNamespace(component_masks={}), explanation, SETTINGS)  # type: ignore[arg-type]
+
+
+def test_a_found_discolouring_leaves_the_photometric_fit() -> None:
+    import cv2
+
+    rng = np.random.default_rng(5)
+    texture = cv2.GaussianBlur(rng.standard_normal((120, 160)).astype(np.float32), (0, 0), 2.0)
+    reference = 80.0 + 40.0 * texture / texture.std()
+    inspection = reference + rng.normal(0.0, 1.0, reference.shape)
+    inspection[:, :90] *= 0.45  # a replacement tank reflecting 0.45 of the original fills the left
+    inspection[60:63, 130:133] -= 25.0  # a spot on the plate beside it
+    tank = np.zeros(reference.shape, bool)
+    tank[:, :90] = True
+    whole = compare(_image(reference), _image(inspection), 1e-4, SETTINGS)
+    view = SimpleNamespace(component_masks={"B_tank": tank})
+    changed = discoloured_pixels(view, [Explanation((0.0, 0.0, 0.0), 0.2, "B_tank")], SETTINGS)  # type: ignore[arg-type]
+    assert changed is not None
+    # the CAD pixels and a margin of the settings' width for the pose error
+    assert changed[:, : 90 + SETTINGS.discoloured_margin_px].all() and not changed[:, 95:].any()
+    reference_kept, inspection_kept = (
+        dataclasses.replace(image, valid=image.valid & ~changed)
+        for image in (_image(reference), _image(inspection))
+    )
+    pair = compare(reference_kept, inspection_kept, 1e-4, SETTINGS)
+    spot = (slice(59, 64), slice(129, 134))
+    assert pair.detection.score[spot].max() > max(8.0, 2 * whole.detection.score[spot].max())
+    dent = [Explanation((0.0, 0.0, 0.0), 0.07)]
+    assert discoloured_pixels(view, dent, SETTINGS) is None  # type: ignore[arg-type]  # a dent leaves the fit alone
