@@ -554,8 +554,8 @@ def sim_render(
         from rich.table import Table
 
         import rsi.sim
+        from rsi.datasets.rendered import render_vista_to_folder
         from rsi.report.sim import write_overview
-        from rsi.sim.world import render_vista_to_folder
 
         world = rsi.sim.load("truss", seed=seed, repeatability=repeatability.value)
         name = _pick_vista(world.vistas, vista)

@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 
 import rsi.imaging.io
+from rsi.datasets.rendered import render_vista_to_folder
 from rsi.errors import InputError
 from rsi.sim.anomalies import AnomalySettings
-from rsi.sim.world import World, load, render_vista_to_folder
+from rsi.sim.world import World, load
 
 SMALL = (32, 48)
 SPOT = (0.9, -0.47, 1.2)  # front of the middle bay, the world's default lamp spot
