@@ -12,6 +12,7 @@ import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+from rsi.detection.detect import Flaw
 from rsi.imaging.compensation import Compensated
 from rsi.mission import MissionFinding, MissionSettings
 from rsi.mission.evidence import Explanation, Look, discoloured_pixels, explained_by, screw_relief_m
@@ -30,6 +31,17 @@ def _image(values: np.ndarray) -> Compensated:
         interpolation_variance=np.zeros(values.shape, np.float32),
         row_step=1,
     )
+
+
+def _look(
+    position_m: tuple[float, float, float],
+    area_m2: float,
+    bbox: tuple[int, int, int, int],
+    darkening: float = 0.0,
+) -> Look:
+    row0, col0, row1, col1 = bbox
+    flaw = Flaw((row0 + row1) / 2, (col0 + col1) / 2, bbox, (row1 - row0) * (col1 - col0), 9.0, "dark")
+    return Look(flaw, position_m, area_m2, 9.0, darkening=darkening)
 
 
 def _finding(kind: str, x: float, score: float, source: str = "A_door") -> MissionFinding:
@@ -108,18 +120,18 @@ def test_a_discolouring_explains_only_blobs_on_its_own_pixels() -> None:
     mask[:, :40] = True  # the discoloured component fills the left half
     view = SimpleNamespace(component_masks={"B_tank": mask})
     explanation = Explanation((0.0, 0.0, 0.0), 0.2, "B_tank")
-    on_it = Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 10, 22, 12), False)
-    beside = Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False)
-    far = Look((0.5, 0.0, 0.0), 2e-6, 9.0, (20, 10, 22, 12), False)
+    on_it = _look((0.05, 0.0, 0.0), 2e-6, (20, 10, 22, 12))
+    beside = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62))
+    far = _look((0.5, 0.0, 0.0), 2e-6, (20, 10, 22, 12))
     assert explained_by(on_it, view, explanation, SETTINGS)  # type: ignore[arg-type]
     assert not explained_by(beside, view, explanation, SETTINGS)  # type: ignore[arg-type]
     assert not explained_by(far, view, explanation, SETTINGS)  # type: ignore[arg-type]
     dent = Explanation((0.0, 0.0, 0.0), 0.07)
     assert explained_by(beside, view, dent, SETTINGS)  # type: ignore[arg-type]
-    spot = Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.5)
+    spot = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62), darkening=0.5)
     assert not explained_by(spot, view, dent, SETTINGS)  # type: ignore[arg-type]  # an impact on the crater
-    faint = Look((0.05, 0.0, 0.0), 2e-6, 9.0, (20, 60, 22, 62), False, darkening=0.3)
-    wide = Look((0.05, 0.0, 0.0), 5e-5, 9.0, (20, 60, 30, 70), False, darkening=0.5)
+    faint = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62), darkening=0.3)
+    wide = _look((0.05, 0.0, 0.0), 5e-5, (20, 60, 30, 70), darkening=0.5)
     assert explained_by(faint, view, dent, SETTINGS) and explained_by(wide, view, dent, SETTINGS)  # type: ignore[arg-type]
     assert not explained_by(on_it, SimpleNamespace(component_masks={}), explanation, SETTINGS)  # type: ignore[arg-type]
 

@@ -28,6 +28,7 @@ from rsi.mission.views import (
 from rsi.sim.mockup import SCREW_HEIGHT_M
 
 if TYPE_CHECKING:
+    from rsi.detection.detect import Flaw
     from rsi.detection.pair import PairResult
     from rsi.sim.anomalies import Site
     from rsi.sim.world import View, World
@@ -42,14 +43,20 @@ def confidence(margin: float) -> float:
 
 @dataclass
 class Look:
-    """One dark blob of a visit, kept until it is classified."""
+    """One dark blob of a visit (the detector's flaw, placed in the world), kept until it is classified;
+    its score is revised by the other reference and a second look."""
 
+    flaw: Flaw
     position_m: tuple[float, float, float]
     area_m2: float
     score: float
-    bbox: tuple[int, int, int, int]
-    second_look: bool
+    second_look: bool = False
     darkening: float = 0.0
+
+    @property
+    def bbox(self) -> tuple[int, int, int, int]:
+        """The flaw's field-image box ``(row0, col0, row1, col1)``."""
+        return self.flaw.bbox
 
 
 def darkening(pair: PairResult, bbox: tuple[int, int, int, int]) -> float:
@@ -83,9 +90,8 @@ def blobs(pair: PairResult, view: View) -> list[Look]:
         if position is None:
             continue
         pixel = pixel_size_m(view, position)
-        look = Look(position, flaw.area_px * pixel * pixel, flaw.score, flaw.bbox, False)
-        look.darkening = darkening(pair, flaw.bbox)
-        looks.append(look)
+        area_m2 = flaw.area_px * pixel * pixel
+        looks.append(Look(flaw, position, area_m2, flaw.score, darkening=darkening(pair, flaw.bbox)))
     return looks
 
 

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from rsi.mission.settings import MissionSettings
 
 if TYPE_CHECKING:
+    from rsi.detection.detect import Flaw
     from rsi.detection.roc import RocCurve
     from rsi.mission.sun import SunSetting
     from rsi.mission.transit import Transit
@@ -76,8 +77,9 @@ class MissionFinding:
         temperature difference (K) or peak concentration (ppm).
     second_look : bool
         Whether active inspection took a second look before this was reported.
-    bbox : (int, int, int, int) or None
-        Field-image box ``(row0, col0, row1, col1)`` for visual findings.
+    flaw : Flaw or None
+        The detection a visual blob finding was made from (its box, area and first-look score), in the
+        inspection's field frame; None for screws, components found by their disc, and sensor findings.
     """
 
     kind: str
@@ -87,7 +89,12 @@ class MissionFinding:
     source: str
     score: float
     second_look: bool = False
-    bbox: tuple[int, int, int, int] | None = None
+    flaw: Flaw | None = None
+
+    @property
+    def bbox(self) -> tuple[int, int, int, int] | None:
+        """Field-image box ``(row0, col0, row1, col1)`` of a visual blob finding (its flaw's), else None."""
+        return None if self.flaw is None else self.flaw.bbox
 
 
 @dataclass(frozen=True)

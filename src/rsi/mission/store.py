@@ -53,6 +53,7 @@ def store_findings(archive: Archive, run_id: int, findings: tuple[MissionFinding
                 confidence=f.confidence,
                 position_m=f.position_m,
                 bbox=f.bbox,
+                area_px=None if f.flaw is None else f.flaw.area_px,
                 size_m=f.size_m,
                 score=f.score,
                 extras={"source": f.source, "second_look": f.second_look},

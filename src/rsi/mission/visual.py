@@ -321,7 +321,7 @@ def _visual_finding(look: Look, source: str, limits: Thresholds, settings: Missi
         source=source,
         score=look.score,
         second_look=look.second_look,
-        bbox=look.bbox,
+        flaw=look.flaw,
     )
 
 
