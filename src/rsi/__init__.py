@@ -26,8 +26,9 @@ load on first use.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rsi._lazy import lazy_getattr
 
 __version__ = "0.1.0"
 
@@ -49,7 +50,4 @@ if TYPE_CHECKING:
     from rsi.imaging.registration import Registration, register
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'rsi' has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _LAZY)

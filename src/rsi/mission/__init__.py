@@ -16,8 +16,9 @@ Importing this package loads no simulator, renderer or image library; they load 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from rsi._lazy import lazy_getattr
 from rsi.mission.records import (
     IMPACT_MIN_SIZE_M,
     SCORED_TYPES,
@@ -53,12 +54,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        import importlib
-
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'rsi.mission' has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _LAZY)
 
 
 __all__ = [
