@@ -132,17 +132,8 @@ def run_mission(
         report("gas")
         findings = (*fuse_findings(visual, world.mockup.candidates.component_sites, settings), *thermal, *gas)
         overview_rgb, overview_pose = world.overview(size=OVERVIEW_SIZE)
-        run_id = _archived(
-            archive,
-            world,
-            plan,
-            stored,
-            findings,
-            seed=seed,
-            repeatability=repeatability,
-            active=active,
-            settings=settings,
-        )
+        run_settings = {"repeatability": repeatability, "active": active}
+        run_id = _archived(archive, world, plan, stored, findings, seed, run_settings, settings)
         clock.lap("sensors")
     finally:
         world.close()
@@ -264,16 +255,14 @@ def _inspection_pass(
     return findings, tuple(records)
 
 
-def _archived(
+def _archived(  # noqa: PLR0917 - the run's parts, each needed once
     archive: Archive | None,
     world: World,
     plan: tuple[PlanPoint, ...],
     stored: dict[str, StoredView],
     findings: tuple[MissionFinding, ...],
-    *,
     seed: int,
-    repeatability: str,
-    active: bool,
+    run_settings: dict[str, object],
     settings: MissionSettings,
 ) -> int | None:
     """The references, the run and its findings in `archive` (None: nothing stored, no run id)."""
@@ -287,7 +276,7 @@ def _archived(
         plan=plan,
         references={name: view.reference for name, view in stored.items()},
         seed=seed,
-        run_settings={"repeatability": repeatability, "active": active},
+        run_settings=run_settings,
         settings=settings,
     )
     store_findings(archive, run_id, findings)
