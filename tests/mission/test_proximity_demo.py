@@ -1,4 +1,4 @@
-"""The 44 Hz proximity loop on the arm (seed §3.1): issue 4's acceptance figures, metrics and bad input."""
+"""The proximity demo on the arm (seed §3.1, issue 4): the acceptance figures, metrics and bad input."""
 
 from __future__ import annotations
 
@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 
 from rsi.errors import InputError
-from rsi.sensors.proximity import ProximitySensor
-from rsi.sim import isee_demo as demo
-from rsi.sim.arm import Arm, Wall
-from rsi.sim.isee_demo import ProximityDemoResult
+from rsi.mission import proximity_demo as demo
+from rsi.mission.proximity_records import ProximityDemoResult
+from rsi.sim.proximity_loop import ARM_LAW, LoopTrace
 
-LAW = demo.DEMO_LAW
+LAW = ARM_LAW
 
 
 def test_progress_reports_each_stage(
@@ -128,7 +127,7 @@ def test_contour_pairs_readings_with_delayed_poses() -> None:
     reading = np.interp(time_s - 0.1, time_s, position, left=position[0])
     origin = np.zeros((50, 2, 3))
     origin[:, :, 2] = -position[:, None] + 1.0
-    trace = demo.LoopTrace(
+    trace = LoopTrace(
         time_s=time_s,
         true_m=np.stack([position] * 2, 1),
         reading_m=np.stack([reading] * 2, 1),
@@ -146,15 +145,6 @@ def test_contour_pairs_readings_with_delayed_poses() -> None:
 
 
 def test_bad_input_names_the_argument(proximity_demo: ProximityDemoResult) -> None:
-    arm = Arm([Wall(0.4)])
-    with pytest.raises(InputError, match="duration_s"):
-        demo.run_closed_loop(arm, duration_s=0.0)
-    with pytest.raises(InputError, match="mode"):
-        demo.run_closed_loop(arm, duration_s=0.1, mode="hover")
-    with pytest.raises(InputError, match="sample_rate_hz"):
-        demo.run_closed_loop(arm, duration_s=0.1, sensor=ProximitySensor(sample_rate_hz=100.0))
-    with pytest.raises(InputError, match="tangential_m_s"):
-        demo.run_closed_loop(arm, duration_s=0.1, tangential_m_s=float("nan"))
     with pytest.raises(InputError, match="surface"):
         demo.follow_surface("wavy")
     with pytest.raises(InputError, match="speed_m_s"):

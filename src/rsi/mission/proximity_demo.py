@@ -1,17 +1,9 @@
-"""Seed §3.1, Figs 3-7: the proximity sensors closing a 44 Hz loop around the ISEE in MuJoCo.
+"""Seed §3.1, Figs 3-7 (issue 4): the proximity demo's scenarios on the arm, their figures and acceptance.
 
-One loop, run once per sensor sample (seed §3.1: 44 Hz on a 68040)::
-
-    MuJoCo rangefinders (true distance, -1 = no return)
-      ──► rsi.sensors.ProximityChannel (response curve, noise, 12-bit A/D, low-pass filter, range flag)
-      ──► rsi.control.blend_commands (joystick + trajectory + proximity law, Fig. 4)
-      ──► velocity along the sensor axis (+ the operator's tangential joystick) ──► arm / tool
-
-The plant is the 7-DOF arm of :mod:`rsi.sim.arm` (its two rangefinders sit on the ISEE's face, recessed
-0.11 m behind the jaw tips, seed §3.1), driven through ``Arm.step_velocity`` in the tool frame: z along the
-sensor axis, x along the sensors' baseline (the operator's sideways joystick). The scenarios
-(:func:`simulate_proximity_demo`, which returns a :class:`ProximityDemoResult` and writes nothing; the
-plots and JSON files are drawn by :func:`rsi.report.isee.write_proximity_report`):
+The loop itself is :mod:`rsi.sim.proximity_loop` (sensors, law, Fig. 4 blend, arm); this module is the
+application around it: where the arm starts, what the operator does, what is measured. The scenarios
+(:func:`simulate_proximity_demo`, which returns a :class:`~rsi.mission.proximity_records.ProximityDemoResult`
+and writes nothing; the plots and JSON files are drawn by :func:`rsi.report.isee.write_proximity_report`):
 
 a. full joystick push toward a wall in avoidance mode: the arm must stop in region C (non-override);
 b. servo from 0.6 m to the standoff: settle time, settle error, overshoot;
@@ -28,259 +20,42 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
-from rsi.control.blending import blend_commands, proximity_term
+from rsi.control.blending import proximity_term
 from rsi.control.proximity_law import ProximityLaw, proximity_velocity
 from rsi.errors import InputError
+from rsi.mission.proximity_records import (
+    Check,
+    ContourScan,
+    DemoFigures,
+    LawResponse,
+    ProximityDemoResult,
+    Scenario,
+    SurfaceFigures,
+)
 from rsi.sensors.lamps import LampController, simulate_lamp
-from rsi.sensors.proximity import LowPassFilter, ProximityChannel, ProximitySensor
+from rsi.sensors.proximity import LowPassFilter
+from rsi.sim.proximity_loop import ARM_LAW, SAMPLE_RATE_HZ, LoopTrace, run_closed_loop
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 Progress = Callable[[str, int, int], None]
 """Called as ``progress(stage, completed, total)`` (the CLI's progress bar)."""
 
-SAMPLE_RATE_HZ = 44.0  # seed §3.1: the sensors were read through an A/D at 44 Hz
 GRIPPER_LENGTH_M = 0.11  # seed §3.1: sensors recessed behind a parallel-jaw gripper 11 cm long
 SURFACE_Z_M = -0.81  # seed Fig. 3: "the environment surface was at about -0.81 m"
 TANGENTIAL_SPEED_M_S = 0.05  # the operator's sideways joystick during contour following (scenario c)
-
-# The demo's law. The defaults (Vjs 0.05 m/s, peak 0.03 m/s, region E out to 0.45 m) cannot bring the arm
-# from 0.6 m to the standoff within 2 s: at 0.6 m they command nothing (region F), and at 0.03 m/s the
-# 0.27 m trip alone takes 9 s. The demo therefore uses a faster joystick and servo peak, region E reaching
-# out to 0.73 m, and C/D's slope at 6 /s (a quarter of the 22 /s stability bound at 44 Hz, so the filter's
-# 39 ms lag adds no overshoot). See docs/proximity-demo.md for the scan that chose these numbers.
-DEMO_LAW = ProximityLaw(
-    joystick_speed_m_s=0.30,
-    retreat_speed_m_s=0.80,
-    avoidance_speed_m_s=0.60,
-    servo_peak_speed_m_s=0.24,
-    min_distance_m=0.08,
-    avoidance_start_m=0.29,
-    hold_distance_m=0.34,
-    servo_end_m=0.73,
-    max_distance_m=0.75,
-    sample_rate_hz=SAMPLE_RATE_HZ,
-)
 SETTLE_BAND_M = 0.005  # issue 4: servo_settle_error_m <= 5 mm; the settle time uses the same band
 RECOVERY_S = 1.0  # following error is judged once a surface discontinuity has had this long to recover
 DISCONTINUITY_M = 0.005  # a jump of the surface under a sensor ray larger than this in one sample
 LAMP_DURATION_S = 3.0
 LAMP_SETTLE_S = 0.3  # the lamp loop starts dark; judged after it has settled (rsi.sensors.lamps)
 ARM_PATH = "circle"
-
-
-@dataclass(frozen=True)
-class DemoFigures:
-    """The acceptance figures of issue 4 (seed §3, §3.1), from :func:`simulate_proximity_demo`.
-
-    Attributes
-    ----------
-    min_distance_full_push_m : float
-        Closest true distance of either sensor to the wall under a full joystick push in avoidance mode.
-    avoidance_near_edge_m : float
-        Near edge of region C (B|C) of the law used; the push must stay beyond it minus 10 mm.
-    push_oscillation_m : float
-        Peak-to-peak true distance over the last second of the push (0 for a still arm; sustained
-        oscillation would show here).
-    servo_settle_error_m : float
-        Largest |distance - standoff| over the last second of the servo run from 0.6 m.
-    servo_settle_time_s : float
-        From the start until the distance stays within ``SETTLE_BAND_M`` of the standoff.
-    servo_overshoot_m : float
-        How far the servo run went past the standoff toward the wall (0 if never).
-    following_error_m : float
-        Largest |nearest distance - standoff| while the operator moves the tool sideways over the stepped
-        and the curved surface, outside the ``RECOVERY_S`` after a step edge enters a sensor's view.
-    contour_rms_error_m : float
-        RMS error of the surface profile rebuilt from the arm's poses and the filtered readings.
-    arm_tracking_error_m : float
-        The arm's largest Cartesian tracking error on a path (:func:`rsi.sim.arm.track_path`).
-    lamp_illumination_error : float
-        Largest relative illumination error of the regulated lamps after settling.
-    """
-
-    min_distance_full_push_m: float
-    avoidance_near_edge_m: float
-    push_oscillation_m: float
-    servo_settle_error_m: float
-    servo_settle_time_s: float
-    servo_overshoot_m: float
-    following_error_m: float
-    contour_rms_error_m: float
-    arm_tracking_error_m: float
-    lamp_illumination_error: float
-
-    def to_dict(self) -> dict[str, float]:
-        """The figures as a JSON-ready mapping (the ``--json`` line of ``rsi isee proximity-demo``)."""
-        return {name: float(value) for name, value in asdict(self).items()}
-
-
-@dataclass(frozen=True)
-class LoopTrace:
-    """One closed-loop run at the sensors' rate.
-
-    Attributes
-    ----------
-    time_s : ndarray of shape (T,)
-        Sample times from the start, seconds.
-    true_m : ndarray of shape (T, 2)
-        True distances of the two sensors from MuJoCo's rangefinders (``inf``: no return).
-    reading_m : ndarray of shape (T, 2)
-        Filtered, linearised readings (rsi.sensors), metres (``inf``: no return).
-    out_of_range : ndarray of shape (T, 2), bool
-        The sensors' out-of-range flags.
-    command_m_s : ndarray of shape (T,)
-        Velocity sent along the sensor axis (positive toward the surface).
-    proximity_m_s : ndarray of shape (T,)
-        The proximity law's part of it (Fig. 4's ``x_ps``).
-    origin_m : ndarray of shape (T, 2, 3)
-        World positions of the two sensor faces when each sample was taken.
-    axis : ndarray of shape (T, 3)
-        The sensor axis (unit, world) at each sample.
-    """
-
-    time_s: FloatArray
-    true_m: FloatArray
-    reading_m: FloatArray
-    out_of_range: BoolArray
-    command_m_s: FloatArray
-    proximity_m_s: FloatArray
-    origin_m: FloatArray
-    axis: FloatArray
-
-    @property
-    def nearest_true_m(self) -> FloatArray:
-        """The nearer sensor's true distance at each sample."""
-        return np.asarray(self.true_m.min(axis=1), dtype=np.float64)
-
-
-class _Rig(Protocol):
-    """What the loop needs of the arm (see :class:`rsi.sim.arm.Arm`)."""
-
-    def rangefinder_distances_m(self) -> FloatArray: ...
-
-    def site_position_m(self, name: str) -> FloatArray: ...
-
-    def tool_pose(self) -> tuple[FloatArray, FloatArray]: ...
-
-    def step_velocity(self, twist_or_velocity: object, dt_s: float, *, frame: str = ...) -> Any: ...
-
-
-_RANGE_SITES = ("range_left", "range_right")
-
-
-def _true_distances_m(rig: _Rig, cutoff_m: float) -> FloatArray:
-    # MuJoCo's rangefinder: negative = no return, clamped at its cutoff; both mean "nothing seen"
-    raw = np.asarray(rig.rangefinder_distances_m(), dtype=np.float64)
-    return np.where((raw < 0.0) | (raw >= cutoff_m), np.inf, raw)
-
-
-def _as_schedule(value: float | Callable[[float], float], name: str) -> Callable[[float], float]:
-    if callable(value):
-        return value
-    number = v.finite_number(value, name)
-    return lambda _time_s: number
-
-
-def run_closed_loop(
-    rig: _Rig,
-    *,
-    duration_s: float,
-    law: ProximityLaw = DEMO_LAW,
-    mode: str = "avoidance",
-    joystick_m_s: float | Callable[[float], float] = 0.0,
-    trajectory_m_s: float | Callable[[float], float] = 0.0,
-    tangential_m_s: float | Callable[[float], float] = 0.0,
-    apply_proximity: bool = True,
-    sensor: ProximitySensor | None = None,
-    rng: np.random.Generator | int | None = None,
-) -> LoopTrace:
-    """Run the 44 Hz proximity loop of seed §3.1 (Fig. 4) on a rig for `duration_s`.
-
-    Each period: read MuJoCo's rangefinders, pass each through its own :class:`ProximityChannel` (noise,
-    A/D, low-pass filter), blend joystick + trajectory + proximity law (:func:`blend_commands`) and send
-    the sum along the sensor axis, with the tangential joystick along the sensors' baseline, for one period.
-
-    Parameters
-    ----------
-    rig : rsi.sim.arm.Arm
-        The arm (anything with its ``rangefinder_distances_m``, ``site_position_m``, ``tool_pose`` and
-        ``step_velocity``).
-    duration_s : float
-        Length of the run, > 0 s.
-    law : ProximityLaw
-        Breakpoints and speeds; its ``sample_rate_hz`` sets the loop rate.
-    mode : {"avoidance", "servo"}
-    joystick_m_s, trajectory_m_s : float or callable of time_s
-        Fig. 4's ``x_js`` and ``x_tg`` along the sensor axis, m/s (the joystick within +-Vjs).
-    tangential_m_s : float or callable of time_s
-        The operator's sideways joystick along the sensors' baseline (tool x), m/s.
-    apply_proximity : bool
-        False computes ``x_ps`` but does not add it (seed §3.1 measured Figs 6-7 that way).
-    sensor : ProximitySensor, optional
-        Both sensors' settings (default: the seed's SA1D at the law's rate).
-    rng : numpy.random.Generator or int or None
-        Sensor noise; each sensor gets its own stream, so a seed fixes the run.
-
-    Returns
-    -------
-    LoopTrace
-    """
-    duration = v.in_range(duration_s, "duration_s", low=0.0, low_inclusive=False)
-    v.choice(mode, "mode", ("avoidance", "servo"))
-    tangential = _as_schedule(tangential_m_s, "tangential_m_s")
-    joystick = _as_schedule(joystick_m_s, "joystick_m_s")
-    trajectory = _as_schedule(trajectory_m_s, "trajectory_m_s")
-    settings = ProximitySensor(sample_rate_hz=law.sample_rate_hz) if sensor is None else sensor
-    if settings.sample_rate_hz != law.sample_rate_hz:
-        raise InputError(
-            f"sensor.sample_rate_hz={settings.sample_rate_hz!r} differs from law.sample_rate_hz="
-            f"{law.sample_rate_hz!r}; the loop runs once per sensor sample, so make them equal."
-        )
-    streams = v.as_rng(rng).spawn(len(_RANGE_SITES))
-    channels = [ProximityChannel(settings, rng=stream) for stream in streams]
-    dt_s = 1.0 / law.sample_rate_hz
-    samples = max(1, round(duration * law.sample_rate_hz))
-    true_m = np.empty((samples, 2))
-    reading_m = np.empty((samples, 2))
-    flags = np.empty((samples, 2), dtype=bool)
-    command = np.empty(samples)
-    proximity = np.empty(samples)
-    origin = np.empty((samples, 2, 3))
-    axis = np.empty((samples, 3))
-    for index in range(samples):
-        time_s = index * dt_s
-        true_m[index] = _true_distances_m(rig, settings.max_distance_m)
-        for sensor_index, channel in enumerate(channels):
-            reading_m[index, sensor_index], flags[index, sensor_index] = channel.read(
-                true_m[index, sensor_index]
-            )
-        origin[index] = [rig.site_position_m(name) for name in _RANGE_SITES]
-        axis[index] = rig.tool_pose()[1][:, 2]
-        blended = blend_commands(joystick(time_s), trajectory(time_s), reading_m[index], law, mode=mode)
-        proximity[index] = float(blended.proximity_m_s)
-        command[index] = (
-            float(blended.velocity_m_s) if apply_proximity else joystick(time_s) + trajectory(time_s)
-        )
-        # seed Fig. 4: the blended command goes to Configuration Control as a tool-frame velocity
-        rig.step_velocity(np.array([tangential(time_s), 0.0, command[index]]), dt_s, frame="tool")
-    return LoopTrace(
-        time_s=np.arange(samples, dtype=np.float64) * dt_s,
-        true_m=true_m,
-        reading_m=reading_m,
-        out_of_range=flags,
-        command_m_s=command,
-        proximity_m_s=proximity,
-        origin_m=origin,
-        axis=axis,
-    )
 
 
 # ------------------------------------------------------------------------------------------ metrics
@@ -411,40 +186,6 @@ SWEEP_NEAR_M = 0.12
 SWEEP_FAR_M = 0.78
 
 
-@dataclass(frozen=True)
-class Scenario:
-    """One scenario's run: the trace, the arm's home tool frame and the obstacle it met.
-
-    Attributes
-    ----------
-    name : str
-    trace : LoopTrace
-    home_tip_m : ndarray of shape (3,)
-        Tool tip at the arm's home pose (the obstacles are placed from it).
-    home_rotation : ndarray of shape (3, 3)
-        Tool frame at home (columns x, y, z in world; z is the sensor axis, x the sensors' baseline).
-    obstacle : object
-        The :mod:`rsi.sim.arm` obstacle (``surface_distance_m(tangential)`` gives its profile).
-    scan_start_s : float
-        When the sideways motion started (0 where there is none).
-    """
-
-    name: str
-    trace: LoopTrace
-    home_tip_m: FloatArray
-    home_rotation: FloatArray
-    obstacle: Any
-    scan_start_s: float = 0.0
-
-    def depth_m(self, points_m: FloatArray) -> FloatArray:
-        """Depth of world points along the home sensor axis, from the home tool tip."""
-        return np.asarray((points_m - self.home_tip_m) @ self.home_rotation[:, 2], dtype=np.float64)
-
-    def tangential_m(self, points_m: FloatArray) -> FloatArray:
-        """Offset of world points along the home baseline (the scan direction), from the home tool tip."""
-        return np.asarray((points_m - self.home_tip_m) @ self.home_rotation[:, 0], dtype=np.float64)
-
-
 def _arm(obstacle: Any) -> tuple[Any, FloatArray, FloatArray]:
     from rsi.sim.arm import Arm
 
@@ -462,7 +203,7 @@ def _move_along_axis(
         arm.step_velocity(np.array([0.0, 0.0, offset_m / steps * rate_hz]), 1.0 / rate_hz, frame="tool")
 
 
-def full_push(law: ProximityLaw = DEMO_LAW, *, rng: np.random.Generator | int | None = None) -> Scenario:
+def full_push(law: ProximityLaw = ARM_LAW, *, rng: np.random.Generator | int | None = None) -> Scenario:
     """Scenario a: a full joystick push (+Vjs) toward a wall in avoidance mode (seed §3.1, region C)."""
     from rsi.sim.arm import Wall
 
@@ -480,7 +221,7 @@ def full_push(law: ProximityLaw = DEMO_LAW, *, rng: np.random.Generator | int | 
     return Scenario("full_push", trace, tip, rotation, wall)
 
 
-def servo_approach(law: ProximityLaw = DEMO_LAW, *, rng: np.random.Generator | int | None = None) -> Scenario:
+def servo_approach(law: ProximityLaw = ARM_LAW, *, rng: np.random.Generator | int | None = None) -> Scenario:
     """Scenario b: distance servoing from 0.6 m to the standoff, joystick at rest (seed §3.1, D-E)."""
     from rsi.sim.arm import Wall
 
@@ -492,7 +233,7 @@ def servo_approach(law: ProximityLaw = DEMO_LAW, *, rng: np.random.Generator | i
 
 def follow_surface(
     surface: str,
-    law: ProximityLaw = DEMO_LAW,
+    law: ProximityLaw = ARM_LAW,
     *,
     speed_m_s: float = TANGENTIAL_SPEED_M_S,
     rng: np.random.Generator | int | None = None,
@@ -532,7 +273,7 @@ def follow_surface(
     return Scenario(f"follow_{name}", trace, tip, rotation, obstacle, scan_start_s=SETTLE_BEFORE_SCAN_S)
 
 
-def reading_sweep(law: ProximityLaw = DEMO_LAW, *, rng: np.random.Generator | int | None = None) -> Scenario:
+def reading_sweep(law: ProximityLaw = ARM_LAW, *, rng: np.random.Generator | int | None = None) -> Scenario:
     """Figs 3, 6, 7: a linear trajectory away from a wall with x_ps computed but not applied (seed §3.1)."""
     from rsi.sim.arm import Wall
 
@@ -563,56 +304,6 @@ def _discontinuities(scenario: Scenario) -> BoolArray:
     jumps = np.zeros(trace.time_s.size, dtype=bool)
     jumps[1:] = (np.abs(np.diff(depth, axis=0)) > DISCONTINUITY_M).any(axis=1)
     return jumps
-
-
-@dataclass(frozen=True)
-class ContourScan:
-    """Scenario d on one surface: the profile rebuilt from poses and readings, and the true one.
-
-    Attributes
-    ----------
-    name : str
-        The scenario's name (``"follow_stepped"``, ``"follow_curved"``).
-    tangential_m, depth_m : ndarray of shape (K,)
-        Rebuilt points during the scan: offset along the scan and depth from the home tool tip.
-    error_m : ndarray of shape (K,)
-        Rebuilt minus true depth at each point.
-    profile_tangential_m, profile_depth_m : ndarray of shape (P,)
-        The true profile sampled over the scanned span.
-    """
-
-    name: str
-    tangential_m: FloatArray
-    depth_m: FloatArray
-    error_m: FloatArray
-    profile_tangential_m: FloatArray
-    profile_depth_m: FloatArray
-
-
-@dataclass(frozen=True)
-class LawResponse:
-    """Seed Fig. 6 (avoidance) or 7 (servo): commanded x_ps against the proximity it was computed from.
-
-    Attributes
-    ----------
-    mode : {"avoidance", "servo"}
-    measured_m : ndarray of shape (T,)
-        The proximity the law acted on (nearer reading when avoiding, mean of both when servoing); NaN
-        where no sensor had a return.
-    commanded_m_s : ndarray of shape (T,)
-        x_ps at each sample (positive toward the surface).
-    law_distance_m, law_velocity_m_s : ndarray of shape (C,)
-        The law's own curve.
-    breakpoints_m : tuple of float
-        The law's region edges.
-    """
-
-    mode: str
-    measured_m: FloatArray
-    commanded_m_s: FloatArray
-    law_distance_m: FloatArray
-    law_velocity_m_s: FloatArray
-    breakpoints_m: tuple[float, ...]
 
 
 def contour_scan(scenario: Scenario, *, delay_s: float, profile_samples: int = 2000) -> ContourScan:
@@ -683,93 +374,6 @@ def law_response(trace: LoopTrace, law: ProximityLaw, mode: str, *, curve_sample
 # -------------------------------------------------------------------------------------- front door
 
 
-@dataclass(frozen=True)
-class SurfaceFigures:
-    """Scenarios c-d on one surface (the ``surfaces`` entries of ``scenarios.json``).
-
-    Attributes
-    ----------
-    following_error_m : float
-        Largest |nearest distance - standoff| during the scan, outside the recovery windows.
-    step_transient_m : float
-        Largest |nearest distance - standoff| inside them (about the step height).
-    closest_m : float
-        Closest true distance of either sensor over the run.
-    contour_rms_error_m : float
-        RMS error of the rebuilt profile.
-    contour_points : int
-        How many rebuilt points the RMS is over.
-    """
-
-    following_error_m: float
-    step_transient_m: float
-    closest_m: float
-    contour_rms_error_m: float
-    contour_points: int
-
-
-@dataclass(frozen=True)
-class ProximityDemoResult:
-    """Scenarios a-f of issue 4: the acceptance figures and every trace behind them, ready to draw.
-
-    Attributes
-    ----------
-    seed : int
-        Seed of every noise source.
-    law : ProximityLaw
-        The law the loops ran (:data:`DEMO_LAW`).
-    figures : DemoFigures
-        The acceptance figures.
-    push, servo : Scenario
-        Scenarios a (full joystick push, avoidance mode) and b (servo from 0.6 m).
-    follows : tuple of Scenario
-        Scenario c over the stepped and the curved surface, in that order.
-    contours : tuple of ContourScan
-        Scenario d on the same two scans, same order.
-    surfaces : dict of str to SurfaceFigures
-        Per-surface figures of c-d, keyed by the scenario's name.
-    sweep : Scenario
-        The open-loop linear trajectory away from the wall behind Figs 3, 6 and 7.
-    sweep_arm_position_m : ndarray of shape (T,)
-        Fig. 3's abscissa: the arm position during the sweep on the seed's axis.
-    surface_position_m : float
-        Where that axis puts the wall (:data:`SURFACE_Z_M`).
-    avoidance_response, servo_response : LawResponse
-        Figs 6 and 7.
-    lamp_time_s, lamp_error : ndarray of shape (L,)
-        Scenario f: time and relative illumination error of the regulated lamps.
-    lamp_settle_s : float
-        Start of the window the lamp figure is judged over.
-    recovery_s, filter_delay_s : float
-        The following error's recovery window; the filter lag the contour pairs readings with.
-    arm_path : str
-        Scenario e's path (:func:`rsi.sim.arm.track_path`).
-    additional_task_error_deg : float
-        Scenario e: largest error of the additional (arm-angle) task.
-    """
-
-    seed: int
-    law: ProximityLaw
-    figures: DemoFigures
-    push: Scenario
-    servo: Scenario
-    follows: tuple[Scenario, ...]
-    contours: tuple[ContourScan, ...]
-    surfaces: Mapping[str, SurfaceFigures]
-    sweep: Scenario
-    sweep_arm_position_m: FloatArray
-    surface_position_m: float
-    avoidance_response: LawResponse
-    servo_response: LawResponse
-    lamp_time_s: FloatArray
-    lamp_error: FloatArray
-    lamp_settle_s: float
-    recovery_s: float
-    filter_delay_s: float
-    arm_path: str
-    additional_task_error_deg: float
-
-
 _STAGES = (
     "a: full joystick push toward a wall (avoidance)",
     "b: servo from 0.6 m to the standoff",
@@ -799,7 +403,7 @@ def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) 
         raise InputError(f"seed must be a non-negative integer; got {seed!r}.")
     from rsi.sim.arm import track_path
 
-    law = DEMO_LAW
+    law = ARM_LAW
     streams = np.random.SeedSequence(int(seed)).spawn(6)
     delay_s = LowPassFilter(4.0, law.sample_rate_hz).dc_delay_s
     recover = round(RECOVERY_S * law.sample_rate_hz)
@@ -902,17 +506,6 @@ ACCEPTANCE_LIMITS: Mapping[str, tuple[str, float]] = {
 """Issue 4's fixed limits; ``min_distance_full_push_m``'s depends on the law (:func:`acceptance`)."""
 
 
-@dataclass(frozen=True)
-class Check:
-    """One acceptance figure against its limit: ``value relation limit`` holds when `passed`."""
-
-    figure: str
-    value: float
-    relation: str
-    limit: float
-    passed: bool
-
-
 def acceptance(figures: DemoFigures) -> tuple[Check, ...]:
     """Issue 4's acceptance checks on the demo's figures, in the figures' order.
 
@@ -934,15 +527,6 @@ def acceptance(figures: DemoFigures) -> tuple[Check, ...]:
 
 __all__: list[str] = [
     "ACCEPTANCE_LIMITS",
-    "DEMO_LAW",
-    "Check",
-    "ContourScan",
-    "DemoFigures",
-    "LawResponse",
-    "LoopTrace",
-    "ProximityDemoResult",
-    "Scenario",
-    "SurfaceFigures",
     "acceptance",
     "contour_scan",
     "follow_surface",
@@ -951,7 +535,6 @@ __all__: list[str] = [
     "law_response",
     "reading_sweep",
     "reconstruct_contour",
-    "run_closed_loop",
     "servo_approach",
     "settle_figures",
     "simulate_proximity_demo",
