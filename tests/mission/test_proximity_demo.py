@@ -110,6 +110,24 @@ def test_settle_figures_on_a_known_response() -> None:
     assert never == np.inf
 
 
+def test_the_blend_leaves_no_spike_in_the_command(proximity_demo: ProximityDemoResult) -> None:
+    # Switching the blend from avoidance to servo at the standoff gave one-sample spikes of 0.23 m/s at step
+    # edges (docs/proximity-demo.md); what is left is the readings' noise (1.4 mm at 0.5 m) through the
+    # law's 6 /s slope, about 0.01 m/s
+    assert proximity_demo.figures.command_spike_m_s < 0.03
+    assert proximity_demo.figures.command_spike_m_s == max(
+        demo.command_spike_m_s(scenario.trace.command_m_s)
+        for scenario in (proximity_demo.push, proximity_demo.servo, *proximity_demo.follows)
+    )
+
+
+def test_a_spike_is_a_jump_that_comes_straight_back() -> None:
+    assert demo.command_spike_m_s(np.array([0.0, 0.0, 0.2, 0.05, 0.05])) == pytest.approx(0.15)
+    assert demo.command_spike_m_s(np.array([0.1, -0.1, 0.1])) == pytest.approx(0.2)  # downward first
+    assert demo.command_spike_m_s(np.array([0.0, 0.1, 0.2, 0.3])) == 0.0  # a ramp is no spike
+    assert demo.command_spike_m_s(np.array([0.0, 0.3])) == 0.0
+
+
 def test_following_error_leaves_out_the_recovery_window() -> None:
     error = np.zeros(100)
     error[50:55] = [0.05, 0.03, 0.01, 0.004, 0.001]

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
-from rsi.control.blending import proximity_term
+from rsi.control.blending import law_distance_m, proximity_term
 from rsi.control.proximity_law import ProximityLaw, proximity_velocity
 from rsi.errors import InputError
 from rsi.mission.proximity_records import (
@@ -130,6 +130,19 @@ def following_error_m(
         float(steady.max()) if steady.size else 0.0,
         float(transient.max()) if transient.size else 0.0,
     )
+
+
+def command_spike_m_s(command_m_s: FloatArray) -> float:
+    """Largest one-sample spike of a command: min(rise into a sample, fall out of it), either sign, m/s.
+
+    A step of the command (a rise that stays) is not a spike; a value that jumps and comes straight back is.
+    0 for fewer than three samples.
+    """
+    change = np.diff(np.asarray(command_m_s, dtype=np.float64))
+    if change.size < 2:
+        return 0.0
+    spikes = np.maximum(np.minimum(change[:-1], -change[1:]), np.minimum(-change[:-1], change[1:]))
+    return float(max(0.0, spikes.max()))
 
 
 def _interpolate_rows(time_s: FloatArray, values: FloatArray, at_s: FloatArray) -> FloatArray:
@@ -355,11 +368,9 @@ def law_response(trace: LoopTrace, law: ProximityLaw, mode: str, *, curve_sample
     LawResponse
     """
     v.choice(mode, "mode", ("avoidance", "servo"))
-    commanded, nearest, _ = proximity_term(trace.reading_m, law, mode=mode)
-    # rsi.control.blending acts on the nearer reading when avoiding and on the mean of the two when servoing
-    measured = (
-        nearest if mode == "avoidance" else np.where(np.isfinite(nearest), trace.reading_m.mean(1), np.inf)
-    )
+    commanded, _, _ = proximity_term(trace.reading_m, law, mode=mode)
+    # rsi.control.blending acts on the nearer reading when avoiding and on the servo distance when servoing
+    measured, _, _ = law_distance_m(trace.reading_m, law, mode=mode)
     curve_m = np.linspace(0.0, law.max_distance_m + 0.05, curve_samples)
     return LawResponse(
         mode=mode,
@@ -461,6 +472,7 @@ def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) 
         servo_overshoot_m=overshoot,
         following_error_m=max(each.following_error_m for each in surfaces.values()),
         contour_rms_error_m=max(each.contour_rms_error_m for each in surfaces.values()),
+        command_spike_m_s=max(command_spike_m_s(each.trace.command_m_s) for each in (push, servo, *follows)),
         arm_tracking_error_m=float(tracking.arm_tracking_error_m),
         lamp_illumination_error=float(np.abs(lamp_error[lamp.time_s >= LAMP_SETTLE_S]).max()),
     )
@@ -528,6 +540,7 @@ def acceptance(figures: DemoFigures) -> tuple[Check, ...]:
 __all__: list[str] = [
     "ACCEPTANCE_LIMITS",
     "acceptance",
+    "command_spike_m_s",
     "contour_scan",
     "follow_surface",
     "following_error_m",

@@ -45,6 +45,10 @@ class DemoFigures:
         and the curved surface, outside the ``RECOVERY_S`` after a step edge enters a sensor's view.
     contour_rms_error_m : float
         RMS error of the surface profile rebuilt from the arm's poses and the filtered readings.
+    command_spike_m_s : float
+        Largest one-sample spike of the command along the sensor axis over scenarios a-c: a rise followed
+        at once by a fall (the smaller of the two), m/s. The Fig. 4 blend is continuous across the
+        standoff, so only the readings' noise through the law's slope is left here.
     arm_tracking_error_m : float
         The arm's largest Cartesian tracking error on a path (:func:`rsi.sim.arm.track_path`).
     lamp_illumination_error : float
@@ -59,6 +63,7 @@ class DemoFigures:
     servo_overshoot_m: float
     following_error_m: float
     contour_rms_error_m: float
+    command_spike_m_s: float
     arm_tracking_error_m: float
     lamp_illumination_error: float
 
@@ -133,8 +138,8 @@ class LawResponse:
     ----------
     mode : {"avoidance", "servo"}
     measured_m : ndarray of shape (T,)
-        The proximity the law acted on (nearer reading when avoiding, mean of both when servoing); NaN
-        where no sensor had a return.
+        The proximity the law acted on (:func:`rsi.control.blending.law_distance_m`: the nearer reading
+        when avoiding, the servo distance when servoing); NaN where no sensor had a return.
     commanded_m_s : ndarray of shape (T,)
         x_ps at each sample (positive toward the surface).
     law_distance_m, law_velocity_m_s : ndarray of shape (C,)
