@@ -113,7 +113,7 @@ def test_settle_figures_on_a_known_response() -> None:
 def test_the_blend_leaves_no_spike_in_the_command(proximity_demo: ProximityDemoResult) -> None:
     # Switching the blend from avoidance to servo at the standoff gave one-sample spikes of 0.23 m/s at step
     # edges (docs/proximity-demo.md); what is left is the readings' noise (1.4 mm at 0.5 m) through the
-    # law's 6 /s slope, about 0.01 m/s
+    # law's 6 /s slope, up to 2x on the servo ramp beside a step: 0.011-0.023 m/s on seeds 0-2
     assert proximity_demo.figures.command_spike_m_s < 0.03
     assert proximity_demo.figures.command_spike_m_s == max(
         demo.command_spike_m_s(scenario.trace.command_m_s)
