@@ -136,17 +136,8 @@ def proximity_term(
 ) -> tuple[FloatArray, FloatArray, BoolArray]:
     """The proximity velocity from several sensors' readings: the law at :func:`law_distance_m`.
 
-    Parameters
-    ----------
-    distances_m : array_like of shape (..., S)
-        Sensed distances in metres, one column per sensor (S >= 1); ``inf`` means no return.
-    law : ProximityLaw, optional
-        The law's breakpoints and speeds.
-    mode : {"avoidance", "servo"}
-
-    Returns
-    -------
-    velocity_m_s, nearest_m, no_valid_reading : ndarrays of shape (...)
+    Takes the arguments of :func:`law_distance_m` and returns ``velocity_m_s, nearest_m, no_valid_reading``,
+    ndarrays of shape (...): the law's velocity in m/s, the nearer valid reading and the no-return flag.
     """
     settings = ProximityLaw() if law is None else law
     distance, nearest, no_valid = law_distance_m(distances_m, settings, mode=mode)

@@ -395,6 +395,52 @@ _STAGES = (
 )
 
 
+def _surface_figures(scenario: Scenario, contour: ContourScan, law: ProximityLaw) -> SurfaceFigures:
+    """Scenarios c-d on one surface: following error outside the recovery windows, contour RMS."""
+    scan = scenario.trace.time_s >= scenario.scan_start_s
+    steady, transient = following_error_m(
+        scenario.trace.nearest_true_m[scan] - law.standoff_m,
+        _discontinuities(scenario)[scan],
+        samples_to_recover=round(RECOVERY_S * law.sample_rate_hz),
+    )
+    return SurfaceFigures(
+        following_error_m=steady,
+        step_transient_m=transient,
+        closest_m=float(scenario.trace.true_m.min()),
+        contour_rms_error_m=float(np.sqrt(np.mean(contour.error_m**2))),
+        contour_points=int(contour.error_m.size),
+    )
+
+
+def _demo_figures(
+    law: ProximityLaw,
+    loops: tuple[Scenario, Scenario, tuple[Scenario, ...]],
+    surfaces: Mapping[str, SurfaceFigures],
+    *,
+    arm_tracking_error_m: float,
+    lamp_illumination_error: float,
+) -> DemoFigures:
+    """The figures: scenarios a-d measured here (`loops` = push, servo, follows), e and f as given."""
+    push, servo, follows = loops
+    settle_error, settle_time, overshoot = settle_figures(
+        servo.trace.time_s, servo.trace.true_m.mean(axis=1), law.standoff_m
+    )
+    last_second = push.trace.time_s >= push.trace.time_s[-1] - 1.0
+    return DemoFigures(
+        min_distance_full_push_m=float(push.trace.true_m.min()),
+        avoidance_near_edge_m=law.avoidance_start_m,
+        push_oscillation_m=float(np.ptp(push.trace.nearest_true_m[last_second])),
+        servo_settle_error_m=settle_error,
+        servo_settle_time_s=settle_time,
+        servo_overshoot_m=overshoot,
+        following_error_m=max(each.following_error_m for each in surfaces.values()),
+        contour_rms_error_m=max(each.contour_rms_error_m for each in surfaces.values()),
+        command_spike_m_s=max(command_spike_m_s(each.trace.command_m_s) for each in (push, servo, *follows)),
+        arm_tracking_error_m=arm_tracking_error_m,
+        lamp_illumination_error=lamp_illumination_error,
+    )
+
+
 def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) -> ProximityDemoResult:
     """Run scenarios a-f of issue 4 on the arm and measure the acceptance figures; writes nothing.
 
@@ -417,7 +463,6 @@ def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) 
     law = ARM_LAW
     streams = np.random.SeedSequence(int(seed)).spawn(6)
     delay_s = LowPassFilter(4.0, law.sample_rate_hz).dc_delay_s
-    recover = round(RECOVERY_S * law.sample_rate_hz)
     stage = iter(enumerate(_STAGES))
 
     def report() -> None:
@@ -443,36 +488,15 @@ def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) 
     lamp_error = np.asarray(lamp.relative_error(LampController().setpoint_lux), dtype=np.float64)
     report()
 
-    settle_error, settle_time, overshoot = settle_figures(
-        servo.trace.time_s, servo.trace.true_m.mean(axis=1), law.standoff_m
-    )
     contours = tuple(contour_scan(scenario, delay_s=delay_s) for scenario in follows)
-    surfaces: dict[str, SurfaceFigures] = {}
-    for scenario, contour in zip(follows, contours, strict=True):
-        scan = scenario.trace.time_s >= scenario.scan_start_s
-        steady, transient = following_error_m(
-            scenario.trace.nearest_true_m[scan] - law.standoff_m,
-            _discontinuities(scenario)[scan],
-            samples_to_recover=recover,
-        )
-        surfaces[scenario.name] = SurfaceFigures(
-            following_error_m=steady,
-            step_transient_m=transient,
-            closest_m=float(scenario.trace.true_m.min()),
-            contour_rms_error_m=float(np.sqrt(np.mean(contour.error_m**2))),
-            contour_points=int(contour.error_m.size),
-        )
-    last_second = push.trace.time_s >= push.trace.time_s[-1] - 1.0
-    figures = DemoFigures(
-        min_distance_full_push_m=float(push.trace.true_m.min()),
-        avoidance_near_edge_m=law.avoidance_start_m,
-        push_oscillation_m=float(np.ptp(push.trace.nearest_true_m[last_second])),
-        servo_settle_error_m=settle_error,
-        servo_settle_time_s=settle_time,
-        servo_overshoot_m=overshoot,
-        following_error_m=max(each.following_error_m for each in surfaces.values()),
-        contour_rms_error_m=max(each.contour_rms_error_m for each in surfaces.values()),
-        command_spike_m_s=max(command_spike_m_s(each.trace.command_m_s) for each in (push, servo, *follows)),
+    surfaces = {
+        scenario.name: _surface_figures(scenario, contour, law)
+        for scenario, contour in zip(follows, contours, strict=True)
+    }
+    figures = _demo_figures(
+        law,
+        (push, servo, follows),
+        surfaces,
         arm_tracking_error_m=float(tracking.arm_tracking_error_m),
         lamp_illumination_error=float(np.abs(lamp_error[lamp.time_s >= LAMP_SETTLE_S]).max()),
     )
