@@ -16,7 +16,7 @@ settings.register_profile("rsi", derandomize=True, deadline=None, print_blob=Tru
 settings.load_profile("rsi")
 
 if TYPE_CHECKING:
-    from rsi.sim.isee_demo import ProximityDemoResult
+    from rsi.mission.proximity_records import ProximityDemoResult
 
 TreeWriter = Callable[..., Path]
 
@@ -88,6 +88,6 @@ def proximity_progress() -> list[tuple[str, int, int]]:
 @pytest.fixture(scope="session")
 def proximity_demo(proximity_progress: list[tuple[str, int, int]]) -> ProximityDemoResult:
     """One run of the ISEE proximity demo (seed 0, about 5 s), shared by the sim, report and CLI tests."""
-    from rsi.sim.isee_demo import simulate_proximity_demo
+    from rsi.mission.proximity_demo import simulate_proximity_demo
 
     return simulate_proximity_demo(seed=0, progress=lambda *call: proximity_progress.append(call))

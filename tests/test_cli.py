@@ -24,7 +24,7 @@ from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.detection.pair import score_flaws
 from rsi.imaging.io import write_image
 from rsi.imaging.registration import MODELS
-from rsi.sim.isee_demo import DemoFigures, ProximityDemoResult
+from rsi.mission.proximity_records import DemoFigures, ProximityDemoResult
 
 runner = CliRunner()
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -408,11 +408,11 @@ def test_isee_proximity_demo_json_is_the_figures_and_they_pass(
 def test_isee_proximity_demo_prints_the_acceptance_table(
     tmp_path: Path, proximity_demo: ProximityDemoResult, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    import rsi.mission.proximity_demo
     import rsi.report.isee
-    import rsi.sim.isee_demo
 
     # the table is a view of the record: reuse the shared run (the --json test runs the whole command)
-    monkeypatch.setattr(rsi.sim.isee_demo, "simulate_proximity_demo", lambda **_: proximity_demo)
+    monkeypatch.setattr(rsi.mission.proximity_demo, "simulate_proximity_demo", lambda **_: proximity_demo)
     files = {name: tmp_path / name for name in (*rsi.report.isee.PICTURES, "figures.json")}
     monkeypatch.setattr(rsi.report.isee, "write_proximity_report", lambda *_: files)
     result = invoke("isee", "proximity-demo", "--out", tmp_path)

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from rsi.detection.pair import PairResult
     from rsi.detection.roc import RocCurve
     from rsi.mission import MissionResult, MissionScore
-    from rsi.sim.isee_demo import Check
+    from rsi.mission.proximity_records import Check
 
 EXIT_OK = 0
 EXIT_USAGE = 2
@@ -651,8 +651,8 @@ def isee_proximity_demo(
 ) -> None:
     """Close the 44 Hz proximity loop on the arm (seed §3.1) and draw Figs 3, 6, 7 and time plots."""
     with _errors():
+        from rsi.mission.proximity_demo import acceptance, simulate_proximity_demo
         from rsi.report.isee import write_proximity_report
-        from rsi.sim.isee_demo import acceptance, simulate_proximity_demo
 
         with _progress_bar("proximity demo") as update:
             result = simulate_proximity_demo(seed=seed, progress=update)

@@ -10,8 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
+from rsi.mission.proximity_records import ProximityDemoResult
 from rsi.report.isee import PICTURES, lamp_png, law_png, write_proximity_report
-from rsi.sim.isee_demo import ProximityDemoResult
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

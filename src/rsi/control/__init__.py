@@ -8,7 +8,7 @@ Sign convention: velocities along the sensor axis are positive toward the surfac
 
 from __future__ import annotations
 
-from rsi.control.blending import BlendedCommand, blend_commands, proximity_term
+from rsi.control.blending import BlendedCommand, blend_commands, law_distance_m, proximity_term
 from rsi.control.proximity_law import ProximityCommand, ProximityLaw, proximity_velocity
 
 __all__ = [
@@ -16,6 +16,7 @@ __all__ = [
     "ProximityCommand",
     "ProximityLaw",
     "blend_commands",
+    "law_distance_m",
     "proximity_term",
     "proximity_velocity",
 ]

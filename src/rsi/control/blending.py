@@ -11,11 +11,25 @@ protect against different mistakes:
 - Avoidance (the law's negative part) is driven by the **nearer** valid reading. This is the conservative
   choice: a protrusion that comes into view of one sensor from the periphery (the reason for region B)
   must repel the arm even if the other sensor still sees the far surface. It also keeps the non-override
-  property of region C: the proximity term is never larger than the avoidance law at the nearer reading.
-- Servoing (the positive part, servo mode only) is driven by the **mean** of the valid readings: on a
-  tilted surface it estimates the distance at the tool centre between the sensors, and it halves the
-  noise variance, so the arm does not hunt. It applies only while the nearer reading is already beyond
-  the standoff (the avoidance term is zero); otherwise the more repulsive of the two wins.
+  property of region C: while the nearer reading is inside the standoff, the proximity term is the
+  avoidance law at that reading, in either mode.
+- Servoing (servo mode only) is driven by a **servo distance** that slides with the nearer reading from
+  the nearer reading itself to the **mean** of the valid readings::
+
+      d_servo = nearest + w (mean - nearest),   w = clip((nearest - standoff) / (peak - standoff), 0, 1)
+
+  At and inside the standoff (w = 0) the law acts on the nearer reading, exactly as avoidance does, so
+  regions A-C and the repulsive part of D are unchanged. From the servo peak on (w = 1) it acts on the
+  mean, which on a tilted surface estimates the distance at the tool centre and halves the noise
+  variance. In between, the weight rises along the law's own rising segment (D, standoff to peak), so the
+  command moves continuously as the nearer reading crosses the standoff. (Switching from min(avoidance,
+  servo at the mean) to servo at the mean there, as this module did before, jumped by the servo law's
+  value at the mean: one-sample spikes of up to +0.24 m/s in the proximity demo when a step edge entered
+  one sensor's view; docs/proximity-demo.md.)
+
+For readings within range that each change by at most ``delta`` per sample, the command changes by at most
+``s_max (1 + g / (peak - standoff)) delta`` per sample, ``s_max`` being the law's steepest slope and ``g``
+the larger of the two samples' ``mean - nearest`` (tests/control/test_blending.py checks it).
 
 Readings beyond the sensors' maximum distance (including ``inf``, no return) are ignored; with no valid
 reading the proximity term is zero and the sample is flagged. Readings below the minimum distance are kept:
@@ -71,22 +85,30 @@ def _as_velocity(value: object, name: str, *, limit_m_s: float | None = None) ->
     return velocity
 
 
-def proximity_term(
+def law_distance_m(
     distances_m: object, law: ProximityLaw | None = None, *, mode: str = "avoidance"
 ) -> tuple[FloatArray, FloatArray, BoolArray]:
-    """The proximity velocity from several sensors' readings (see the module notes).
+    """The one distance the law acts on, from several sensors' readings (see the module notes).
 
     Parameters
     ----------
     distances_m : array_like of shape (..., S)
         Sensed distances in metres, one column per sensor (S >= 1); ``inf`` means no return.
     law : ProximityLaw, optional
-        The law's breakpoints and speeds.
+        The law's breakpoints and speeds (its standoff and servo peak place the servo distance's ramp).
     mode : {"avoidance", "servo"}
+        Avoidance acts on the nearer valid reading; servoing on the servo distance.
 
     Returns
     -------
-    velocity_m_s, nearest_m, no_valid_reading : ndarrays of shape (...)
+    distance_m, nearest_m, no_valid_reading : ndarrays of shape (...)
+        ``inf`` where no reading is valid.
+
+    Examples
+    --------
+    >>> law = ProximityLaw()  # standoff 0.333 m, servo peak 0.413 m
+    >>> [round(float(law_distance_m([d, d + 0.04], law, mode="servo")[0]), 3) for d in (0.30, 0.373, 0.50)]
+    [0.3, 0.383, 0.52]
     """
     settings = ProximityLaw() if law is None else law
     v.choice(mode, "mode", MODES)
@@ -98,11 +120,28 @@ def proximity_term(
     valid = readings <= settings.max_distance_m
     count = valid.sum(axis=-1)
     nearest = np.min(np.where(valid, readings, np.inf), axis=-1)
-    mean = np.where(count > 0, np.where(valid, readings, 0.0).sum(axis=-1) / np.maximum(count, 1), np.inf)
-    avoid = proximity_velocity(nearest, settings, mode="avoidance").velocity_m_s
-    servo = proximity_velocity(mean, settings, mode=mode).velocity_m_s
-    velocity = np.where(avoid < 0.0, np.minimum(avoid, servo), servo)
-    return velocity, nearest, count == 0
+    if mode == "avoidance":
+        return nearest, nearest, count == 0
+    seen = count > 0
+    mean = np.where(valid, readings, 0.0).sum(axis=-1) / np.maximum(count, 1)
+    base = np.where(seen, nearest, 0.0)
+    ramp_m = settings.peak_distance_m - settings.standoff_m  # D's rising half: the law's own segment
+    weight = np.clip((base - settings.standoff_m) / ramp_m, 0.0, 1.0)
+    servo = np.where(seen, base + weight * (mean - base), np.inf)
+    return servo, nearest, ~seen
+
+
+def proximity_term(
+    distances_m: object, law: ProximityLaw | None = None, *, mode: str = "avoidance"
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """The proximity velocity from several sensors' readings: the law at :func:`law_distance_m`.
+
+    Takes the arguments of :func:`law_distance_m` and returns ``velocity_m_s, nearest_m, no_valid_reading``,
+    ndarrays of shape (...): the law's velocity in m/s, the nearer valid reading and the no-return flag.
+    """
+    settings = ProximityLaw() if law is None else law
+    distance, nearest, no_valid = law_distance_m(distances_m, settings, mode=mode)
+    return proximity_velocity(distance, settings, mode=mode).velocity_m_s, nearest, no_valid
 
 
 def blend_commands(
@@ -148,4 +187,4 @@ def blend_commands(
     )
 
 
-__all__: list[str] = ["BlendedCommand", "blend_commands", "proximity_term"]
+__all__: list[str] = ["BlendedCommand", "blend_commands", "law_distance_m", "proximity_term"]

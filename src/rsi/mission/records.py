@@ -204,7 +204,7 @@ class MissionResult:
         The overview picture's camera: projects findings and truth into it.
     transits : tuple of Transit
         Every move of the ISEE by the arm, in order, with its 44 Hz proximity trace (empty without the arm;
-        out-of-reach vistas appear with an empty trace and their shortfall). See :mod:`rsi.mission.motion`.
+        out-of-reach vistas appear with an empty trace and their shortfall). See :mod:`rsi.mission.transit`.
     suns : tuple of SunSetting
         The solar simulator at each visit: mission-clock time, sun and lamp directions, lamp configuration
         (empty without the orbit).

@@ -37,7 +37,7 @@ from rsi.sim.orbit import orbital_period_s
 if TYPE_CHECKING:
     from rsi.archive import Archive
     from rsi.imaging.compensation import Compensated
-    from rsi.mission.motion import Tour
+    from rsi.mission.tour import Tour
     from rsi.sim.world import View, World
 
 ProgressFn = Callable[[str, int, int], None]
@@ -104,7 +104,8 @@ def run_mission(
         unknown repeatability, a non-bool `active`, `arm` or `orbit`, a non-callable `progress`, a bad
         `size`, something that is not an Archive, or `orbit_start_s` not two times >= 0 s.
     """
-    from rsi.mission.motion import Tour, pass_starts
+    from rsi.mission.sun import pass_starts
+    from rsi.mission.tour import Tour
     from rsi.sim.world import load
 
     settings = _checked(seed, settings, archive, repeatability, progress, active=active, arm=arm, orbit=orbit)

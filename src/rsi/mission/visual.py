@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from rsi.detection.detect import Detection
     from rsi.detection.pair import PairResult
     from rsi.imaging.compensation import Compensated
-    from rsi.mission.transit import Tour
+    from rsi.mission.tour import Tour
     from rsi.sim.anomalies import AnomalySet, Site
     from rsi.sim.world import View, World
 

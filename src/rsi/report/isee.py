@@ -1,8 +1,8 @@
 """Pictures and figures of the ISEE proximity demo (seed §3.1, Figs 3, 6, 7; issue 4): a view only.
 
-Every number drawn or written here sits in the :class:`rsi.sim.isee_demo.ProximityDemoResult` already;
-this module computes nothing about the loop. Plots are bare matplotlib ``Figure`` objects on the Agg
-canvas (no pyplot, no GUI backend, no global state).
+Every number drawn or written here sits in the :class:`rsi.mission.proximity_records.ProximityDemoResult`
+already; this module computes nothing about the loop. Plots are bare matplotlib ``Figure`` objects on the
+Agg canvas (no pyplot, no GUI backend, no global state).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from rsi.report.writers import to_json, write_files
 
 if TYPE_CHECKING:
     from rsi.control.proximity_law import ProximityLaw
-    from rsi.sim.isee_demo import ContourScan, LawResponse, ProximityDemoResult, Scenario
+    from rsi.mission.proximity_records import ContourScan, LawResponse, ProximityDemoResult, Scenario
 
 PICTURES = (
     "fig3_readings_vs_position.png",
@@ -153,7 +153,7 @@ def write_proximity_report(out_dir: Path | str, result: ProximityDemoResult) -> 
     out_dir : path
         Results folder (created if missing).
     result : ProximityDemoResult
-        From :func:`rsi.sim.isee_demo.simulate_proximity_demo`.
+        From :func:`rsi.mission.proximity_demo.simulate_proximity_demo`.
 
     Returns
     -------

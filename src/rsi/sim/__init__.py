@@ -9,6 +9,8 @@
 - :mod:`rsi.sim.render`           OpenGL backend, basis images, depth and segmentation (MuJoCo)
 - :mod:`rsi.sim.world`            the World: state, read-outs, frames, fields
 - :mod:`rsi.sim.arm`              the K1207-style arm on its rail with the ISEE (in the World: ``arm=True``)
+- :mod:`rsi.sim.proximity_loop`   the §3.1 44 Hz proximity loop on the arm (Fig. 4), stepped or run
+- :mod:`rsi.sim.clearance`        the arm's smallest distance to the mock-up (MuJoCo geom distances)
 
 The front door is :func:`load`. Importing ``rsi.sim`` does not import MuJoCo: it loads on first use.
 """

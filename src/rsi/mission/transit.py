@@ -1,5 +1,5 @@
-"""Seed §3.1 and §4.1 in the mission: the arm and rail carry the ISEE between vista points, the proximity
-law guarding every approach, and the solar simulator follows the orbit's sun from visit to visit.
+"""Seed §3.1 in the mission: the arm and rail carry the ISEE between vista points, the proximity law
+guarding every approach.
 
 A **transit** (:func:`transit`) takes the ISEE from wherever the arm holds it to a vista's viewing pose (the
 left ISEE camera at the vista's position, looking along its forward with its up; 0.5 m standoff):
@@ -12,15 +12,13 @@ left ISEE camera at the vista's position, looking along its forward with its up;
    rangefinders will read at the pose (the mock-up's model, ray-cast); its avoidance part stops the arm short
    of any surface nearer than that, whatever the generator commands (region C's non-override property).
 
-During 1 and 2 the law's avoidance part (nearer reading) is added along the tool axis as a guard. Every
-sample of the 44 Hz loop is traced: rangefinders (true and filtered), the generator's and the law's speeds
-along the axis, their sum, and the arm's clearance from the mock-up (MuJoCo's ``mj_geomDistance``).
+During 1 and 2 the law's avoidance part (nearer reading) is added along the tool axis as a guard. All three
+run on the one 44 Hz loop of :mod:`rsi.sim.proximity_loop` (the proximity demo's loop), the generator's
+twist as its free motion. Every sample is traced: rangefinders (true and filtered), the generator's and the
+law's speeds along the axis, their sum, and the arm's clearance from the mock-up (``mj_geomDistance``).
 
-The solar simulator (:func:`sun_setting`, :func:`light_by_sun`) is put, at a visit's mission-clock time,
-where the orbit's sun direction says (seed §4.1): lit from the sun's direction onto the vista's target, or
-the nearest direction its rail can give (recorded), and off in the Earth's shadow.
-
-:class:`Tour` drives both for :func:`rsi.mission.run_mission`. See docs/mission.md.
+:class:`Tour` makes a mission's visits for :func:`rsi.mission.run_mission`: the arm's transits, the
+frames from the ISEE, and the lamp on the orbit's sun (:mod:`rsi.mission.sun`). See docs/mission.md.
 """
 
 from __future__ import annotations
@@ -34,25 +32,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
-from rsi.control.blending import blend_commands
 from rsi.control.proximity_law import ProximityLaw
 from rsi.control.redundancy import orientation_error
 from rsi.errors import InputError
-from rsi.sim import orbit as orbits
 from rsi.sim.arm import FOREARM_M, LIMITS, RANGEFINDER_CUTOFF_M, UPPER_ARM_M
+from rsi.sim.clearance import ArmClearance, is_arm_geom
 from rsi.sim.mockup import VISTA_STANDOFF_M
+from rsi.sim.proximity_loop import ARM_LAW, SAMPLE_RATE_HZ, LoopSample, ProximityLoop
 from rsi.sim.render import import_mujoco
 from rsi.sim.scene import CAMERA_FOVY_DEG
-from rsi.sim.solar_simulator import LampConfiguration, LampMount, RateLimits, lamp_pose
 
 if TYPE_CHECKING:
     from rsi.sim.arm import Arm
     from rsi.sim.mockup import Vista
-    from rsi.sim.world import View, World
+    from rsi.sim.world import World
 
 FloatArray = NDArray[np.float64]
 
-LOOP_RATE_HZ = 44.0  # seed §3.1: the proximity loop's rate
 RETRACT_M = 0.15
 APPROACH_START_M = 0.2  # the rangefinders (0.75 m) still see a surface 0.5 m off from this far back
 TRANSFER_SPEED_M_S = 0.25  # the rail's rate limit: a transfer along the truss is the rail's move
@@ -69,18 +65,11 @@ APPROACH_TIMEOUT_S = 6.0
 ARRIVAL_TOLERANCE_M = 5e-3  # the servo holds the rangefinders' noise (1.4 mm at 0.5 m): well inside this
 ARRIVAL_TOLERANCE_RAD = 2e-3
 REACH_MARGIN_M = 0.02  # the elbow never fully straight: configuration control damps near that singularity
-CLEARANCE_CAP_M = 2.0
-FRAME_S = 1.0 / 30.0  # seed §2.2: one interlaced frame
-NOMINAL_TRANSIT_S = 5.0  # mission-clock time of a visit without the arm (measured arm transits: 2-7 s)
-SUN_DIRECTION_TOLERANCE_RAD = 1e-6  # "reachable": the lamp gives the sun's direction exactly
 PHASES = ("retract", "transfer", "approach")
-STAGES = ("reference", "inspection")
-# Approach law: the demo's speeds and 6 /s avoidance slope (rsi.sim.isee_demo.DEMO_LAW, tuned on the arm)
-# with the standoff moved to the range read at the viewing pose.
-_LAW_SPEEDS = {"joystick": 0.30, "retreat": 0.80, "avoidance": 0.60, "servo_peak": 0.24}
+# Approach law: the speeds and region E of the law tuned on the arm (rsi.sim.proximity_loop.ARM_LAW), with
+# its 6 /s C/D slope, the standoff moved to the range read at the viewing pose.
 _HOLD_BELOW_STANDOFF_M = 0.05
 _HOLD_BELOW_NEAREST_M = 0.02
-_SERVO_END_M = 0.73
 _MIN_SEGMENT_M = 0.015  # keeps every slope of the law under 0.5 * 44 /s
 _SENSOR_MIN_M = ProximityLaw().min_distance_m  # seed §3.1: the SA1D's minimum distance (region A|B)
 
@@ -90,18 +79,21 @@ def _unit(vector: FloatArray) -> FloatArray:
     return result
 
 
-def _camera_rotation(forward: FloatArray, up: FloatArray) -> FloatArray:
-    """Columns right, up, backward, as :class:`rsi.sim.render.CameraPose` (MuJoCo cameras look along -z)."""
+def look_rotation(forward: FloatArray, up: FloatArray) -> FloatArray:
+    """A camera looking along `forward` with `up` up: columns right, up, backward, as
+    :class:`rsi.sim.render.CameraPose` (MuJoCo cameras look along -z)."""
     back = -_unit(forward)
     right = _unit(np.cross(up, back))
     return np.column_stack([right, np.cross(back, right), back])
 
 
-def _focal_px(rows: int) -> float:
+def focal_px(rows: int) -> float:
+    """Focal length in pixels of the ISEE camera (``CAMERA_FOVY_DEG``) in a frame of `rows` rows."""
     return rows / 2 / math.tan(math.radians(CAMERA_FOVY_DEG) / 2)
 
 
-def _arm_of(world: World) -> Arm:
+def world_arm(world: World) -> Arm:
+    """The world's arm, or an InputError that says how to build a world with one."""
     try:
         return world.arm
     except InputError:
@@ -110,7 +102,8 @@ def _arm_of(world: World) -> Arm:
         ) from None
 
 
-def _vista_of(world: World, vista: object) -> Vista:
+def world_vista(world: World, vista: object) -> Vista:
+    """The world's vista `vista`, or an InputError listing them (and where a mission's extras come from)."""
     if not isinstance(vista, str) or vista not in world.vistas:
         raise InputError(
             f"vista must be one of this world's vistas {sorted(world.vistas)}; got {vista!r}. A mission's "
@@ -135,7 +128,7 @@ class _Isee:
 
 
 def _isee(world: World) -> _Isee:
-    arm = _arm_of(world)
+    arm = world_arm(world)
     tip, rotation = arm.tool_pose()
     camera, camera_rotation = arm.camera_pose("left")
     sensors = np.array([arm.site_position_m(name) for name in ("range_left", "range_right")])
@@ -183,12 +176,12 @@ def viewing_pose(world: World, vista: str, *, offset_m: tuple[float, float] = (0
 
     Raises InputError for a world without the arm, an unknown vista or a non-finite offset.
     """
-    point = _vista_of(world, vista)
+    point = world_vista(world, vista)
     isee = _isee(world)
     offset = np.asarray(offset_m, dtype=np.float64)
     if offset.shape != (2,) or not np.isfinite(offset).all():
         raise InputError(f"offset_m must be two finite numbers (right, up; metres); got {offset_m!r}.")
-    rotation = _camera_rotation(np.asarray(point.forward, float), np.asarray(point.up, float))
+    rotation = look_rotation(np.asarray(point.forward, float), np.asarray(point.up, float))
     camera = np.asarray(point.position_m, float) + rotation[:, :2] @ offset
     tool_rotation = rotation @ isee.camera_rotation.T
     return ViewingPose(
@@ -255,25 +248,26 @@ def approach_law(standoff_m: float, nearest_m: float | None = None) -> Proximity
     nearest = standoff if nearest_m is None else v.finite_number(nearest_m, "nearest_m")
     hold = min(standoff - _HOLD_BELOW_STANDOFF_M, nearest - _HOLD_BELOW_NEAREST_M)
     span = standoff - hold  # region D from the hold distance to the standoff
-    slope = _LAW_SPEEDS["joystick"] / span
-    avoidance_start = hold - (_LAW_SPEEDS["avoidance"] - _LAW_SPEEDS["joystick"]) / slope
-    peak = hold + (_LAW_SPEEDS["joystick"] + _LAW_SPEEDS["servo_peak"]) / slope
-    cramped = avoidance_start < _SENSOR_MIN_M + _MIN_SEGMENT_M or peak > _SERVO_END_M - _MIN_SEGMENT_M
+    slope = ARM_LAW.joystick_speed_m_s / span
+    avoidance_start = hold - (ARM_LAW.avoidance_speed_m_s - ARM_LAW.joystick_speed_m_s) / slope
+    peak = hold + (ARM_LAW.joystick_speed_m_s + ARM_LAW.servo_peak_speed_m_s) / slope
+    servo_end = ARM_LAW.servo_end_m
+    cramped = avoidance_start < _SENSOR_MIN_M + _MIN_SEGMENT_M or peak > servo_end - _MIN_SEGMENT_M
     if span < _MIN_SEGMENT_M or cramped:
         raise InputError(
             f"standoff_m={standoff!r} (nearest_m={nearest!r}) leaves no room for the approach law between "
-            f"the sensors' {_SENSOR_MIN_M} m and {_SERVO_END_M} m; approach to a standoff of 0.25-0.67 m."
+            f"the sensors' {_SENSOR_MIN_M} m and {servo_end} m; approach to a standoff of 0.25-0.67 m."
         )
     return ProximityLaw(
-        joystick_speed_m_s=_LAW_SPEEDS["joystick"],
-        retreat_speed_m_s=_LAW_SPEEDS["retreat"],
-        avoidance_speed_m_s=_LAW_SPEEDS["avoidance"],
-        servo_peak_speed_m_s=_LAW_SPEEDS["servo_peak"],
+        joystick_speed_m_s=ARM_LAW.joystick_speed_m_s,
+        retreat_speed_m_s=ARM_LAW.retreat_speed_m_s,
+        avoidance_speed_m_s=ARM_LAW.avoidance_speed_m_s,
+        servo_peak_speed_m_s=ARM_LAW.servo_peak_speed_m_s,
         avoidance_start_m=avoidance_start,
         hold_distance_m=hold,
-        servo_end_m=_SERVO_END_M,
+        servo_end_m=servo_end,
         max_distance_m=RANGEFINDER_CUTOFF_M,
-        sample_rate_hz=LOOP_RATE_HZ,
+        sample_rate_hz=SAMPLE_RATE_HZ,
     )
 
 
@@ -287,7 +281,7 @@ def expected_ranges_m(world: World, pose: ViewingPose) -> FloatArray:
     ignored), passing through any part of the arm where the arm is now.
     """
     isee = _isee(world)
-    prefix = _arm_of(world).prefix
+    prefix = world_arm(world).prefix
     mujoco = import_mujoco()
     axis = pose.tool_rotation[:, 2].copy()
     ranges = np.full(2, np.inf)
@@ -299,54 +293,12 @@ def expected_ranges_m(world: World, pose: ViewingPose) -> FloatArray:
             if hit < 0:
                 break
             travelled += hit
-            if not _in_arm(world.model, int(geom[0]), prefix):
+            if not is_arm_geom(world.model, int(geom[0]), prefix):
                 ranges[index] = travelled if travelled < RANGEFINDER_CUTOFF_M else np.inf
                 break
             # an arm part where the arm is now, not where it will be: look past it
             origin, travelled = origin + (hit + 1e-6) * axis, travelled + 1e-6
     return ranges
-
-
-# --------------------------------------------------------------------------------------- clearance
-
-
-class _Clearance:
-    """Smallest distance between the arm's geoms and everything else (MuJoCo's ``mj_geomDistance``).
-
-    Branch and bound on bounding spheres: pairs are measured nearest bound first until the next bound is
-    farther than the best distance found, so a step costs a few exact distances, not all ~2000.
-    """
-
-    def __init__(self, world: World) -> None:
-        model = world.model
-        prefix = _arm_of(world).prefix
-        arm = [g for g in range(model.ngeom) if _in_arm(model, g, prefix)]
-        self._world = world
-        self._mujoco = import_mujoco()
-        self._arm = np.array(arm)
-        self._other = np.array([g for g in range(model.ngeom) if g not in set(arm)])
-        self._radius = np.asarray(model.geom_rbound, dtype=np.float64)
-
-    def __call__(self) -> float:
-        world = self._world
-        centres = np.asarray(world.data.geom_xpos)
-        gap = np.linalg.norm(centres[self._arm][:, None, :] - centres[self._other][None, :, :], axis=-1)
-        bound = gap - self._radius[self._arm][:, None] - self._radius[self._other][None, :]
-        best = CLEARANCE_CAP_M
-        for flat in np.argsort(bound, axis=None):
-            if bound.flat[flat] >= best:
-                break
-            i, j = divmod(int(flat), self._other.size)
-            distance = self._mujoco.mj_geomDistance(
-                world.model, world.data, int(self._arm[i]), int(self._other[j]), best, None
-            )
-            best = min(best, float(distance))
-        return best
-
-
-def _in_arm(model: Any, geom: int, prefix: str) -> bool:
-    body = str(model.body(int(model.geom_bodyid[geom])).name)
-    return body.startswith(prefix) or str(model.geom(geom).name).startswith(prefix)
 
 
 # ------------------------------------------------------------------------------------------ transit
@@ -469,72 +421,53 @@ _TRACE_FIELDS = (
 class _Trace:
     rows: dict[str, list[Any]] = field(default_factory=lambda: {name: [] for name in _TRACE_FIELDS})
 
+    def add(self, phase: str, sample: LoopSample, *, axis_error_m: float, clearance_m: float) -> None:
+        values = (
+            sample.time_s,
+            phase,
+            sample.true_m,
+            sample.reading_m,
+            sample.trajectory_m_s,
+            sample.proximity_m_s,
+            sample.command_m_s,
+            axis_error_m,
+            clearance_m,
+        )
+        for name, value in zip(_TRACE_FIELDS, values, strict=True):
+            self.rows[name].append(value)
 
-class _Loop:
-    """The 44 Hz loop of one transit: sensors, blend, arm step and trace (seed §3.1, Fig. 4)."""
+    def arrays(self) -> dict[str, Any]:
+        arrays: dict[str, Any] = {
+            name: np.asarray(self.rows[name], dtype=np.float64) for name in _TRACE_FIELDS if name != "phase"
+        }
+        arrays["phase"] = np.asarray(self.rows["phase"], dtype=np.str_)
+        for name in ("range_true_m", "range_reading_m"):
+            arrays[name] = arrays[name].reshape(-1, 2)
+        return arrays
+
+
+class _Mover:
+    """The phases of one transit on the proximity loop (seed §3.1, Fig. 4), traced with the clearance."""
 
     def __init__(self, world: World, rng: np.random.Generator) -> None:
-        from rsi.sensors.proximity import ProximityChannel, ProximitySensor
-
-        self.world = world
-        self.arm = _arm_of(world)
-        sensor = ProximitySensor(sample_rate_hz=LOOP_RATE_HZ)
-        self.channels = [ProximityChannel(sensor, rng=stream) for stream in rng.spawn(2)]
-        self.clearance = _Clearance(world)
+        self.arm = world_arm(world)
+        self.loop = ProximityLoop(self.arm, law=GUARD_LAW, rng=rng)
+        self.clearance = ArmClearance(world)
         self.trace = _Trace()
-        self.dt_s = 1.0 / LOOP_RATE_HZ
-
-    @property
-    def samples(self) -> int:
-        return len(self.trace.rows["time_s"])
 
     def step(
-        self,
-        phase: str,
-        twist: tuple[FloatArray, FloatArray],
-        *,
-        law: ProximityLaw,
-        mode: str,
-        axis_error_m: float = math.nan,
-    ) -> float:
-        """One period: read, blend along the tool axis, step the arm; returns the axis command.
-
-        `twist` is the generator's (linear m/s, angular rad/s) in the world; its component along the tool
-        axis is Fig. 4's ``x_tg``, to which the law's ``x_ps`` is added (seed §3.1).
-        """
-        linear_m_s, angular_rad_s = twist
-        raw = self.arm.rangefinder_distances_m()
-        # MuJoCo's rangefinder: negative = no return, clamped at its cutoff; both mean "nothing seen"
-        true = np.where((raw < 0.0) | (raw >= RANGEFINDER_CUTOFF_M), np.inf, raw)
-        reading = np.array([c.read(float(d))[0] for c, d in zip(self.channels, true, strict=True)])
-        axis = self.arm.tool_pose()[1][:, 2]
-        along = float(axis @ linear_m_s)
-        blended = blend_commands(0.0, along, reading, law, mode=mode)
-        command = float(blended.velocity_m_s)
-        linear = linear_m_s + (command - along) * axis
-        rows = self.trace.rows
-        for name, value in zip(
-            _TRACE_FIELDS,
-            (
-                self.samples * self.dt_s,
-                phase,
-                true,
-                reading,
-                along,
-                float(blended.proximity_m_s),
-                command,
-                axis_error_m,
-                self.clearance(),
-            ),
-            strict=True,
-        ):
-            rows[name].append(value)
-        self.arm.step_velocity(np.concatenate([linear, angular_rad_s]), self.dt_s)
-        return command
+        self, phase: str, twist: tuple[FloatArray, FloatArray], *, axis_error_m: float = math.nan
+    ) -> None:
+        """One period: the generator's world twist is the loop's free motion; its part along the tool axis
+        is Fig. 4's ``x_tg``, to which the law's ``x_ps`` is added (seed §3.1)."""
+        clearance_m = self.clearance()  # where the arm is while the sensors are read
+        sample = self.loop.step(np.concatenate(twist), frame="world")
+        self.trace.add(phase, sample, axis_error_m=axis_error_m, clearance_m=clearance_m)
 
     def move_to(self, phase: str, tip_m: FloatArray, rotation: FloatArray) -> bool:
         """Straight line and turn to a tool pose at capped speeds, the guard law on; True when there."""
-        for _ in range(round(PHASE_TIMEOUT_S * LOOP_RATE_HZ)):
+        self.loop.law, self.loop.mode = GUARD_LAW, "avoidance"
+        for _ in range(round(PHASE_TIMEOUT_S * SAMPLE_RATE_HZ)):
             position, current = self.arm.tool_pose()
             error, turn = tip_m - position, orientation_error(rotation, current)
             if np.linalg.norm(error) < MOVE_TOLERANCE_M and np.linalg.norm(turn) < MOVE_TOLERANCE_RAD:
@@ -543,15 +476,16 @@ class _Loop:
                 _capped(MOVE_GAIN_PER_S * error, TRANSFER_SPEED_M_S),
                 _capped(MOVE_GAIN_PER_S * turn, TRANSFER_TURN_RAD_S),
             )
-            self.step(phase, twist, law=GUARD_LAW, mode="avoidance")
+            self.step(phase, twist)
         return False
 
     def approach(self, pose: ViewingPose, law: ProximityLaw, mode: str) -> None:
         """Along the viewing axis: feed-forward plus the law on the rangefinders, until settled."""
+        self.loop.law, self.loop.mode = law, mode
         axis = pose.tool_rotation[:, 2]
         limit = law.joystick_speed_m_s
         settled = 0
-        for _ in range(round(APPROACH_TIMEOUT_S * LOOP_RATE_HZ)):
+        for _ in range(round(APPROACH_TIMEOUT_S * SAMPLE_RATE_HZ)):
             position, current = self.arm.tool_pose()
             error = pose.tool_m - position
             to_go = float(axis @ error)
@@ -563,21 +497,11 @@ class _Loop:
                 MOVE_GAIN_PER_S * lateral + feed * axis,
                 _capped(MOVE_GAIN_PER_S * turn, TRANSFER_TURN_RAD_S),
             )
-            self.step("approach", twist, law=law, mode=mode, axis_error_m=to_go)
+            self.step("approach", twist, axis_error_m=to_go)
             calm = abs(to_go) < SETTLE_BAND_M and float(np.linalg.norm(lateral)) < SETTLE_BAND_M
             settled = settled + 1 if calm else 0
             if settled >= SETTLE_SAMPLES:
                 return
-
-    def arrays(self) -> dict[str, Any]:
-        rows = self.trace.rows
-        arrays: dict[str, Any] = {
-            name: np.asarray(rows[name], dtype=np.float64) for name in _TRACE_FIELDS if name != "phase"
-        }
-        arrays["phase"] = np.asarray(rows["phase"], dtype=np.str_)
-        for name in ("range_true_m", "range_reading_m"):
-            arrays[name] = arrays[name].reshape(-1, 2)
-        return arrays
 
 
 def _capped(vector: FloatArray, limit: float) -> FloatArray:
@@ -656,16 +580,16 @@ def transit(
     where = reach(world, vista)
     expected = expected_ranges_m(world, pose) if where.reachable else np.full(2, np.inf)
     law, servo = _law_for(expected) if law is None else (law, True)
-    loop = _Loop(world, v.as_rng(rng))
+    mover = _Mover(world, v.as_rng(rng))
     began = time.perf_counter()
     if where.reachable:
-        tip, rotation = loop.arm.tool_pose()
-        loop.move_to("retract", tip - RETRACT_M * rotation[:, 2], rotation)
+        tip, rotation = mover.arm.tool_pose()
+        mover.move_to("retract", tip - RETRACT_M * rotation[:, 2], rotation)
         staging = pose.tool_m - APPROACH_START_M * pose.tool_rotation[:, 2]
-        loop.move_to("transfer", staging, pose.tool_rotation)
-        loop.approach(pose, law, "servo" if servo else "avoidance")
-    camera, camera_rotation = loop.arm.camera_pose("left")
-    arrays = loop.arrays()
+        mover.move_to("transfer", staging, pose.tool_rotation)
+        mover.approach(pose, law, "servo" if servo else "avoidance")
+    camera, camera_rotation = mover.arm.camera_pose("left")
+    arrays = mover.trace.arrays()
     result = Transit(
         vista=vista,
         label=str(label),
@@ -674,7 +598,7 @@ def transit(
         reached=False,
         servo=servo,
         start_clock_s=start,
-        duration_s=loop.samples * loop.dt_s,
+        duration_s=mover.loop.samples * mover.loop.dt_s,
         wall_s=time.perf_counter() - began,
         approach_law=law if where.reachable else None,
         expected_range_m=expected,
@@ -688,279 +612,20 @@ def transit(
     return replace(result, reached=bool(where.reachable and arrived))
 
 
-# ---------------------------------------------------------------------------------------------- sun
-
-
-def lab_world_from_lvlh(mount: LampMount | None = None) -> FloatArray:
-    """Where the station's LVLH axes lie in the lab: :data:`rsi.sim.orbit.DEFAULT_WORLD_FROM_LVLH` turned
-    about the rail so the orbit plane passes through the lamp's rail and the ORU faces' mid-line.
-
-    Seed §4.1: the lamp's rail only gives light directions in the plane through the rail and the spot, so a
-    beta = 0 sun (in the orbit plane) is reproduced exactly on ORU A's face (y = -0.472 m, z = 1.2 m) and
-    within a fraction of a degree on B and D; the panel on top lies in another plane.
-    """
-    from rsi.sim.mockup import A_FACE_Y_M, BAY_M, TRUSS_Z0_M
-
-    rail = LampMount() if mount is None else mount
-    origin = np.asarray(rail.rail_origin_world_m)
-    face = np.array([0.0, A_FACE_Y_M, TRUSS_Z0_M + BAY_M / 2])
-    toward = origin - face
-    tilt = math.atan2(toward[2], -toward[1])  # the rail's elevation seen from the faces (negative: below)
-    turn = np.array(
-        [[1.0, 0.0, 0.0], [0.0, math.cos(tilt), -math.sin(tilt)], [0.0, math.sin(tilt), math.cos(tilt)]]
-    )
-    # zenith (-z LVLH) maps to -y by default; turning by -tilt about x brings it onto the rail's direction
-    result: FloatArray = turn.T @ orbits.DEFAULT_WORLD_FROM_LVLH
-    return result
-
-
-@dataclass(frozen=True)
-class SunSetting:
-    """The solar simulator at one visit (seed §4.1).
-
-    Attributes
-    ----------
-    label, stage : str
-        Plan point and pass.
-    time_s : float
-        Mission clock (orbit time from the orbit's start), seconds.
-    orbit_angle_rad : float
-        From orbit noon.
-    sun_world : (float, float, float)
-        Unit vector toward the sun, lab world.
-    sunlit : bool
-        False in the Earth's shadow: the lamp is off.
-    spot_m : (float, float, float)
-        The lamp's spot (the vista's target).
-    light_world : (float, float, float)
-        Unit vector from the spot toward the lamp as set.
-    direction_error_rad : float
-        Angle between ``light_world`` and ``sun_world``.
-    reachable : bool
-        ``direction_error_rad <= SUN_DIRECTION_TOLERANCE_RAD``; otherwise the lamp is at the nearest
-        direction its rail and joint ranges give.
-    lamp : LampConfiguration
-    intensity_lux : float
-        At the spot centre (0 in shadow).
-    focus_clipped : bool
-        The focus could not hold the lab's 1.5 % of sunlight at this distance.
-    lamp_move_s : float
-        Time the lamp needs, at its joint rate limits, from the previous setting (0 for the first).
-    """
-
-    label: str
-    stage: str
-    time_s: float
-    orbit_angle_rad: float
-    sun_world: tuple[float, float, float]
-    sunlit: bool
-    spot_m: tuple[float, float, float]
-    light_world: tuple[float, float, float]
-    direction_error_rad: float
-    reachable: bool
-    lamp: LampConfiguration
-    intensity_lux: float
-    focus_clipped: bool
-    lamp_move_s: float = 0.0
-
-
-def _triple(values: FloatArray) -> tuple[float, float, float]:
-    return (float(values[0]), float(values[1]), float(values[2]))
-
-
-def sun_setting(
-    spot_world_m: object,
-    time_s: float,
-    *,
-    orbit: orbits.Orbit | None = None,
-    world_from_lvlh: object = None,
-    label: str = "",
-    stage: str = "",
-) -> SunSetting:
-    """Where the lamp goes to light `spot_world_m` as the orbit's sun does at `time_s` (seed §4.1).
-
-    :func:`rsi.sim.orbit.sun_path` at one instant: the rail position closest in angle to the sun, the head
-    pointed at the spot, the focus holding 1.5 % of sunlight. `world_from_lvlh` defaults to
-    :func:`lab_world_from_lvlh`. Raises InputError for a bad time (negative, NaN), spot or orbit.
-    """
-    if isinstance(time_s, bool) or not isinstance(time_s, (int, float, np.floating, np.integer)):
-        raise InputError(f"time_s must be a number of seconds >= 0; got {time_s!r}.")
-    rotation = lab_world_from_lvlh() if world_from_lvlh is None else world_from_lvlh
-    path = orbits.sun_path(
-        orbit,
-        [float(time_s)],
-        spot_world_m=spot_world_m,
-        world_from_lvlh=rotation,
-        direction_tolerance_rad=SUN_DIRECTION_TOLERANCE_RAD,
-    )
-    return SunSetting(
-        label=str(label),
-        stage=str(stage),
-        time_s=float(path.time_s[0]),
-        orbit_angle_rad=float(path.orbit_angle_rad[0]),
-        sun_world=_triple(path.sun_world[0]),
-        sunlit=bool(path.sunlit[0]),
-        spot_m=_triple(np.asarray(spot_world_m, dtype=np.float64)),
-        light_world=_triple(path.light_world[0]),
-        direction_error_rad=float(path.direction_error_rad[0]),
-        reachable=not bool(path.direction_unreachable[0]),
-        lamp=path.trajectory.configuration(0),
-        intensity_lux=float(path.intensity_lux[0]),
-        focus_clipped=bool(path.focus_clipped[0]),
-    )
-
-
-def light_by_sun(world: World, setting: SunSetting) -> None:
-    """Pose the world's lamp as `setting` says and switch it off in the Earth's shadow."""
-    if not isinstance(setting, SunSetting):
-        raise InputError(f"setting must be a SunSetting from sun_setting(...); got {type(setting).__name__}.")
-    world.set_lamp(setting.lamp)
-    world.switch_lamp(setting.sunlit)
-
-
-def lamp_light_direction(world: World, spot_world_m: object) -> FloatArray:
-    """Unit vector from a spot toward the world's lamp as it stands (to check a setting independently)."""
-    spot = np.asarray(spot_world_m, dtype=np.float64)
-    return _unit(np.asarray(lamp_pose(world.lamp).position_world_m) - spot)
-
-
-def lamp_move_s(
-    first: LampConfiguration, second: LampConfiguration, rates: RateLimits | None = None
-) -> float:
-    """Time the lamp needs between two configurations at its joint rate limits (seed §4.1)."""
-    limits = RateLimits() if rates is None else rates
-    joints = np.array(
-        [[c.theta_rad, c.phi_rad, c.lambda_m, c.gamma_m] for c in (first, second)], dtype=np.float64
-    )
-    return float(np.max(np.abs(joints[1] - joints[0]) / limits.as_array()))
-
-
-# --------------------------------------------------------------------------------------------- tour
-
-
-def pass_starts(start_s: object) -> tuple[float, float]:
-    """Validated orbit times at which the reference and the inspection pass begin (two numbers >= 0 s)."""
-    if not isinstance(start_s, tuple) or len(start_s) != 2:
-        raise InputError(
-            f"orbit_start_s must be a (reference, inspection) tuple of times in seconds; got {start_s!r}. "
-            "Try orbit_start_s=(400.0, 5953.6): the inspection one orbit after the reference."
-        )
-    first, second = (v.in_range(value, "orbit_start_s", low=0.0) for value in start_s)
-    return (first, second)
-
-
-class Tour:
-    """A mission's visits: the arm's transits, the frames from the ISEE, the lamp on the orbit's sun.
-
-    Parameters
-    ----------
-    world : World
-        The mission's world (with the arm when `arm`).
-    seed : int
-        Seeds the visits' repeatability draws and the rangefinders' noise (the world's own streams are not
-        touched, so ``arm=False, orbit=False`` visits are exactly ``World.render``'s).
-    size : (int, int)
-        Frame size; the repeatability error is drawn in pixels of it, as ``World.render`` draws it.
-    arm : bool
-        Move the arm to each reachable vista and take the frame from the ISEE; otherwise (and for vistas out
-        of reach) ``World.render`` teleports the free camera.
-    orbit : bool
-        Light each visit by the orbit's sun at the visit's mission-clock time.
-    """
-
-    def __init__(
-        self, world: World, *, seed: int, size: tuple[int, int], arm: bool = True, orbit: bool = True
-    ) -> None:
-        for name, flag in (("arm", arm), ("orbit", orbit)):
-            if not isinstance(flag, bool):
-                raise InputError(f"{name} must be True or False; got {flag!r}.")
-        if arm:
-            _arm_of(world)
-        self.world = world
-        self.size = size
-        self.arm = arm
-        self.orbit = orbit
-        draws, noise = np.random.SeedSequence([int(seed), 21]).spawn(2)
-        self._draws = np.random.default_rng(draws)
-        self._noise = np.random.default_rng(noise)
-        self.clock_s = 0.0
-        self.stage = ""
-        self.transits: list[Transit] = []
-        self.suns: list[SunSetting] = []
-
-    def start_pass(self, stage: str, start_s: float) -> None:
-        """Set the mission clock to a pass's start (seed §2.2: the passes may see different suns)."""
-        self.stage = v.choice(stage, "stage", STAGES)
-        self.clock_s = v.in_range(start_s, "start_s", low=0.0)
-
-    def visit(self, label: str, vista: str, *, state: str, truth: bool = True) -> View:
-        """Go to `vista` (plan point `label`), light it, take the frame; the clock advances."""
-        from rsi.sim.world import REPEATABILITY_PX
-
-        _vista_of(self.world, vista)
-        if not self.arm:
-            self.clock_s += NOMINAL_TRANSIT_S if self.orbit else 0.0
-            self._light(label, vista)
-            self.clock_s += FRAME_S
-            return self.world.render(vista, size=self.size, state=state, truth=truth)
-        low, high = REPEATABILITY_PX[self.world.repeatability]
-        magnitude, angle = self._draws.uniform(low, high), self._draws.uniform(0.0, 2 * math.pi)
-        # seed §2.3: the arm misses the vista by its repeatability; World.render's draw, as a goal offset
-        offset_px = magnitude * np.array([math.cos(angle), math.sin(angle)])
-        offset_m = offset_px * self.world.vista(vista).standoff_m / _focal_px(self.size[0])
-        moved = transit(
-            self.world,
-            vista,
-            offset_m=(float(offset_m[0]), float(offset_m[1])),
-            rng=self._noise.spawn(1)[0],
-            label=label,
-            stage=self.stage,
-            clock_s=self.clock_s,
-        )
-        self.transits.append(moved)
-        self.clock_s += moved.duration_s if moved.time_s.size else NOMINAL_TRANSIT_S
-        self._light(label, vista)
-        self.clock_s += FRAME_S
-        if not moved.reached:  # documented fallback: the free camera, as without the arm
-            return self.world.render(vista, size=self.size, state=state, truth=truth)
-        view = self.world.render_from_tool(size=self.size, state=state, truth=truth)
-        return replace(view, vista=vista, pose_error_px=self._pose_error_px(vista, moved.camera_m))
-
-    def _pose_error_px(self, vista: str, camera_m: FloatArray) -> tuple[float, float]:
-        """Image shift of the target plane caused by the camera's lateral miss, as ``World.render`` gives."""
-        point = self.world.vista(vista)
-        rotation = _camera_rotation(np.asarray(point.forward, float), np.asarray(point.up, float))
-        miss = rotation[:, :2].T @ (camera_m - np.asarray(point.position_m, float))
-        shift = miss * _focal_px(self.size[0]) / point.standoff_m
-        return (float(-shift[0]), float(shift[1]))
-
-    def _light(self, label: str, vista: str) -> None:
-        if not self.orbit:
-            return
-        target = self.world.vista(vista).target_m
-        setting = sun_setting(target, self.clock_s, label=label, stage=self.stage)
-        if self.suns:
-            setting = replace(setting, lamp_move_s=lamp_move_s(self.suns[-1].lamp, setting.lamp))
-        light_by_sun(self.world, setting)
-        self.suns.append(setting)
-
-
 __all__ = [
+    "ARRIVAL_TOLERANCE_M",
+    "ARRIVAL_TOLERANCE_RAD",
     "GUARD_LAW",
     "Reach",
-    "SunSetting",
-    "Tour",
     "Transit",
     "ViewingPose",
     "approach_law",
     "expected_ranges_m",
-    "lab_world_from_lvlh",
-    "lamp_light_direction",
-    "lamp_move_s",
-    "light_by_sun",
-    "pass_starts",
+    "focal_px",
+    "look_rotation",
     "reach",
-    "sun_setting",
     "transit",
     "viewing_pose",
+    "world_arm",
+    "world_vista",
 ]

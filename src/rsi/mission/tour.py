@@ -1,0 +1,128 @@
+"""A mission's visits (seed §2.2-2.3, §3.1, §4.1): the arm's transit to each vista, the lamp on the orbit's
+sun at the visit's mission-clock time, and the frame from where the arm holds the ISEE camera.
+
+:class:`Tour` drives :func:`rsi.mission.transit.transit` and :mod:`rsi.mission.sun` for
+:func:`rsi.mission.run_mission`. See docs/mission.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi import _validate as v
+from rsi.errors import InputError
+from rsi.mission.sun import SunSetting, lamp_move_s, light_by_sun, sun_setting
+from rsi.mission.transit import Transit, focal_px, look_rotation, transit, world_arm, world_vista
+
+if TYPE_CHECKING:
+    from rsi.sim.world import View, World
+
+FloatArray = NDArray[np.float64]
+
+FRAME_S = 1.0 / 30.0  # seed §2.2: one interlaced frame
+NOMINAL_TRANSIT_S = 5.0  # mission-clock time of a visit without the arm (measured arm transits: 2-7 s)
+STAGES = ("reference", "inspection")
+
+
+class Tour:
+    """A mission's visits: the arm's transits, the frames from the ISEE, the lamp on the orbit's sun.
+
+    Parameters
+    ----------
+    world : World
+        The mission's world (with the arm when `arm`).
+    seed : int
+        Seeds the visits' repeatability draws and the rangefinders' noise (the world's own streams are not
+        touched, so ``arm=False, orbit=False`` visits are exactly ``World.render``'s).
+    size : (int, int)
+        Frame size; the repeatability error is drawn in pixels of it, as ``World.render`` draws it.
+    arm : bool
+        Move the arm to each reachable vista and take the frame from the ISEE; otherwise (and for vistas out
+        of reach) ``World.render`` teleports the free camera.
+    orbit : bool
+        Light each visit by the orbit's sun at the visit's mission-clock time.
+    """
+
+    def __init__(
+        self, world: World, *, seed: int, size: tuple[int, int], arm: bool = True, orbit: bool = True
+    ) -> None:
+        for name, flag in (("arm", arm), ("orbit", orbit)):
+            if not isinstance(flag, bool):
+                raise InputError(f"{name} must be True or False; got {flag!r}.")
+        if arm:
+            world_arm(world)
+        self.world = world
+        self.size = size
+        self.arm = arm
+        self.orbit = orbit
+        draws, noise = np.random.SeedSequence([int(seed), 21]).spawn(2)
+        self._draws = np.random.default_rng(draws)
+        self._noise = np.random.default_rng(noise)
+        self.clock_s = 0.0
+        self.stage = ""
+        self.transits: list[Transit] = []
+        self.suns: list[SunSetting] = []
+
+    def start_pass(self, stage: str, start_s: float) -> None:
+        """Set the mission clock to a pass's start (seed §2.2: the passes may see different suns)."""
+        self.stage = v.choice(stage, "stage", STAGES)
+        self.clock_s = v.in_range(start_s, "start_s", low=0.0)
+
+    def visit(self, label: str, vista: str, *, state: str, truth: bool = True) -> View:
+        """Go to `vista` (plan point `label`), light it, take the frame; the clock advances."""
+        from rsi.sim.world import REPEATABILITY_PX
+
+        world_vista(self.world, vista)
+        if not self.arm:
+            self.clock_s += NOMINAL_TRANSIT_S if self.orbit else 0.0
+            self._light(label, vista)
+            self.clock_s += FRAME_S
+            return self.world.render(vista, size=self.size, state=state, truth=truth)
+        low, high = REPEATABILITY_PX[self.world.repeatability]
+        magnitude, angle = self._draws.uniform(low, high), self._draws.uniform(0.0, 2 * math.pi)
+        # seed §2.3: the arm misses the vista by its repeatability; World.render's draw, as a goal offset
+        offset_px = magnitude * np.array([math.cos(angle), math.sin(angle)])
+        offset_m = offset_px * self.world.vista(vista).standoff_m / focal_px(self.size[0])
+        moved = transit(
+            self.world,
+            vista,
+            offset_m=(float(offset_m[0]), float(offset_m[1])),
+            rng=self._noise.spawn(1)[0],
+            label=label,
+            stage=self.stage,
+            clock_s=self.clock_s,
+        )
+        self.transits.append(moved)
+        self.clock_s += moved.duration_s if moved.time_s.size else NOMINAL_TRANSIT_S
+        self._light(label, vista)
+        self.clock_s += FRAME_S
+        if not moved.reached:  # documented fallback: the free camera, as without the arm
+            return self.world.render(vista, size=self.size, state=state, truth=truth)
+        view = self.world.render_from_tool(size=self.size, state=state, truth=truth)
+        return replace(view, vista=vista, pose_error_px=self._pose_error_px(vista, moved.camera_m))
+
+    def _pose_error_px(self, vista: str, camera_m: FloatArray) -> tuple[float, float]:
+        """Image shift of the target plane caused by the camera's lateral miss, as ``World.render`` gives."""
+        point = self.world.vista(vista)
+        rotation = look_rotation(np.asarray(point.forward, float), np.asarray(point.up, float))
+        miss = rotation[:, :2].T @ (camera_m - np.asarray(point.position_m, float))
+        shift = miss * focal_px(self.size[0]) / point.standoff_m
+        return (float(-shift[0]), float(shift[1]))
+
+    def _light(self, label: str, vista: str) -> None:
+        if not self.orbit:
+            return
+        target = self.world.vista(vista).target_m
+        setting = sun_setting(target, self.clock_s, label=label, stage=self.stage)
+        if self.suns:
+            setting = replace(setting, lamp_move_s=lamp_move_s(self.suns[-1].lamp, setting.lamp))
+        light_by_sun(self.world, setting)
+        self.suns.append(setting)
+
+
+__all__ = ["FRAME_S", "NOMINAL_TRANSIT_S", "STAGES", "Tour"]
