@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 import rsi
+from rsi.datasets.rendered import render_vista_to_folder
 from rsi.errors import InputError
 from rsi.imaging.compensation import compensate_interlaced
-from rsi.sim.world import REPEATABILITY_PX, World, load, render_vista_to_folder
+from rsi.sim.world import REPEATABILITY_PX, World, load
 
 SMALL = (120, 160)
 SEED = 3  # the conftest world's seed: five impacts on the solar panel

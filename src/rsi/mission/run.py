@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -112,12 +113,12 @@ def run_mission(
     seed = int(seed)
     shape, starts = _size(size), pass_starts(orbit_start_s)
     clock = _Clock()
-    world = load("truss", seed=seed, repeatability=repeatability, arm=arm)
+    streams = _Streams.spawned(seed)
+    world = load("truss", seed=streams.world, repeatability=repeatability, arm=arm)
     plan = plan_vistas(world, settings)
-    tour = Tour(world, seed=seed, size=shape, arm=arm, orbit=orbit)
+    tour = Tour(world, seed=streams.tour, size=shape, arm=arm, orbit=orbit)
     report = _progress_reporter(progress, total=2 * len(plan) + 2)
-    stereo_rng = np.random.default_rng(np.random.SeedSequence([seed, 11]))
-    sensor_rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
+    stereo_rng, sensor_rng = (np.random.default_rng(stream) for stream in (streams.stereo, streams.sensors))
     try:
         tour.start_pass("reference", starts[0])
         stored = _reference_pass(world, plan, tour, report, stereo_rng=stereo_rng, settings=settings)
@@ -282,6 +283,22 @@ def _archived(  # noqa: PLR0917 - the run's parts, each needed once
     )
     store_findings(archive, run_id, findings)
     return run_id
+
+
+@dataclass(frozen=True)
+class _Streams:
+    """The mission's random streams, spawned once from its seed and handed down: the world (anomalies,
+    viewpoint errors, camera noise), the tour (the arm's misses, the rangefinders' noise), the stereo
+    matching noise and the pyrometer and gas sensors' noise."""
+
+    world: np.random.SeedSequence
+    tour: np.random.SeedSequence
+    stereo: np.random.SeedSequence
+    sensors: np.random.SeedSequence
+
+    @classmethod
+    def spawned(cls, seed: int) -> _Streams:
+        return cls(*np.random.SeedSequence(seed).spawn(4))
 
 
 class _Clock:

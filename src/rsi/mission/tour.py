@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi._seeds import SeedLike, seed_sequence
 from rsi.errors import InputError
 from rsi.mission.sun import SunSetting, lamp_move_s, light_by_sun, sun_setting
 from rsi.mission.transit import Transit, focal_px, look_rotation, transit, world_arm, world_vista
@@ -36,7 +37,7 @@ class Tour:
     ----------
     world : World
         The mission's world (with the arm when `arm`).
-    seed : int
+    seed : int or numpy.random.SeedSequence
         Seeds the visits' repeatability draws and the rangefinders' noise (the world's own streams are not
         touched, so ``arm=False, orbit=False`` visits are exactly ``World.render``'s).
     size : (int, int)
@@ -49,7 +50,7 @@ class Tour:
     """
 
     def __init__(
-        self, world: World, *, seed: int, size: tuple[int, int], arm: bool = True, orbit: bool = True
+        self, world: World, *, seed: SeedLike, size: tuple[int, int], arm: bool = True, orbit: bool = True
     ) -> None:
         for name, flag in (("arm", arm), ("orbit", orbit)):
             if not isinstance(flag, bool):
@@ -60,7 +61,7 @@ class Tour:
         self.size = size
         self.arm = arm
         self.orbit = orbit
-        draws, noise = np.random.SeedSequence([int(seed), 21]).spawn(2)
+        draws, noise = seed_sequence(seed).spawn(2)
         self._draws = np.random.default_rng(draws)
         self._noise = np.random.default_rng(noise)
         self.clock_s = 0.0

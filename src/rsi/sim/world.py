@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi._seeds import SeedLike, seed_number, seed_sequence
 from rsi.errors import InputError
 from rsi.imaging.camera import DEFAULT_CAMERA, CameraModel, Frame, expose
 from rsi.sim import fields
@@ -174,7 +175,7 @@ class World:
         mockup: Mockup,
         anomalies: AnomalySet,
         *,
-        seed: int,
+        seed: SeedLike,
         repeatability: str = "lab",
         camera: CameraModel = DEFAULT_CAMERA,
         arm: bool = False,
@@ -186,8 +187,9 @@ class World:
         self.anomalies = anomalies
         self.repeatability = v.choice(repeatability, "repeatability", REPEATABILITY_PX)
         self.camera = camera
-        self.seed = seed
-        poses, noise = np.random.SeedSequence([seed, 1]).spawn(2)
+        self.seed = seed_number(seed)
+        # the world's own streams, spawned once from its seed: viewpoint errors and camera noise
+        poses, noise = seed_sequence(seed).spawn(2)
         self._pose_rng = np.random.default_rng(poses)
         self._noise_rng = np.random.default_rng(noise)
         model, index = build_model(
@@ -747,7 +749,7 @@ def _size(size: object) -> tuple[int, int]:
 def load(
     scene: str = "truss",
     *,
-    seed: int,
+    seed: SeedLike,
     repeatability: str = "lab",
     settings: AnomalySettings | None = None,
     camera: CameraModel = DEFAULT_CAMERA,
@@ -759,8 +761,9 @@ def load(
     ----------
     scene : {"truss"}
         The mock-up.
-    seed : int
-        Seed of every random choice (anomalies, viewpoint errors, camera noise), >= 0.
+    seed : int or numpy.random.SeedSequence
+        Seed of every random choice, >= 0, or a sequence spawned for this world: one child stream draws the
+        anomalies, the other the viewpoint errors and camera noise.
     repeatability : {"lab", "space"}
         Viewpoint repeatability of each vista visit (seed §2.3).
     settings : AnomalySettings, optional
@@ -778,9 +781,12 @@ def load(
     World
     """
     v.choice(scene, "scene", SCENES)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be an integer >= 0; got {seed!r}.")
+    # one stream draws the anomalies, the other is the world's (poses, noise): spawned, never re-derived
+    anomaly_stream, world_stream = seed_sequence(seed).spawn(2)
     mockup = truss_mockup()
-    streams = np.random.SeedSequence([int(seed), 0])
-    anomalies = seed_anomalies(mockup.candidates, rng=np.random.default_rng(streams), settings=settings)
-    return World(mockup, anomalies, seed=int(seed), repeatability=repeatability, camera=camera, arm=arm)
+    anomalies = seed_anomalies(
+        mockup.candidates, rng=np.random.default_rng(anomaly_stream), settings=settings
+    )
+    world = World(mockup, anomalies, seed=world_stream, repeatability=repeatability, camera=camera, arm=arm)
+    world.seed = seed_number(seed)
+    return world
