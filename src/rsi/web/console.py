@@ -41,7 +41,7 @@ HEARTBEAT_HZ = 20.0  # the page sends its held command this often
 # between two and three missed heartbeats; with a 44 Hz period to act, the stop comes < 200 ms after the last
 HEARTBEAT_TIMEOUT_S = 0.12
 LIVE_SIZE = (240, 320)  # live views: docs/console.md has the render times that chose it
-LIVE_FPS = 12.0  # camera loop's target: >= 10 frames/s with a margin for jitter
+LIVE_FPS = 15.0  # camera loop's target: >= 10 frames/s with a margin for a loaded machine's jitter
 HOUSEKEEPING_HZ = 2.0
 TELEMETRY_SECONDS = 30.0
 ORBIT_START_S = 400.0  # the mission's reference pass starts here (rsi.mission): the lamp lights the faces
@@ -172,7 +172,10 @@ class Console:
 
     def hold(self, client_id: str, command_m_s: object) -> bool:
         """A heartbeat from the operator's page: hold `command_m_s` (tool frame, m/s). False if refused."""
-        command = np.asarray(command_m_s, dtype=np.float64)
+        try:
+            command = np.asarray(command_m_s, dtype=np.float64)
+        except (TypeError, ValueError):
+            command = np.full(1, np.nan)
         if command.shape != (3,) or not np.isfinite(command).all():
             raise InputError(f"command_m_s must be 3 finite velocities (m/s); got {command_m_s!r}.")
         with self.lock:

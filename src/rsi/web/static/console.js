@@ -82,6 +82,7 @@ function connectControl() {
     setTimeout(connectControl, 1000);
   };
 }
+stats.closeControl = () => control && control.close(); // the browser test's "lost socket"
 function send(message) {
   if (control && control.readyState === WebSocket.OPEN) control.send(JSON.stringify(message));
 }
