@@ -47,8 +47,10 @@ def _routes(live: Live) -> list[tuple[str, str]]:
 def test_every_route_but_healthz_answers_401_without_the_token(live: Live) -> None:
     routes = _routes(live)
     assert len(routes) >= 18 and ("GET", "/api/status") in routes
-    for method, path in [*routes, ("GET", "/static/console.js"), ("GET", "/static/vendor/three.module.min.js")]:
-        for headers in ({}, {"Authorization": "Bearer wrong-token-wrong-token"}, {"Authorization": live.token}):
+    static = [("GET", "/static/console.js"), ("GET", "/static/vendor/three.module.min.js")]
+    wrong = ({}, {"Authorization": "Bearer wrong-token-wrong-token"}, {"Authorization": live.token})
+    for method, path in [*routes, *static]:
+        for headers in wrong:
             response = httpx.request(method, live.url + path, headers=headers, timeout=30)
             expected = 200 if path == "/healthz" else 401
             assert response.status_code == expected, (method, path, headers)
@@ -290,11 +292,13 @@ def test_archive_runs_findings_crops_history_and_a_review(live: Live) -> None:
     assert runs[0]["label"] == "api test" and runs[0]["finding_count"] == 1
     findings = live.get(f"/api/archive/runs/{runs[0]['id']}/findings").json()
     assert findings[0]["id"] == ids[1] and findings[0]["review"] is None
-    crop = cv2.imdecode(np.frombuffer(live.get(f"/api/archive/findings/{ids[1]}/crop/inspection").content, np.uint8), 0)
+    png = live.get(f"/api/archive/findings/{ids[1]}/crop/inspection").content
+    crop = cv2.imdecode(np.frombuffer(png, np.uint8), 0)
     assert crop is not None and crop.shape[0] >= 38  # the box and its margin, clipped to the image
     history = live.get(f"/api/archive/findings/{ids[1]}/history").json()
     assert [s["id"] for s in history] == ids
-    reviewed = live.post(f"/api/archive/findings/{ids[1]}/review", {"verdict": "rejected", "note": "glint"}).json()
+    verdict = {"verdict": "rejected", "note": "glint"}
+    reviewed = live.post(f"/api/archive/findings/{ids[1]}/review", verdict).json()
     assert reviewed["review"] == {"verdict": "rejected", "note": "glint", "reviewer": "operator"}
     with Archive.open(live.archive) as store:
         assert store.reviews(ids[1])[-1].verdict == "rejected"
