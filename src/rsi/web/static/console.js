@@ -375,8 +375,12 @@ async function buildScene() {
     $("legend").append(swatch, region === "-" ? "out of range" : region);
   }
 }
+let lastPoses = "";
 function updateScene(poses) {
   if (!three.ready || !poses) return;
+  const key = JSON.stringify(poses);
+  if (key === lastPoses) return; // nothing moved: spare the page's main thread (it also keeps the heartbeat)
+  lastPoses = key;
   for (const [id, p] of Object.entries(poses.bodies)) {
     const group = three.bodies[id];
     if (!group) continue;
