@@ -16,6 +16,7 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 TOKEN = "console-test-token-0123456789"
+UVICORN_WEBSOCKETS_WARNING = "ignore:remove second argument of ws_handler:DeprecationWarning"
 ARTIFACTS = Path(__file__).resolve().parents[2] / "build" / "test-artifacts" / "console"
 
 
@@ -50,13 +51,14 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Live]:
 
     from rsi.web.app import create_app
     from rsi.web.console import Console
+    from rsi.web.server import websocket_protocol
 
     archive = tmp_path_factory.mktemp("console") / "archive.db"
     console = Console(seed=0)
     app = create_app(console, token=TOKEN, archive_path=archive)
     port = _free_port()
     server = uvicorn.Server(
-        uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning", ws="websockets-sansio")
+        uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning", ws=websocket_protocol())
     )
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()

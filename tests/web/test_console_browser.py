@@ -15,7 +15,10 @@ import pytest
 
 from rsi.archive import Archive
 
-from .conftest import ARTIFACTS, Live
+from .conftest import ARTIFACTS, UVICORN_WEBSOCKETS_WARNING, Live
+
+# uvicorn's websockets protocol (rsi.web.server.websocket_protocol) warns on every handshake
+pytestmark = pytest.mark.filterwarnings(UVICORN_WEBSOCKETS_WARNING)
 
 CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
 PANELS = (
@@ -76,6 +79,28 @@ def _wait(condition: Callable[[], Any], seconds: float, what: str) -> Any:
     pytest.fail(f"timed out after {seconds} s waiting for {what}")
 
 
+def _click(page: Any, selector: str) -> None:
+    """Click, again if the page re-drew the element in between (its tables refresh as data arrives)."""
+    from selenium.common.exceptions import StaleElementReferenceException
+
+    for _ in range(20):
+        try:
+            page.find_element("css selector", selector).click()
+            return
+        except StaleElementReferenceException:
+            time.sleep(0.1)
+    pytest.fail(f"{selector} kept going stale")
+
+
+def _text(page: Any, selector: str) -> str:
+    from selenium.common.exceptions import StaleElementReferenceException
+
+    try:
+        return str(page.find_element("css selector", selector).text)
+    except StaleElementReferenceException:
+        return ""
+
+
 def _console(live: Live) -> Any:
     return live.console
 
@@ -92,12 +117,14 @@ def _take_control(page: Any) -> None:
     _wait(lambda: page.execute_script("return window.rsiConsole.controlling"), 10, "the control lock")
 
 
-def _drag_joystick(page: Any, offset_x_px: int, hold_s: float, *, release: bool = True) -> Any:
+def _drag_joystick(
+    page: Any, offset_x_px: int, hold_s: float, *, offset_y_px: int = 0, release: bool = True
+) -> Any:
     from selenium.webdriver.common.action_chains import ActionChains
 
     stick = page.find_element("id", "joystick")
     actions = ActionChains(page)
-    actions.move_to_element(stick).click_and_hold().move_by_offset(offset_x_px, 0).perform()
+    actions.move_to_element(stick).click_and_hold().move_by_offset(offset_x_px, offset_y_px).perform()
     time.sleep(hold_s)
     if release:
         ActionChains(page).release().perform()
@@ -131,7 +158,7 @@ def test_press_and_release_on_the_joystick_moves_then_stops_the_arm(page: Any, l
     before = _tool_m(live)
     console = _console(live)
     stops_before = len(console.stops)
-    _drag_joystick(page, 60, 1.0)  # full deflection to the right: 5 cm/s across the view
+    _drag_joystick(page, 0, 1.2, offset_y_px=-60)  # full push up: 5 cm/s toward the surface, blended (Fig. 4)
     released_s = time.monotonic()  # the server's clock too (time.monotonic)
     time.sleep(0.5)
     moved = float(np.linalg.norm(_tool_m(live) - before))
@@ -144,6 +171,7 @@ def test_press_and_release_on_the_joystick_moves_then_stops_the_arm(page: Any, l
     still = _tool_m(live)
     time.sleep(0.3)
     assert np.allclose(_tool_m(live), still, atol=1e-5)
+    page.save_screenshot(str(ARTIFACTS / "console-teleop.png"))
 
 
 def test_closing_the_socket_mid_motion_stops_the_arm(page: Any, live: Live) -> None:
@@ -192,20 +220,12 @@ def test_a_mission_from_the_page_lists_its_findings_and_a_confirmed_one_is_archi
     )
     assert len(rows) >= 1
     run_id = live.get("/api/mission").json()["run_id"]
-    page.find_element("css selector", f"#runs tr[data-run='{run_id}']").click()
-    first = _wait(
-        lambda: page.find_elements("css selector", "#findings tr[data-finding]"), 10, "the run's findings"
-    )[0]
-    finding_id = int(first.get_attribute("data-finding"))
-    first.find_element("css selector", "button.confirm").click()
-    _wait(
-        lambda: (
-            "confirmed"
-            in page.find_element("css selector", f"#findings tr[data-finding='{finding_id}']").text
-        ),
-        10,
-        "the verdict in the page",
-    )
+    finding_id = live.get(f"/api/archive/runs/{run_id}/findings").json()[0]["id"]
+    _click(page, f"#runs tr[data-run='{run_id}']")
+    row = f"#findings tr[data-finding='{finding_id}']"
+    _wait(lambda: page.find_elements("css selector", row), 10, "the run's findings")
+    _click(page, f"{row} button.confirm")
+    _wait(lambda: "confirmed" in _text(page, row), 10, "the verdict in the page")
     with Archive.open(live.archive) as store:
         assert store.reviews(finding_id)[-1].verdict == "confirmed"
     page.execute_script("document.getElementById('panel-archive').scrollIntoView()")

@@ -31,7 +31,7 @@ from pydantic import BaseModel, Field
 from rsi.archive import REVIEW_VERDICTS, Archive
 from rsi.errors import InputError
 from rsi.web.console import Console, new_client_id
-from rsi.web.live import CAMERAS, video_message
+from rsi.web.live import CAMERAS
 from rsi.web.mission_job import SETTINGS, MissionJob
 from rsi.web.scene import moving_poses, scene_geometry
 
@@ -207,7 +207,9 @@ def _finding_json(archive: Archive, finding: Any) -> dict[str, Any]:
         "track_id": finding.track_id,
         "previous_id": finding.previous_id,
         "seen_at": finding.seen_at.isoformat(),
-        "has_images": finding.inspection_sha256 is not None,
+        "images": [
+            which for which in ("reference", "inspection") if getattr(finding, f"{which}_sha256") is not None
+        ],
         "review": None
         if not reviews
         else {"verdict": reviews[-1].verdict, "note": reviews[-1].note, "reviewer": reviews[-1].reviewer},
@@ -307,6 +309,20 @@ def _live_routes(api: FastAPI, console: Console, mission: MissionJob, archive_pa
             "flaws": shot.flaws,
             "summary": shot.summary,
             "images": sorted(shot.images),
+        }
+
+    @api.get("/api/shoot")
+    def last_shot() -> dict[str, Any]:
+        """The last shot anyone took (watchers see the operator's), 404 before the first."""
+        shot = console.last_shot
+        if shot is None:
+            raise HTTPException(404, "no shot yet: take a reference or an inspection first")
+        return {
+            "kind": shot.kind,
+            "flaws": shot.flaws,
+            "summary": shot.summary,
+            "images": sorted(shot.images),
+            "seq": console.shot_seq,
         }
 
     @api.get("/api/shoot/image/{name}")
@@ -410,10 +426,14 @@ def _socket_routes(api: FastAPI, console: Console, mission: MissionJob) -> None:
         try:
             while True:
                 await console.hub.wait()
-                for name, frame in console.hub.snapshot().items():
-                    if name in wanted and sent.get(name) != frame.seq:
-                        await socket.send_bytes(video_message(frame))
-                        sent[name] = frame.seq
+                fresh = [
+                    frame
+                    for name, frame in console.hub.snapshot().items()
+                    if name in wanted and sent.get(name) != frame.seq
+                ]
+                if fresh:
+                    await socket.send_bytes(b"".join(frame.message for frame in fresh))
+                    sent.update((frame.camera, frame.seq) for frame in fresh)
         except (WebSocketDisconnect, RuntimeError):
             return
 

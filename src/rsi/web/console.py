@@ -106,6 +106,7 @@ class Console:
         self.live_size = live_size
         self.cameras: CameraProcess | None = None
         self.last_shot: Shot | None = None
+        self.shot_seq = 0
         self.operator: Operator | None = None
         self.estop_latched = False
         self.estop_reason = ""
@@ -316,6 +317,7 @@ class Console:
         with self.lock:
             state = LiveState.of(self.world)
         self.last_shot = self.cameras.shoot(state, kind)
+        self.shot_seq += 1
         return self.last_shot
 
     def _housekeeping_loop(self) -> None:
@@ -428,6 +430,10 @@ class Console:
                     "spot_m": [round(float(x), 4) for x in task.spot_world_m],
                     "beam_angle_rad": round(task.beam_angle_rad, 5),
                     "intensity_lux": round(task.intensity_lux, 1),
+                },
+                "inspection": {
+                    "seq": self.shot_seq,
+                    "kind": None if self.last_shot is None else self.last_shot.kind,
                 },
                 "video": {
                     "size": list(self.live_size),

@@ -18,7 +18,7 @@ import asyncio
 import hashlib
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -48,6 +48,9 @@ class LiveFrame:
     render_s : float
         Seconds spent making this frame (render, exposure, compensation, encoding), shared views included.
     jpeg : bytes
+    message : bytes
+        The binary websocket message (:func:`video_message`), made once here, in the camera process, and
+        sent as it is to every viewer.
     """
 
     camera: str
@@ -55,6 +58,7 @@ class LiveFrame:
     rendered_at_s: float
     render_s: float
     jpeg: bytes
+    message: bytes = b""
 
 
 def _jpeg(image: NDArray[np.uint8]) -> bytes:
@@ -209,10 +213,11 @@ class LiveCameras:
         overview = _jpeg(np.ascontiguousarray(basis.overview_rgb[..., ::-1]))  # RGB -> OpenCV's BGR
         self._seq += 1
         spent = time.perf_counter() - start
-        return [
+        frames = [
             LiveFrame(name, self._seq, exposed_at, spent, data)
             for name, data in zip(CAMERAS, (raw, compensated, overview), strict=True)
         ]
+        return [replace(frame, message=video_message(frame)) for frame in frames]
 
     @property
     def basis_renders(self) -> int:
@@ -221,17 +226,22 @@ class LiveCameras:
 
 
 def video_message(frame: LiveFrame) -> bytes:
-    """Binary websocket message: camera index (1 byte), seq (uint32), exposure time in ms (float64), JPEG.
+    """One camera's chunk of a binary websocket message: camera index (uint8), seq (uint32), exposure time
+    in ms (float64), JPEG length (uint32), then the JPEG.
 
-    Little-endian; the page reads the header with a DataView and shows the JPEG as a blob (no base64).
+    Little-endian. A message holds the chunks of one tick's frames that the viewer asked for, so a tick is
+    one send per viewer; the page walks the chunks with a DataView and shows each JPEG as a blob (no base64).
     """
-    header = np.zeros(1, dtype=[("camera", "u1"), ("seq", "<u4"), ("rendered_at_ms", "<f8")])
+    header = np.zeros(
+        1, dtype=[("camera", "u1"), ("seq", "<u4"), ("rendered_at_ms", "<f8"), ("jpeg_bytes", "<u4")]
+    )
     header["camera"] = CAMERAS.index(frame.camera)
     header["seq"] = frame.seq
     header["rendered_at_ms"] = frame.rendered_at_s * 1000.0
+    header["jpeg_bytes"] = len(frame.jpeg)
     return header.tobytes() + frame.jpeg
 
 
-HEADER_BYTES = 13
+HEADER_BYTES = 17
 
 __all__ = ["CAMERAS", "HEADER_BYTES", "FrameHub", "LiveCameras", "LiveFrame", "video_message"]

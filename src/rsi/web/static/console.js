@@ -34,21 +34,26 @@ function connectVideo() {
   socket.binaryType = "arraybuffer";
   socket.onmessage = (event) => {
     const view = new DataView(event.data);
-    const camera = CAMERAS[view.getUint8(0)];
-    const renderedMs = view.getFloat64(5, true);
-    const url = URL.createObjectURL(new Blob([event.data.slice(13)], { type: "image/jpeg" }));
-    const img = $(`cam-${camera}`);
-    img.src = url;
-    if (lastUrl[camera]) URL.revokeObjectURL(lastUrl[camera]);
-    lastUrl[camera] = url;
-    const now = performance.now();
-    const times = frameTimes[camera];
-    times.push(now);
-    while (times.length && now - times[0] > 2000) times.shift();
-    stats.frames[camera] = (stats.frames[camera] || 0) + 1;
-    stats.age[camera] = Date.now() - renderedMs;
+    for (let at = 0; at < event.data.byteLength;) {
+      const length = view.getUint32(at + 13, true);
+      showFrame(CAMERAS[view.getUint8(at)], view.getFloat64(at + 5, true), event.data.slice(at + 17, at + 17 + length));
+      at += 17 + length;
+    }
   };
   socket.onclose = () => setTimeout(connectVideo, 1000);
+}
+function showFrame(camera, renderedMs, jpeg) {
+  const url = URL.createObjectURL(new Blob([jpeg], { type: "image/jpeg" }));
+  const img = $(`cam-${camera}`);
+  img.src = url;
+  if (lastUrl[camera]) URL.revokeObjectURL(lastUrl[camera]);
+  lastUrl[camera] = url;
+  const now = performance.now();
+  const times = frameTimes[camera];
+  times.push(now);
+  while (times.length && now - times[0] > 2000) times.shift();
+  stats.frames[camera] = (stats.frames[camera] || 0) + 1;
+  stats.age[camera] = Date.now() - renderedMs;
 }
 setInterval(() => {
   const now = performance.now();
@@ -272,6 +277,7 @@ function showStatus(status) {
   $("lamp-on").checked = sun.lamp_on;
   $("halogen-on").checked = sun.halogen_on;
   showMission(status.mission);
+  followShots(status.inspection);
 }
 
 // ------------------------------------------------------------------------------------------ plots
@@ -332,9 +338,9 @@ async function buildScene() {
   scene.background = new THREE.Color(0x0b0d10);
   const camera = new THREE.PerspectiveCamera(45, host.clientWidth / host.clientHeight, 0.05, 50);
   camera.up.set(0, 0, 1);
-  camera.position.set(0.9, -4.2, 2.4);
+  camera.position.set(2.6, -3.0, 2.2);
   const controls = new OrbitControls(camera, renderer.domElement);
-  controls.target.set(0.9, -0.3, 1.0);
+  controls.target.set(0.9, -0.6, 1.0);
   controls.update();
   scene.add(new THREE.HemisphereLight(0xdde6ff, 0x202020, 1.6));
   const grid = new THREE.GridHelper(6, 24, 0x2c333d, 0x20262e);
@@ -362,7 +368,7 @@ async function buildScene() {
     three.beams.push(beam);
   }
   three.lamp = new THREE.Mesh(new THREE.SphereGeometry(0.06, 12, 8), new THREE.MeshBasicMaterial({ color: 0xfff59d }));
-  three.spot = new THREE.Mesh(new THREE.CircleGeometry(1, 32), new THREE.MeshBasicMaterial({ color: 0xfff59d, transparent: true, opacity: 0.18, side: THREE.DoubleSide }));
+  three.spot = new THREE.Mesh(new THREE.CircleGeometry(1, 32), new THREE.MeshBasicMaterial({ color: 0xfff59d, transparent: true, opacity: 0.12, depthWrite: false, side: THREE.DoubleSide }));
   three.ray = new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]), new THREE.LineDashedMaterial({ color: 0xfff59d }));
   three.replay = new THREE.Mesh(new THREE.ConeGeometry(0.05, 0.15, 12), new THREE.MeshBasicMaterial({ color: 0x40c4ff }));
   three.replay.visible = false;
@@ -405,18 +411,29 @@ function updateScene(poses) {
 }
 
 // ------------------------------------------------------------------------------------------ inspection at hand
+let shownShot = 0;
+function showShot(shot) {
+  const stamp = Date.now();
+  for (const name of shot.images) $(`shot-${name}`).src = q(`/api/shoot/image/${name}?t=${stamp}`);
+  const s = shot.summary;
+  $("shot-state").textContent = shot.kind === "reference" ? "reference taken" : s.note || `${shot.flaws.length} flaw(s); threshold ${fmt(s.threshold, 2)}, registration shift ${s.registration_xy_px ? s.registration_xy_px.map((v) => fmt(v, 2)).join(", ") : "-"} px`;
+  $("shot-flaws").innerHTML = shot.flaws.length ? "<tr><th>#</th><th>row, col</th><th>area px</th><th>score</th><th>polarity</th></tr>" + shot.flaws.slice(0, 8).map((f, i) => `<tr><td>${i + 1}</td><td>${f.row}, ${f.col}</td><td>${f.area_px}</td><td>${f.score}</td><td>${f.polarity}</td></tr>`).join("") : "";
+}
 async function shoot(kind) {
   $("shot-state").textContent = `taking ${kind} (the live views pause)...`;
   try {
-    const shot = await post(`/api/shoot/${kind}`);
-    const stamp = Date.now();
-    for (const name of shot.images) $(`shot-${name}`).src = q(`/api/shoot/image/${name}?t=${stamp}`);
-    const s = shot.summary;
-    $("shot-state").textContent = kind === "reference" ? "reference taken" : s.note || `${shot.flaws.length} flaw(s); threshold ${fmt(s.threshold, 2)}, registration shift ${s.registration_xy_px ? s.registration_xy_px.map((v) => fmt(v, 2)).join(", ") : "-"} px`;
-    $("shot-flaws").innerHTML = shot.flaws.length ? "<tr><th>#</th><th>row, col</th><th>area px</th><th>score</th><th>polarity</th></tr>" + shot.flaws.slice(0, 20).map((f, i) => `<tr><td>${i + 1}</td><td>${f.row}, ${f.col}</td><td>${f.area_px}</td><td>${f.score}</td><td>${f.polarity}</td></tr>`).join("") : "";
+    await post(`/api/shoot/${kind}`);
+    const shot = await api("/api/shoot");
+    shownShot = shot.seq;
+    showShot(shot);
   } catch (error) {
     $("shot-state").textContent = `failed: ${error.message}`;
   }
+}
+function followShots(inspection) {
+  if (!inspection || inspection.seq === shownShot || inspection.seq === 0) return;
+  shownShot = inspection.seq;
+  api("/api/shoot").then(showShot).catch(() => {});
 }
 $("shoot-reference").addEventListener("click", () => shoot("reference"));
 $("shoot-inspection").addEventListener("click", () => shoot("inspection"));
@@ -464,8 +481,8 @@ async function loadRuns() {
 }
 function findingRow(f) {
   const verdict = f.review ? `<span class="verdict-${f.review.verdict}">${f.review.verdict}</span>${f.review.note ? `: ${escapeHtml(f.review.note)}` : ""}` : "-";
-  const crop = (which) => (f.has_images ? `<img alt="${which}" src="${q(`/api/archive/findings/${f.id}/crop/${which}`)}">` : "");
-  return `<tr data-finding="${f.id}"><td>${f.id}</td><td>${f.vista}</td><td>${f.kind}</td><td>${fmt(f.confidence, 2)}</td><td>${crop("reference")}${crop("inspection")}</td>
+  const crops = f.images.map((which) => `<img alt="${which}" title="${which}" src="${q(`/api/archive/findings/${f.id}/crop/${which}`)}">`).join("");
+  return `<tr data-finding="${f.id}"><td>${f.id}</td><td>${f.vista}</td><td>${f.kind}</td><td>${fmt(f.confidence, 2)}</td><td>${crops}</td>
     <td class="verdict">${verdict}</td><td><button class="confirm" type="button">confirm</button><button class="reject" type="button">reject</button><button class="annotate" type="button">note</button><button class="history" type="button">sightings</button></td></tr>`;
 }
 function escapeHtml(text) {
@@ -476,7 +493,7 @@ async function loadRun(runId) {
   $("run-title").textContent = `run ${runId}`;
   $("replay").disabled = false;
   const findings = await api(`/api/archive/runs/${runId}/findings`);
-  $("findings").innerHTML = "<tr><th>id</th><th>vista</th><th>kind</th><th>conf.</th><th>ref / insp</th><th>review</th><th></th></tr>" + findings.map(findingRow).join("");
+  $("findings").innerHTML = "<tr><th>id</th><th>vista</th><th>kind</th><th>conf.</th><th>crops</th><th>review</th><th></th></tr>" + findings.map(findingRow).join("");
   for (const row of $("findings").querySelectorAll("tr[data-finding]")) {
     const id = Number(row.dataset.finding);
     row.querySelector(".confirm").addEventListener("click", () => review(id, "confirmed"));
@@ -495,7 +512,7 @@ async function review(id, verdict, note = "") {
 }
 async function showHistory(id) {
   const sightings = await api(`/api/archive/findings/${id}/history`);
-  $("history").innerHTML = `<h2>sightings of finding ${id}'s flaw (track ${sightings[0].track_id})</h2><table class="list"><tr><th>run</th><th>seen</th><th>size m</th><th>confidence</th><th>inspection</th></tr>` + sightings.map((s) => `<tr><td>${s.run_id}</td><td>${s.seen_at.slice(0, 19)}</td><td>${fmt(s.size_m, 4)}</td><td>${fmt(s.confidence, 2)}</td><td>${s.has_images ? `<img alt="inspection" src="${q(`/api/archive/findings/${s.id}/crop/inspection`)}">` : ""}</td></tr>`).join("") + "</table>";
+  $("history").innerHTML = `<h2>sightings of finding ${id}'s flaw (track ${sightings[0].track_id})</h2><table class="list"><tr><th>run</th><th>seen</th><th>size m</th><th>confidence</th><th>crop</th></tr>` + sightings.map((s) => `<tr><td>${s.run_id}</td><td>${s.seen_at.slice(0, 19)}</td><td>${fmt(s.size_m, 4)}</td><td>${fmt(s.confidence, 2)}</td><td>${s.images.length ? `<img alt="${s.images[s.images.length - 1]}" src="${q(`/api/archive/findings/${s.id}/crop/${s.images[s.images.length - 1]}`)}">` : ""}</td></tr>`).join("") + "</table>";
 }
 $("archive-refresh").addEventListener("click", loadRuns);
 $("replay").addEventListener("click", async () => {
