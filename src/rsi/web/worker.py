@@ -24,6 +24,16 @@ from rsi.web.live import LiveCameras, LiveFrame, LiveState
 
 SHOT_SIZE = (480, 640)  # seed §2.1: the inspection camera's video frame
 SHOT_KINDS = ("reference", "inspection")
+# The mission's detector settings (rsi.mission's visit: seed §2.4's uniform 3x3 flaw model, a false-alarm
+# rate of 1e-9 per pixel so a 480x640 frame holds ~3e-4 false alarms, 0.3 px of residual mis-registration
+# in the noise model); at hand the two shots share the pose, so nothing else is needed.
+SHOT_DETECTION: dict[str, Any] = {
+    "flaw_model": "uniform",
+    "size": 3,
+    "p_false_alarm": 1e-9,
+    "polarity": "both",
+    "misregistration_std_px": 0.3,
+}
 
 
 @dataclass(frozen=True)
@@ -85,7 +95,7 @@ class _Shooter:
             return Shot(kind, images, [], {})
         if self.reference is None:
             return Shot(kind, images, [], {"note": "no reference yet: take one first"})
-        pair = inspect_pair(self.reference, compensated, registration_model="translation")
+        pair = inspect_pair(self.reference, compensated, registration_model="translation", **SHOT_DETECTION)
         detection = pair.detection
         images["reference"] = _jpeg(_display(pair.reference))
         images["difference"] = _jpeg(_display(detection.difference))
