@@ -1,4 +1,4 @@
-"""`rsi console`: bad options fail before anything starts, with the option named and the documented exit code."""
+"""`rsi console`: bad options fail before anything starts, naming the option, with the right exit code."""
 
 from __future__ import annotations
 
