@@ -838,3 +838,36 @@ def _print_batch(record: Mapping[str, Any], out: Path) -> None:
         f"{record['flaws']} flaws; {record['pairs_per_s']:.1f} pairs/s on {record['workers']} worker(s) "
         f"({record['elapsed_s']:.1f} s). Run {record['run_id']} in {record['archive']}; results in {out}/"
     )
+
+
+@app.command(epilog=_EPILOG)
+def console(
+    *,
+    host: Annotated[str, typer.Option(help="Address to listen on; 0.0.0.0 reaches beyond this machine.")] = (
+        "127.0.0.1"
+    ),
+    port: Annotated[int, typer.Option(help="TCP port.")] = 8765,
+    archive: Annotated[
+        Path | None, typer.Option(help="SQLite archive missions write to (default: a new one in a temp dir).")
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the live world's anomalies and noise.")] = 0,
+    layout: Annotated[str, typer.Option(help="The mock-up.")] = "truss",
+    token: Annotated[
+        str | None, typer.Option(help="Access token (default: a random one, printed in the start URL).")
+    ] = None,
+) -> None:
+    """Operator console: watch, drive and review the inspection robot in a browser (docs/console.md)."""
+    import warnings
+
+    from rsi.web import console_settings, serve
+
+    with _errors():
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            settings = console_settings(
+                host=host, port=port, archive=archive, seed=seed, layout=layout, token=token
+            )
+        for warning in caught:
+            typer.echo(f"rsi: warning: {warning.message}", err=True)
+        typer.echo(f"rsi console: open {settings.url}  (archive {settings.archive}; Ctrl-C stops)")
+        serve(settings)

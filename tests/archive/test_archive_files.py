@@ -9,6 +9,7 @@ import pytest
 from sqlalchemy import Connection, text
 
 from rsi.archive import Archive, ArchiveError, ArchiveFileError, Finding, schema
+from rsi.errors import InputError
 
 
 def make_archive(path: Path) -> None:
@@ -47,7 +48,8 @@ def test_an_archive_from_a_newer_rsi_is_refused_untouched(tmp_path: Path) -> Non
     make_archive(path)
     set_version(path, schema.SCHEMA_VERSION + 1)
     before = snapshot(tmp_path)
-    with pytest.raises(ArchiveFileError, match=f"{path} has schema version 2, newer .*Upgrade rsi"):
+    newer = schema.SCHEMA_VERSION + 1
+    with pytest.raises(ArchiveFileError, match=f"{path} has schema version {newer}, newer .*Upgrade rsi"):
         Archive.open(path)
     assert snapshot(tmp_path) == before
 
@@ -59,14 +61,15 @@ def test_an_older_archive_is_migrated_step_by_step(tmp_path: Path, monkeypatch: 
     def add_operator(connection: Connection) -> None:
         connection.execute(text("ALTER TABLE runs ADD COLUMN operator VARCHAR(64)"))
 
-    monkeypatch.setattr(schema, "SCHEMA_VERSION", 2)
-    monkeypatch.setitem(schema.MIGRATIONS, 1, add_operator)
+    current = schema.SCHEMA_VERSION
+    monkeypatch.setattr(schema, "SCHEMA_VERSION", current + 1)
+    monkeypatch.setitem(schema.MIGRATIONS, current, add_operator)
     with Archive.open(path) as archive:
-        assert archive.schema_version == 2
+        assert archive.schema_version == current + 1
         assert archive.runs()[0].finding_count == 1
     connection = sqlite3.connect(path)
     try:
-        assert connection.execute("SELECT schema_version FROM rsi_archive").fetchone() == (2,)
+        assert connection.execute("SELECT schema_version FROM rsi_archive").fetchone() == (current + 1,)
         assert "operator" in {row[1] for row in connection.execute("PRAGMA table_info(runs)")}
     finally:
         connection.close()
@@ -78,9 +81,11 @@ def test_an_older_archive_without_a_migration_is_refused_untouched(
     path = tmp_path / "a.db"
     make_archive(path)
     before = snapshot(tmp_path)
-    monkeypatch.setattr(schema, "SCHEMA_VERSION", 3)
+    current = schema.SCHEMA_VERSION
+    monkeypatch.setattr(schema, "SCHEMA_VERSION", current + 2)
     with pytest.raises(
-        ArchiveFileError, match=r"schema version 1 and this rsi has no migration from it to 3"
+        ArchiveFileError,
+        match=rf"schema version {current} and this rsi has no migration from it to {current + 2}",
     ):
         Archive.open(path)
     assert snapshot(tmp_path) == before
@@ -96,13 +101,14 @@ def test_a_failed_migration_leaves_the_archive_as_it_was(
         connection.execute(text("ALTER TABLE runs ADD COLUMN operator VARCHAR(64)"))
         raise RuntimeError("migration bug")
 
-    monkeypatch.setattr(schema, "SCHEMA_VERSION", 2)
-    monkeypatch.setitem(schema.MIGRATIONS, 1, half_done)
+    current = schema.SCHEMA_VERSION
+    monkeypatch.setattr(schema, "SCHEMA_VERSION", current + 1)
+    monkeypatch.setitem(schema.MIGRATIONS, current, half_done)
     with pytest.raises(RuntimeError, match=r"migration bug"):
         Archive.open(path)
     monkeypatch.undo()
     with Archive.open(path) as archive:
-        assert archive.schema_version == 1
+        assert archive.schema_version == current
         assert archive.runs()[0].finding_count == 1
 
 
@@ -164,3 +170,40 @@ def test_a_writer_locked_out_past_the_busy_timeout_gets_a_clear_error(tmp_path: 
             assert archive.start_run() == 2
     finally:
         blocker.close()
+
+
+def test_a_version_1_archive_gains_the_reviews_table_and_keeps_its_findings(tmp_path: Path) -> None:
+    path = tmp_path / "a.db"
+    make_archive(path)
+    with sqlite3.connect(path) as connection:  # what rsi wrote before issue 16: no reviews table
+        connection.execute("DROP TABLE reviews")
+        connection.execute("UPDATE rsi_archive SET schema_version = 1")
+    connection.close()
+    with Archive.open(path) as archive:
+        assert archive.schema_version == 2
+        finding = archive.findings(archive.runs()[0].run_id)[0]
+        assert archive.reviews(finding.finding_id) == ()
+        archive.review_finding(finding.finding_id, "confirmed", note="seen on the door")
+        assert [r.verdict for r in archive.reviews(finding.finding_id)] == ["confirmed"]
+
+
+def test_reviews_are_kept_newest_last_and_bad_ones_are_named(tmp_path: Path) -> None:
+    path = tmp_path / "a.db"
+    make_archive(path)
+    with Archive.open(path) as archive:
+        finding_id = archive.findings(archive.runs()[0].run_id)[0].finding_id
+        archive.review_finding(finding_id, "confirmed")
+        archive.review_finding(finding_id, "rejected", note="a reflection", reviewer="ana")
+        standing = archive.reviews(finding_id)
+        assert [(r.verdict, r.note, r.reviewer) for r in standing] == [
+            ("confirmed", "", "operator"),
+            ("rejected", "a reflection", "ana"),
+        ]
+        with pytest.raises(InputError, match=r"verdict='maybe' is not known. Choose one of 'confirmed'"):
+            archive.review_finding(finding_id, "maybe")
+        with pytest.raises(InputError, match=r"note must be a string of at most 10000 characters"):
+            archive.review_finding(finding_id, "note", note="x" * 10_001)
+        with pytest.raises(InputError, match=r"reviewer must be a name of 1 to 200 characters"):
+            archive.review_finding(finding_id, "note", reviewer="")
+        with pytest.raises(InputError, match=r"finding 999 is not in the archive"):
+            archive.review_finding(999, "confirmed")

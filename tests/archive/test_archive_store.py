@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from sqlalchemy import event
 
-from rsi.archive import Archive, ArchiveFileError, Finding, FlawHistory, VistaPoint
+from rsi.archive import SCHEMA_VERSION, Archive, ArchiveFileError, Finding, FlawHistory, VistaPoint
 from rsi.detection.detect import Flaw
 from rsi.errors import InputError
 from rsi.sim.mockup import Vista
@@ -53,12 +53,12 @@ def finished_run(archive: Archive, findings: list[Finding], started_at: datetime
 def test_open_creates_an_archive_and_reopens_it_with_its_contents(tmp_path: Path) -> None:
     path = tmp_path / "nested" / "archive.db"
     with Archive.open(path) as archive:
-        assert archive.schema_version == 1
+        assert archive.schema_version == SCHEMA_VERSION
         assert archive.location == str(path)
         assert archive.images_dir == tmp_path / "nested" / "archive.db.images"
         archive.add_vista("A_door")
         run_id = archive.start_run(seed=3, settings={"p_false_alarm": 1e-4}, label="reference pass")
-        assert "schema_version=1" in repr(archive)
+        assert f"schema_version={SCHEMA_VERSION}" in repr(archive)
     with Archive.open(str(path), create=False) as again:
         run = again.run(run_id)
         assert (run.status, run.seed, run.label) == ("running", 3, "reference pass")

@@ -19,15 +19,17 @@ from rsi.archive.records import (
     Finding,
     FlawHistory,
     ReferenceImage,
+    Review,
     Run,
     StoredFinding,
     VistaPoint,
 )
-from rsi.archive.schema import SCHEMA_VERSION
+from rsi.archive.schema import REVIEW_VERDICTS, SCHEMA_VERSION
 from rsi.archive.store import Archive, ArchiveError, ArchiveFileError
 
 __all__ = [
     "END_STATUSES",
+    "REVIEW_VERDICTS",
     "RUN_STATUSES",
     "SCHEMA_VERSION",
     "Archive",
@@ -36,6 +38,7 @@ __all__ = [
     "Finding",
     "FlawHistory",
     "ReferenceImage",
+    "Review",
     "Run",
     "StoredFinding",
     "VistaPoint",

@@ -394,6 +394,32 @@ class ReferenceImage:
 
 
 @dataclass(frozen=True)
+class Review:
+    """An operator's verdict on a stored finding (issue 16: the console's confirm / reject / annotate).
+
+    Attributes
+    ----------
+    review_id, finding_id : int
+        Its id and the finding's.
+    verdict : {"confirmed", "rejected", "note"}
+        ``"note"`` records a remark and leaves the finding's standing as it was.
+    note : str
+        Free text (may be empty).
+    reviewer : str
+        Who reviewed (free text, e.g. the console's operator name).
+    reviewed_at : datetime
+        UTC.
+    """
+
+    review_id: int
+    finding_id: int
+    verdict: str
+    note: str
+    reviewer: str
+    reviewed_at: datetime
+
+
+@dataclass(frozen=True)
 class FlawHistory:
     """Every sighting of one flaw across runs, oldest first.
 

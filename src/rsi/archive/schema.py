@@ -10,6 +10,8 @@ Tables
 ``findings``     what a run found: vista, kind, position, bbox, size, confidence, score, images, extras
                  JSON, and the flaw history links ``previous_id`` (earlier sighting) and ``track_id``
                  (first sighting).
+``reviews``      an operator's verdict on a finding (confirmed, rejected or a note alone), newest row
+                 wins; added in version 2 (the operator console, issue 16).
 """
 
 from __future__ import annotations
@@ -33,11 +35,11 @@ from sqlalchemy import (
 
 #: The schema version this rsi writes. Raise it with every change to the tables below and add the step from
 #: the previous version to :data:`MIGRATIONS`.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 #: ``MIGRATIONS[v](connection)`` upgrades an archive of version ``v`` to ``v + 1`` inside the open
 #: transaction (SQLite DDL is transactional, so a failed migration leaves the archive as it was).
-MIGRATIONS: dict[int, Callable[[Connection], None]] = {}
+MIGRATIONS: dict[int, Callable[[Connection], None]] = {}  # filled at the end of this module
 
 metadata = MetaData()
 
@@ -125,3 +127,25 @@ findings = Table(
     # Flaw history looks up earlier sightings by vista, kind and a range of x.
     Index("ix_findings_vista_kind_x", "vista_id", "kind", "position_m_x"),
 )
+
+#: A reviewer's verdicts; ``"note"`` keeps the finding's standing and records a remark.
+REVIEW_VERDICTS = ("confirmed", "rejected", "note")
+
+reviews = Table(
+    "reviews",
+    metadata,
+    Column("id", Integer, primary_key=True),
+    Column("finding_id", Integer, ForeignKey("findings.id"), nullable=False, index=True),
+    Column("verdict", String(16), nullable=False),
+    Column("note", Text, nullable=False),
+    Column("reviewer", String(200), nullable=False),
+    Column("reviewed_at", DateTime, nullable=False),
+)
+
+
+def _add_reviews(connection: Connection) -> None:
+    """Version 1 -> 2: the reviews table (an archive of version 1 has no verdicts to carry over)."""
+    reviews.create(connection)
+
+
+MIGRATIONS[1] = _add_reviews

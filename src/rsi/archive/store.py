@@ -35,6 +35,7 @@ from rsi.archive.records import (
     Finding,
     FlawHistory,
     ReferenceImage,
+    Review,
     Run,
     StoredFinding,
     VistaLike,
@@ -46,6 +47,7 @@ from rsi.archive.records import (
 from rsi.errors import FileError, InputError, RsiError
 
 _MAX_SEED = 2**63
+_MAX_NOTE = 10_000
 
 
 class ArchiveError(RsiError):
@@ -819,6 +821,51 @@ class Archive:
             .order_by(schema.runs.c.started_at, table.c.id)
         )
         return tuple(_stored_finding_of(row) for row in connection.execute(query))
+
+    # ------------------------------------------------------------------ reviews
+
+    def review_finding(
+        self, finding_id: int, verdict: str, *, note: str = "", reviewer: str = "operator"
+    ) -> Review:
+        """Record an operator's verdict on a finding: confirmed, rejected, or a note alone (issue 16).
+
+        Reviews are kept, never overwritten; the newest is the finding's standing (:meth:`reviews`).
+        Raises InputError for an unknown finding or verdict, or a note over 10,000 characters.
+        """
+        if verdict not in schema.REVIEW_VERDICTS:
+            choices = ", ".join(map(repr, schema.REVIEW_VERDICTS))
+            raise InputError(f"verdict={verdict!r} is not known. Choose one of {choices}.")
+        if not isinstance(note, str) or len(note) > _MAX_NOTE:
+            raise InputError(f"note must be a string of at most {_MAX_NOTE} characters; got {note!r:.80}.")
+        if not isinstance(reviewer, str) or not 0 < len(reviewer) <= 200:
+            raise InputError(f"reviewer must be a name of 1 to 200 characters; got {reviewer!r:.80}.")
+        self.finding(finding_id)  # names a missing finding
+        moment = _now()
+        with self._transaction(write=True) as connection:
+            review_id = connection.execute(
+                schema.reviews.insert().values(
+                    finding_id=int(finding_id),
+                    verdict=verdict,
+                    note=note,
+                    reviewer=reviewer,
+                    reviewed_at=_to_db(moment),
+                )
+            ).inserted_primary_key
+        assert review_id is not None
+        return Review(int(review_id[0]), int(finding_id), verdict, note, reviewer, moment)
+
+    def reviews(self, finding_id: int) -> tuple[Review, ...]:
+        """Every review of a finding, oldest first (the last is its standing); empty if never reviewed."""
+        self.finding(finding_id)
+        table = schema.reviews
+        with self._transaction(write=False) as connection:
+            rows = connection.execute(
+                select(table).where(table.c.finding_id == int(finding_id)).order_by(table.c.id)
+            ).all()
+        return tuple(
+            Review(row.id, row.finding_id, row.verdict, row.note, row.reviewer, _from_db(row.reviewed_at))
+            for row in rows
+        )
 
     # ------------------------------------------------------------------ export
 

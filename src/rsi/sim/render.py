@@ -153,21 +153,34 @@ class SceneRenderer:
         Image size in pixels, at most the model's offscreen buffer (2048).
     show_rangefinders : bool
         Draw the rangefinders' rays (MuJoCo's default). False (default): camera images show only the scene.
+    fast : bool
+        Live video (the operator console): no shadow map and no multisampling. On the CPU renderer the
+        lamp's 2048-px shadow map and 4x multisampling are most of a frame's cost (docs/console.md has the
+        timings); frames for inspection keep both (False, the default).
     """
 
-    def __init__(self, model: Any, height: int, width: int, *, show_rangefinders: bool = False) -> None:
+    def __init__(
+        self, model: Any, height: int, width: int, *, show_rangefinders: bool = False, fast: bool = False
+    ) -> None:
         mujoco = import_mujoco()
         self._mujoco = mujoco
         self._model = model
         self._context = _gl_context(width, height)
         self._context.make_current()
-        self._mjr = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100.value)
+        samples = model.vis.quality.offsamples
+        if fast:  # the context reads the multisampling from the model when it is made
+            model.vis.quality.offsamples = 0
+        try:
+            self._mjr = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100.value)
+        finally:
+            model.vis.quality.offsamples = samples
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._mjr)
         self._mjr.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._scene = mujoco.MjvScene(model, maxgeom=4000)
         self._option = mujoco.MjvOption()
         # rangefinder rays would otherwise be drawn into the camera images (ARCHITECTURE: MuJoCo facts)
         self._option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = bool(show_rangefinders)
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = not fast
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._rect = mujoco.MjrRect(0, 0, width, height)

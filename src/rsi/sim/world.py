@@ -204,7 +204,8 @@ class World:
         self.strobe_energy = 1.0
         self.shutter = 1.0
         self.lamp_on = True
-        self._renderers: dict[tuple[int, int], SceneRenderer] = {}
+        self._renderers: dict[tuple[tuple[int, int], bool], SceneRenderer] = {}
+        self.fast_rendering = False
         self._lights = {
             group: [self._id("light", name) for name in names] for group, names in LIGHT_GROUPS.items()
         }
@@ -407,10 +408,21 @@ class World:
 
     # ------------------------------------------------------------------------------------------ frames
 
+    def set_fast_rendering(self, on: bool) -> None:
+        """Render live video (no shadow map, no multisampling; :class:`rsi.sim.render.SceneRenderer`).
+
+        For a live view (the operator console) only: the lamp's shadows go, so frames for inspection keep
+        the default (False).
+        """
+        if not isinstance(on, bool):
+            raise InputError(f"on must be True or False; got {on!r}.")
+        self.fast_rendering = on
+
     def _renderer(self, shape: tuple[int, int]) -> SceneRenderer:
-        if shape not in self._renderers:
-            self._renderers[shape] = SceneRenderer(self.model, *shape)
-        return self._renderers[shape]
+        key = (shape, self.fast_rendering)
+        if key not in self._renderers:
+            self._renderers[key] = SceneRenderer(self.model, *shape, fast=self.fast_rendering)
+        return self._renderers[key]
 
     def basis(
         self, camera: str = "isee", *, size: tuple[int, int] = DEFAULT_SIZE, state: str = "inspection"

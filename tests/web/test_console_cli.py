@@ -1,0 +1,34 @@
+"""`rsi console`: bad options fail before anything starts, naming the option, with the right exit code."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from rsi import cli
+from rsi.cli import app
+
+runner = CliRunner()
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--host", "localhost"], "host must be an IP address such as 127.0.0.1; got 'localhost'"),
+        (["--port", "70000"], "port must be an integer in [0, 65535]; got 70000"),
+        (["--token", "short"], "token must be at least 16 characters"),
+        (["--layout", "station"], "layout"),
+    ],
+)
+def test_bad_options_are_named_and_nothing_starts(arguments: list[str], message: str) -> None:
+    result = runner.invoke(app, ["console", *arguments])
+    assert result.exit_code == cli.EXIT_INVALID_VALUE
+    assert message in " ".join(result.output.split())
+
+
+def test_an_archive_that_is_a_folder_is_refused(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["console", "--archive", str(tmp_path)])
+    assert result.exit_code == cli.EXIT_INVALID_VALUE
+    assert "is a folder; give the archive's file" in " ".join(result.output.split())
