@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.control.blending import law_distance_m, proximity_term
 from rsi.control.proximity_law import ProximityLaw, proximity_velocity
 from rsi.errors import InputError
@@ -40,7 +41,7 @@ from rsi.mission.proximity_records import (
 )
 from rsi.sensors.lamps import LampController, simulate_lamp
 from rsi.sensors.proximity import LowPassFilter
-from rsi.sim.proximity_loop import ARM_LAW, SAMPLE_RATE_HZ, LoopTrace, run_closed_loop
+from rsi.sim.proximity_loop import ARM_LAW, LoopTrace, run_closed_loop
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -208,7 +209,7 @@ def _arm(obstacle: Any) -> tuple[Any, FloatArray, FloatArray]:
 
 
 def _move_along_axis(
-    arm: Any, offset_m: float, *, speed_m_s: float = 0.2, rate_hz: float = SAMPLE_RATE_HZ
+    arm: Any, offset_m: float, *, speed_m_s: float = 0.2, rate_hz: float = PROXIMITY_SAMPLE_RATE_HZ
 ) -> None:
     """Place the tool `offset_m` along its axis before a scenario (not logged)."""
     steps = math.ceil(abs(offset_m) / speed_m_s * rate_hz)

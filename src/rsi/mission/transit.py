@@ -32,13 +32,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.control.proximity_law import ProximityLaw
 from rsi.control.redundancy import orientation_error
 from rsi.errors import InputError
 from rsi.sim.arm import FOREARM_M, LIMITS, RANGEFINDER_CUTOFF_M, UPPER_ARM_M
 from rsi.sim.clearance import ArmClearance, is_arm_geom
 from rsi.sim.mockup import VISTA_STANDOFF_M
-from rsi.sim.proximity_loop import ARM_LAW, SAMPLE_RATE_HZ, LoopSample, ProximityLoop
+from rsi.sim.proximity_loop import ARM_LAW, LoopSample, ProximityLoop
 from rsi.sim.render import import_mujoco
 from rsi.sim.scene import CAMERA_FOVY_DEG
 
@@ -267,7 +268,7 @@ def approach_law(standoff_m: float, nearest_m: float | None = None) -> Proximity
         hold_distance_m=hold,
         servo_end_m=servo_end,
         max_distance_m=RANGEFINDER_CUTOFF_M,
-        sample_rate_hz=SAMPLE_RATE_HZ,
+        sample_rate_hz=PROXIMITY_SAMPLE_RATE_HZ,
     )
 
 
@@ -467,7 +468,7 @@ class _Mover:
     def move_to(self, phase: str, tip_m: FloatArray, rotation: FloatArray) -> bool:
         """Straight line and turn to a tool pose at capped speeds, the guard law on; True when there."""
         self.loop.law, self.loop.mode = GUARD_LAW, "avoidance"
-        for _ in range(round(PHASE_TIMEOUT_S * SAMPLE_RATE_HZ)):
+        for _ in range(round(PHASE_TIMEOUT_S * PROXIMITY_SAMPLE_RATE_HZ)):
             position, current = self.arm.tool_pose()
             error, turn = tip_m - position, orientation_error(rotation, current)
             if np.linalg.norm(error) < MOVE_TOLERANCE_M and np.linalg.norm(turn) < MOVE_TOLERANCE_RAD:
@@ -485,7 +486,7 @@ class _Mover:
         axis = pose.tool_rotation[:, 2]
         limit = law.joystick_speed_m_s
         settled = 0
-        for _ in range(round(APPROACH_TIMEOUT_S * SAMPLE_RATE_HZ)):
+        for _ in range(round(APPROACH_TIMEOUT_S * PROXIMITY_SAMPLE_RATE_HZ)):
             position, current = self.arm.tool_pose()
             error = pose.tool_m - position
             to_go = float(axis @ error)

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.control.blending import blend_commands
 from rsi.control.proximity_law import MODES, ProximityLaw
 from rsi.errors import InputError
@@ -33,7 +34,6 @@ from rsi.sim.arm import RANGEFINDER_CUTOFF_M
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-SAMPLE_RATE_HZ = 44.0  # seed §3.1: the sensors were read through an A/D at 44 Hz
 RANGE_SITES = ("range_left", "range_right")
 """The arm's two rangefinder sites (seed §3.1: two sensors on the ISEE's face), left and right."""
 FRAMES = ("tool", "world")
@@ -53,7 +53,7 @@ ARM_LAW = ProximityLaw(
     hold_distance_m=0.34,
     servo_end_m=0.73,
     max_distance_m=0.75,
-    sample_rate_hz=SAMPLE_RATE_HZ,
+    sample_rate_hz=PROXIMITY_SAMPLE_RATE_HZ,  # seed §3.1: the sensors were read through an A/D at 44 Hz
 )
 
 
@@ -366,7 +366,6 @@ def run_closed_loop(
 __all__: list[str] = [
     "ARM_LAW",
     "RANGE_SITES",
-    "SAMPLE_RATE_HZ",
     "LoopSample",
     "LoopTrace",
     "ProximityLoop",
