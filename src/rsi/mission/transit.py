@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -42,7 +42,7 @@ from rsi.mission.viewing import Reach, ViewingPose, expected_ranges_m, reach, vi
 from rsi.sim.arm import RANGEFINDER_CUTOFF_M
 from rsi.sim.clearance import ArmClearance
 from rsi.sim.mockup import VISTA_STANDOFF_M
-from rsi.sim.proximity_loop import ARM_LAW, LoopSample, ProximityLoop
+from rsi.sim.proximity_loop import ARM_LAW, LoopSample, LoopTrace, ProximityLoop
 
 if TYPE_CHECKING:
     from rsi.sim.world import World
@@ -216,46 +216,15 @@ class Transit:
         return float(np.linalg.norm(orientation_error(self.pose.camera_rotation, self.camera_rotation)))
 
 
-_TRACE_FIELDS = (
-    "time_s",
-    "phase",
-    "range_true_m",
-    "range_reading_m",
-    "trajectory_m_s",
-    "proximity_m_s",
-    "command_m_s",
-    "axis_error_m",
-    "clearance_m",
-)
-
-
-@dataclass
-class _Trace:
-    rows: dict[str, list[Any]] = field(default_factory=lambda: {name: [] for name in _TRACE_FIELDS})
-
-    def add(self, phase: str, sample: LoopSample, *, axis_error_m: float, clearance_m: float) -> None:
-        values = (
-            sample.time_s,
-            phase,
-            sample.true_m,
-            sample.reading_m,
-            sample.trajectory_m_s,
-            sample.proximity_m_s,
-            sample.command_m_s,
-            axis_error_m,
-            clearance_m,
-        )
-        for name, value in zip(_TRACE_FIELDS, values, strict=True):
-            self.rows[name].append(value)
-
-    def arrays(self) -> dict[str, Any]:
-        arrays: dict[str, Any] = {
-            name: np.asarray(self.rows[name], dtype=np.float64) for name in _TRACE_FIELDS if name != "phase"
-        }
-        arrays["phase"] = np.asarray(self.rows["phase"], dtype=np.str_)
-        for name in ("range_true_m", "range_reading_m"):
-            arrays[name] = arrays[name].reshape(-1, 2)
-        return arrays
+_LOOP_COLUMNS = {
+    "time_s": "time_s",
+    "range_true_m": "true_m",
+    "range_reading_m": "reading_m",
+    "trajectory_m_s": "trajectory_m_s",
+    "proximity_m_s": "proximity_m_s",
+    "command_m_s": "command_m_s",
+}
+"""Transit trace column -> the :class:`LoopTrace` column it is."""
 
 
 class _Mover:
@@ -265,16 +234,34 @@ class _Mover:
         self.arm = world_arm(world)
         self.loop = ProximityLoop(self.arm, law=GUARD_LAW, rng=rng)
         self.clearance = ArmClearance(world)
-        self.trace = _Trace()
+        self.samples: list[LoopSample] = []
+        self.phases: list[str] = []
+        self.axis_errors_m: list[float] = []
+        self.clearances_m: list[float] = []
 
     def step(
         self, phase: str, twist: tuple[FloatArray, FloatArray], *, axis_error_m: float = math.nan
     ) -> None:
         """One period: the generator's world twist is the loop's free motion; its part along the tool axis
         is Fig. 4's ``x_tg``, to which the law's ``x_ps`` is added (seed §3.1)."""
-        clearance_m = self.clearance()  # where the arm is while the sensors are read
-        sample = self.loop.step(np.concatenate(twist), frame="world")
-        self.trace.add(phase, sample, axis_error_m=axis_error_m, clearance_m=clearance_m)
+        self.clearances_m.append(self.clearance())  # where the arm is while the sensors are read
+        self.samples.append(self.loop.step(np.concatenate(twist), frame="world"))
+        self.phases.append(phase)
+        self.axis_errors_m.append(axis_error_m)
+
+    def trace(self) -> dict[str, Any]:
+        """The :class:`Transit` columns: the loop's samples stacked by :class:`LoopTrace` (one stacking for
+        the demo and the transits), then the transit's own phase, axis error and clearance."""
+        if self.samples:
+            loop = LoopTrace.from_samples(self.samples)
+            stacked = {name: getattr(loop, column) for name, column in _LOOP_COLUMNS.items()}
+        else:  # out of reach: nothing moved
+            stacked = {name: np.empty((0, 2) if name.startswith("range_") else 0) for name in _LOOP_COLUMNS}
+        return stacked | {
+            "phase": np.asarray(self.phases, dtype=np.str_),
+            "axis_error_m": np.asarray(self.axis_errors_m, dtype=np.float64),
+            "clearance_m": np.asarray(self.clearances_m, dtype=np.float64),
+        }
 
     def move_to(self, phase: str, tip_m: FloatArray, rotation: FloatArray) -> bool:
         """Straight line and turn to a tool pose at capped speeds, the guard law on; True when there."""
@@ -405,7 +392,7 @@ def transit(
     if where.reachable:
         mover.visit(pose, law, "servo" if servo else "avoidance")
     camera, camera_rotation = mover.arm.camera_pose("left")
-    arrays = mover.trace.arrays()
+    arrays = mover.trace()
     result = Transit(
         vista=vista,
         label=str(label),

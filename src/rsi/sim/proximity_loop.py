@@ -257,6 +257,8 @@ class LoopTrace:
         Velocity sent along the sensor axis (positive toward the surface).
     proximity_m_s : ndarray of shape (T,)
         The proximity law's part of it (Fig. 4's ``x_ps``).
+    trajectory_m_s : ndarray of shape (T,)
+        The free motion's part along the sensor axis (Fig. 4's ``x_tg``).
     origin_m : ndarray of shape (T, 2, 3)
         World positions of the two sensor faces when each sample was taken.
     axis : ndarray of shape (T, 3)
@@ -269,6 +271,7 @@ class LoopTrace:
     out_of_range: BoolArray
     command_m_s: FloatArray
     proximity_m_s: FloatArray
+    trajectory_m_s: FloatArray
     origin_m: FloatArray
     axis: FloatArray
 
@@ -288,6 +291,7 @@ class LoopTrace:
             out_of_range=stacked("out_of_range", bool),
             command_m_s=stacked("command_m_s"),
             proximity_m_s=stacked("proximity_m_s"),
+            trajectory_m_s=stacked("trajectory_m_s"),
             origin_m=stacked("origin_m"),
             axis=stacked("axis"),
         )
