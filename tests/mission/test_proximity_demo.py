@@ -152,6 +152,7 @@ def test_contour_pairs_readings_with_delayed_poses() -> None:
         out_of_range=np.zeros((50, 2), bool),
         command_m_s=np.zeros(50),
         proximity_m_s=np.zeros(50),
+        trajectory_m_s=np.zeros(50),
         origin_m=origin,
         axis=np.tile([0.0, 0.0, 1.0], (50, 1)),
     )

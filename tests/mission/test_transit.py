@@ -23,10 +23,9 @@ from rsi.mission.transit import (
     GUARD_LAW,
     Transit,
     approach_law,
-    reach,
     transit,
-    viewing_pose,
 )
+from rsi.mission.viewing import reach, viewing_pose
 from rsi.sim import orbit as orbits
 from rsi.sim.world import World, load
 

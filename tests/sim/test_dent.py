@@ -101,12 +101,10 @@ def test_crater_on_box_finds_the_face_and_keeps_the_rim_on_it() -> None:
 
 
 def test_flat_mesh_renders_as_mujocos_box() -> None:
-    import cv2
     import mujoco
 
-    from rsi.sim.scene import _texture  # the panel's own cell texture
-
-    png = cv2.imencode(".png", _texture("cells"))[1].tobytes()
+    _, assets, _ = scene_mjcf(truss_mockup(), AnomalySet(()))
+    png = assets["cells.png"]  # the panel's own cell texture, as the scene hands it to MuJoCo
     mesh = box_mesh(SIZE, 10.0)
     fmt = " ".join
 

@@ -59,6 +59,12 @@ def test_the_driver_is_the_step_repeated() -> None:
     np.testing.assert_allclose(np.diff(trace.time_s), 1 / 44.0)
 
 
+def test_the_trace_keeps_the_trajectory_term_it_was_given() -> None:
+    # Fig. 4's x_tg along the sensor axis, as the driver's schedule gave it at each sample's time
+    trace = run_closed_loop(_arm(), duration_s=0.2, trajectory_m_s=lambda time_s: -0.01 - time_s, rng=0)
+    np.testing.assert_allclose(trace.trajectory_m_s, -0.01 - trace.time_s, rtol=0, atol=1e-15)
+
+
 def test_the_law_can_be_left_out_and_switched_between_steps() -> None:
     loop = ProximityLoop(_arm(), rng=2, apply_proximity=False)
     sample = loop.step([0.0, 0.0, -0.05], joystick_m_s=0.02)

@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -94,7 +95,7 @@ class ProximityLaw:
     hold_distance_m: float = 0.20
     servo_end_m: float = 0.45
     max_distance_m: float = 0.75
-    sample_rate_hz: float = 44.0
+    sample_rate_hz: float = PROXIMITY_SAMPLE_RATE_HZ
 
     def __post_init__(self) -> None:
         checks = {

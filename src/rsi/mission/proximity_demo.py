@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.control.blending import law_distance_m, proximity_term
 from rsi.control.proximity_law import ProximityLaw, proximity_velocity
 from rsi.errors import InputError
@@ -38,9 +39,12 @@ from rsi.mission.proximity_records import (
     Scenario,
     SurfaceFigures,
 )
-from rsi.sensors.lamps import LampController, simulate_lamp
+from rsi.sensors.lamps import LampController, LampRun, simulate_lamp
 from rsi.sensors.proximity import LowPassFilter
-from rsi.sim.proximity_loop import ARM_LAW, SAMPLE_RATE_HZ, LoopTrace, run_closed_loop
+from rsi.sim.proximity_loop import ARM_LAW, LoopTrace, run_closed_loop
+
+if TYPE_CHECKING:
+    from rsi.sim.arm import TrackingResult
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -208,7 +212,7 @@ def _arm(obstacle: Any) -> tuple[Any, FloatArray, FloatArray]:
 
 
 def _move_along_axis(
-    arm: Any, offset_m: float, *, speed_m_s: float = 0.2, rate_hz: float = SAMPLE_RATE_HZ
+    arm: Any, offset_m: float, *, speed_m_s: float = 0.2, rate_hz: float = PROXIMITY_SAMPLE_RATE_HZ
 ) -> None:
     """Place the tool `offset_m` along its axis before a scenario (not logged)."""
     steps = math.ceil(abs(offset_m) / speed_m_s * rate_hz)
@@ -441,28 +445,22 @@ def _demo_figures(
     )
 
 
-def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) -> ProximityDemoResult:
-    """Run scenarios a-f of issue 4 on the arm and measure the acceptance figures; writes nothing.
+class _Runs(NamedTuple):
+    """What the six stages ran: the loop scenarios, the arm's path tracking and the lamp's run."""
 
-    Parameters
-    ----------
-    seed : int
-        Seeds every noise source (sensor noise, lamp supply); the same seed gives the same result.
-    progress : callable, optional
-        Called as ``progress(stage, completed, total)`` as each stage starts, and once when all are done.
+    push: Scenario
+    servo: Scenario
+    follows: tuple[Scenario, ...]
+    sweep: Scenario
+    tracking: TrackingResult
+    lamp: LampRun
 
-    Returns
-    -------
-    ProximityDemoResult
-        Draw it with :func:`rsi.report.isee.write_proximity_report`.
-    """
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise InputError(f"seed must be a non-negative integer; got {seed!r}.")
+
+def _run_stages(law: ProximityLaw, seed: int, progress: Progress | None) -> _Runs:
+    """Scenarios a-c, the sweep, e and f in :data:`_STAGES`' order, each on its own spawned noise stream."""
     from rsi.sim.arm import track_path
 
-    law = ARM_LAW
-    streams = np.random.SeedSequence(int(seed)).spawn(6)
-    delay_s = LowPassFilter(4.0, law.sample_rate_hz).dc_delay_s
+    streams = np.random.SeedSequence(seed).spawn(6)
     stage = iter(enumerate(_STAGES))
 
     def report() -> None:
@@ -485,9 +483,31 @@ def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) 
     tracking = track_path(ARM_PATH)
     report()
     lamp = simulate_lamp(LAMP_DURATION_S, rng=np.random.default_rng(streams[5]))
-    lamp_error = np.asarray(lamp.relative_error(LampController().setpoint_lux), dtype=np.float64)
     report()
+    return _Runs(push, servo, follows, sweep, tracking, lamp)
 
+
+def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) -> ProximityDemoResult:
+    """Run scenarios a-f of issue 4 on the arm and measure the acceptance figures; writes nothing.
+
+    Parameters
+    ----------
+    seed : int
+        Seeds every noise source (sensor noise, lamp supply); the same seed gives the same result.
+    progress : callable, optional
+        Called as ``progress(stage, completed, total)`` as each stage starts, and once when all are done.
+
+    Returns
+    -------
+    ProximityDemoResult
+        Draw it with :func:`rsi.report.isee.write_proximity_report`.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise InputError(f"seed must be a non-negative integer; got {seed!r}.")
+    law = ARM_LAW
+    push, servo, follows, sweep, tracking, lamp = _run_stages(law, int(seed), progress)
+    delay_s = LowPassFilter(4.0, law.sample_rate_hz).dc_delay_s
+    lamp_error = np.asarray(lamp.relative_error(LampController().setpoint_lux), dtype=np.float64)
     contours = tuple(contour_scan(scenario, delay_s=delay_s) for scenario in follows)
     surfaces = {
         scenario.name: _surface_figures(scenario, contour, law)

@@ -18,7 +18,8 @@ from rsi import _validate as v
 from rsi._seeds import SeedLike, seed_sequence
 from rsi.errors import InputError
 from rsi.mission.sun import SunSetting, lamp_move_s, light_by_sun, sun_setting
-from rsi.mission.transit import Transit, focal_px, look_rotation, transit, world_arm, world_vista
+from rsi.mission.transit import Transit, transit
+from rsi.mission.viewing import focal_px, look_rotation, world_arm, world_vista
 
 if TYPE_CHECKING:
     from rsi.sim.world import View, World

@@ -1,8 +1,9 @@
 """Seed §3.1 in the mission: the arm and rail carry the ISEE between vista points, the proximity law
 guarding every approach.
 
-A **transit** (:func:`transit`) takes the ISEE from wherever the arm holds it to a vista's viewing pose (the
-left ISEE camera at the vista's position, looking along its forward with its up; 0.5 m standoff):
+A **transit** (:func:`transit`) takes the ISEE from wherever the arm holds it to a vista's viewing pose
+(:mod:`rsi.mission.viewing`: the left ISEE camera at the vista's position, looking along its forward with
+its up; 0.5 m standoff):
 
 1. *retract* along the tool axis, away from the structure;
 2. *transfer*: a straight line (rail and joints) to a point on the viewing axis ``APPROACH_START_M`` short of
@@ -17,34 +18,33 @@ run on the one 44 Hz loop of :mod:`rsi.sim.proximity_loop` (the proximity demo's
 twist as its free motion. Every sample is traced: rangefinders (true and filtered), the generator's and the
 law's speeds along the axis, their sum, and the arm's clearance from the mock-up (``mj_geomDistance``).
 
-:class:`Tour` makes a mission's visits for :func:`rsi.mission.run_mission`: the arm's transits, the
-frames from the ISEE, and the lamp on the orbit's sun (:mod:`rsi.mission.sun`). See docs/mission.md.
+:class:`rsi.mission.tour.Tour` makes a mission's visits for :func:`rsi.mission.run_mission`: the arm's
+transits, the frames from the ISEE, and the lamp on the orbit's sun (:mod:`rsi.mission.sun`). See
+docs/mission.md.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.control.proximity_law import ProximityLaw
 from rsi.control.redundancy import orientation_error
 from rsi.errors import InputError
-from rsi.sim.arm import FOREARM_M, LIMITS, RANGEFINDER_CUTOFF_M, UPPER_ARM_M
-from rsi.sim.clearance import ArmClearance, is_arm_geom
+from rsi.mission.viewing import Reach, ViewingPose, expected_ranges_m, reach, viewing_pose, world_arm
+from rsi.sim.arm import RANGEFINDER_CUTOFF_M
+from rsi.sim.clearance import ArmClearance
 from rsi.sim.mockup import VISTA_STANDOFF_M
-from rsi.sim.proximity_loop import ARM_LAW, SAMPLE_RATE_HZ, LoopSample, ProximityLoop
-from rsi.sim.render import import_mujoco
-from rsi.sim.scene import CAMERA_FOVY_DEG
+from rsi.sim.proximity_loop import ARM_LAW, LoopSample, LoopTrace, ProximityLoop
 
 if TYPE_CHECKING:
-    from rsi.sim.arm import Arm
-    from rsi.sim.mockup import Vista
     from rsi.sim.world import World
 
 FloatArray = NDArray[np.float64]
@@ -64,7 +64,6 @@ PHASE_TIMEOUT_S = 12.0  # 1.8 m of rail travel takes 7.2 s
 APPROACH_TIMEOUT_S = 6.0
 ARRIVAL_TOLERANCE_M = 5e-3  # the servo holds the rangefinders' noise (1.4 mm at 0.5 m): well inside this
 ARRIVAL_TOLERANCE_RAD = 2e-3
-REACH_MARGIN_M = 0.02  # the elbow never fully straight: configuration control damps near that singularity
 PHASES = ("retract", "transfer", "approach")
 # Approach law: the speeds and region E of the law tuned on the arm (rsi.sim.proximity_loop.ARM_LAW), with
 # its 6 /s C/D slope, the standoff moved to the range read at the viewing pose.
@@ -72,166 +71,6 @@ _HOLD_BELOW_STANDOFF_M = 0.05
 _HOLD_BELOW_NEAREST_M = 0.02
 _MIN_SEGMENT_M = 0.015  # keeps every slope of the law under 0.5 * 44 /s
 _SENSOR_MIN_M = ProximityLaw().min_distance_m  # seed §3.1: the SA1D's minimum distance (region A|B)
-
-
-def _unit(vector: FloatArray) -> FloatArray:
-    result: FloatArray = vector / np.linalg.norm(vector)
-    return result
-
-
-def look_rotation(forward: FloatArray, up: FloatArray) -> FloatArray:
-    """A camera looking along `forward` with `up` up: columns right, up, backward, as
-    :class:`rsi.sim.render.CameraPose` (MuJoCo cameras look along -z)."""
-    back = -_unit(forward)
-    right = _unit(np.cross(up, back))
-    return np.column_stack([right, np.cross(back, right), back])
-
-
-def focal_px(rows: int) -> float:
-    """Focal length in pixels of the ISEE camera (``CAMERA_FOVY_DEG``) in a frame of `rows` rows."""
-    return rows / 2 / math.tan(math.radians(CAMERA_FOVY_DEG) / 2)
-
-
-def world_arm(world: World) -> Arm:
-    """The world's arm, or an InputError that says how to build a world with one."""
-    try:
-        return world.arm
-    except InputError:
-        raise InputError(
-            "world has no arm; build it with rsi.sim.load('truss', seed=..., arm=True) to move the ISEE."
-        ) from None
-
-
-def world_vista(world: World, vista: object) -> Vista:
-    """The world's vista `vista`, or an InputError listing them (and where a mission's extras come from)."""
-    if not isinstance(vista, str) or vista not in world.vistas:
-        raise InputError(
-            f"vista must be one of this world's vistas {sorted(world.vistas)}; got {vista!r}. A mission's "
-            "extra views are added by rsi.mission.plan_vistas(world)."
-        )
-    return world.vista(vista)
-
-
-# ----------------------------------------------------------------------------------------- the ISEE
-
-
-@dataclass(frozen=True)
-class _Isee:
-    """The ISEE's fixed geometry in the tool frame, read from the model (no numbers copied)."""
-
-    camera_m: FloatArray  # left camera, tool frame
-    camera_rotation: FloatArray  # tool_R.T @ camera_R
-    wrist_m: FloatArray  # wrist site (on the w2 axis), tool frame
-    sensors_m: FloatArray  # (2, 3) rangefinder sites, tool frame
-    sensor_body: int  # the body a rangefinder ignores
-    shoulder_at_rail_zero_m: FloatArray
-
-
-def _isee(world: World) -> _Isee:
-    arm = world_arm(world)
-    tip, rotation = arm.tool_pose()
-    camera, camera_rotation = arm.camera_pose("left")
-    sensors = np.array([arm.site_position_m(name) for name in ("range_left", "range_right")])
-    site = world.model.site(f"{arm.prefix}range_left").id
-    rail_m = float(arm.joint_positions[0])
-    return _Isee(
-        camera_m=rotation.T @ (camera - tip),
-        camera_rotation=rotation.T @ camera_rotation,
-        wrist_m=rotation.T @ (arm.site_position_m("wrist") - tip),
-        sensors_m=(sensors - tip) @ rotation,
-        sensor_body=int(world.model.site_bodyid[site]),
-        shoulder_at_rail_zero_m=arm.site_position_m("shoulder") - rail_m * np.array([1.0, 0.0, 0.0]),
-    )
-
-
-@dataclass(frozen=True)
-class ViewingPose:
-    """Where the ISEE must be to take a vista's frame.
-
-    Attributes
-    ----------
-    vista : str
-    camera_m : ndarray of shape (3,)
-        Left ISEE camera (the frame's camera), world metres: the vista's position plus the visit's offset.
-    camera_rotation : ndarray of shape (3, 3)
-        Columns image right, image up, backward (the vista's forward and up).
-    tool_m : ndarray of shape (3,)
-        Tool tip (jaw tips) at that pose.
-    tool_rotation : ndarray of shape (3, 3)
-        Tool frame (z along the viewing axis).
-    offset_m : (float, float)
-        Lateral offset from the vista's position along image right and up, metres.
-    """
-
-    vista: str
-    camera_m: FloatArray
-    camera_rotation: FloatArray
-    tool_m: FloatArray
-    tool_rotation: FloatArray
-    offset_m: tuple[float, float]
-
-
-def viewing_pose(world: World, vista: str, *, offset_m: tuple[float, float] = (0.0, 0.0)) -> ViewingPose:
-    """The tool pose that puts the left ISEE camera on `vista`'s viewpoint, shifted by `offset_m`.
-
-    Raises InputError for a world without the arm, an unknown vista or a non-finite offset.
-    """
-    point = world_vista(world, vista)
-    isee = _isee(world)
-    offset = np.asarray(offset_m, dtype=np.float64)
-    if offset.shape != (2,) or not np.isfinite(offset).all():
-        raise InputError(f"offset_m must be two finite numbers (right, up; metres); got {offset_m!r}.")
-    rotation = look_rotation(np.asarray(point.forward, float), np.asarray(point.up, float))
-    camera = np.asarray(point.position_m, float) + rotation[:, :2] @ offset
-    tool_rotation = rotation @ isee.camera_rotation.T
-    return ViewingPose(
-        vista=vista,
-        camera_m=camera,
-        camera_rotation=rotation,
-        tool_m=camera - tool_rotation @ isee.camera_m,
-        tool_rotation=tool_rotation,
-        offset_m=(float(offset[0]), float(offset[1])),
-    )
-
-
-# ------------------------------------------------------------------------------------------- reach
-
-
-@dataclass(frozen=True)
-class Reach:
-    """Whether the arm on its rail can put the ISEE at a vista's viewing pose (geometry of the chain).
-
-    Attributes
-    ----------
-    vista : str
-    reachable : bool
-        The wrist's goal lies within the arm's reach from some rail position (less ``REACH_MARGIN_M``).
-    shortfall_m : float
-        Distance from the wrist's goal to the nearest reachable point, metres (negative: inside by that).
-    rail_m : float
-        Rail position (joint value) from which the shoulder is nearest the wrist's goal.
-    """
-
-    vista: str
-    reachable: bool
-    shortfall_m: float
-    rail_m: float
-
-
-def reach(world: World, vista: str) -> Reach:
-    """Can the arm reach `vista`'s viewing pose? Shoulder-to-wrist distance against the two links.
-
-    The wrist site lies on the w2 pitch axis, fixed in the tool frame, so the goal fixes it; the shoulder
-    rides the rail along world x. Raises InputError for a world without the arm or an unknown vista.
-    """
-    pose = viewing_pose(world, vista)
-    isee = _isee(world)
-    wrist = pose.tool_m + pose.tool_rotation @ isee.wrist_m
-    low, high = float(LIMITS.lower[0]), float(LIMITS.upper[0])
-    rail = float(np.clip(wrist[0] - isee.shoulder_at_rail_zero_m[0], low, high))
-    shoulder = isee.shoulder_at_rail_zero_m + rail * np.array([1.0, 0.0, 0.0])
-    shortfall = float(np.linalg.norm(wrist - shoulder)) - (UPPER_ARM_M + FOREARM_M - REACH_MARGIN_M)
-    return Reach(vista=vista, reachable=shortfall <= 0.0, shortfall_m=shortfall, rail_m=rail)
 
 
 # ------------------------------------------------------------------------------------- proximity law
@@ -267,38 +106,11 @@ def approach_law(standoff_m: float, nearest_m: float | None = None) -> Proximity
         hold_distance_m=hold,
         servo_end_m=servo_end,
         max_distance_m=RANGEFINDER_CUTOFF_M,
-        sample_rate_hz=SAMPLE_RATE_HZ,
+        sample_rate_hz=PROXIMITY_SAMPLE_RATE_HZ,
     )
 
 
 GUARD_LAW = approach_law(VISTA_STANDOFF_M)  # avoidance during retract and transfer
-
-
-def expected_ranges_m(world: World, pose: ViewingPose) -> FloatArray:
-    """What the two rangefinders will read at `pose`, from the mock-up's model (``inf``: no return).
-
-    A ray from each sensor site along the viewing axis, as MuJoCo's rangefinder casts it (its own body
-    ignored), passing through any part of the arm where the arm is now.
-    """
-    isee = _isee(world)
-    prefix = world_arm(world).prefix
-    mujoco = import_mujoco()
-    axis = pose.tool_rotation[:, 2].copy()
-    ranges = np.full(2, np.inf)
-    for index, site in enumerate(isee.sensors_m):
-        origin = pose.tool_m + pose.tool_rotation @ site
-        travelled, geom = 0.0, np.zeros(1, dtype=np.int32)
-        for _ in range(8):
-            hit = mujoco.mj_ray(world.model, world.data, origin, axis, None, 1, isee.sensor_body, geom)
-            if hit < 0:
-                break
-            travelled += hit
-            if not is_arm_geom(world.model, int(geom[0]), prefix):
-                ranges[index] = travelled if travelled < RANGEFINDER_CUTOFF_M else np.inf
-                break
-            # an arm part where the arm is now, not where it will be: look past it
-            origin, travelled = origin + (hit + 1e-6) * axis, travelled + 1e-6
-    return ranges
 
 
 # ------------------------------------------------------------------------------------------ transit
@@ -404,46 +216,15 @@ class Transit:
         return float(np.linalg.norm(orientation_error(self.pose.camera_rotation, self.camera_rotation)))
 
 
-_TRACE_FIELDS = (
-    "time_s",
-    "phase",
-    "range_true_m",
-    "range_reading_m",
-    "trajectory_m_s",
-    "proximity_m_s",
-    "command_m_s",
-    "axis_error_m",
-    "clearance_m",
-)
-
-
-@dataclass
-class _Trace:
-    rows: dict[str, list[Any]] = field(default_factory=lambda: {name: [] for name in _TRACE_FIELDS})
-
-    def add(self, phase: str, sample: LoopSample, *, axis_error_m: float, clearance_m: float) -> None:
-        values = (
-            sample.time_s,
-            phase,
-            sample.true_m,
-            sample.reading_m,
-            sample.trajectory_m_s,
-            sample.proximity_m_s,
-            sample.command_m_s,
-            axis_error_m,
-            clearance_m,
-        )
-        for name, value in zip(_TRACE_FIELDS, values, strict=True):
-            self.rows[name].append(value)
-
-    def arrays(self) -> dict[str, Any]:
-        arrays: dict[str, Any] = {
-            name: np.asarray(self.rows[name], dtype=np.float64) for name in _TRACE_FIELDS if name != "phase"
-        }
-        arrays["phase"] = np.asarray(self.rows["phase"], dtype=np.str_)
-        for name in ("range_true_m", "range_reading_m"):
-            arrays[name] = arrays[name].reshape(-1, 2)
-        return arrays
+_LOOP_COLUMNS = {
+    "time_s": "time_s",
+    "range_true_m": "true_m",
+    "range_reading_m": "reading_m",
+    "trajectory_m_s": "trajectory_m_s",
+    "proximity_m_s": "proximity_m_s",
+    "command_m_s": "command_m_s",
+}
+"""Transit trace column -> the :class:`LoopTrace` column it is."""
 
 
 class _Mover:
@@ -453,21 +234,39 @@ class _Mover:
         self.arm = world_arm(world)
         self.loop = ProximityLoop(self.arm, law=GUARD_LAW, rng=rng)
         self.clearance = ArmClearance(world)
-        self.trace = _Trace()
+        self.samples: list[LoopSample] = []
+        self.phases: list[str] = []
+        self.axis_errors_m: list[float] = []
+        self.clearances_m: list[float] = []
 
     def step(
         self, phase: str, twist: tuple[FloatArray, FloatArray], *, axis_error_m: float = math.nan
     ) -> None:
         """One period: the generator's world twist is the loop's free motion; its part along the tool axis
         is Fig. 4's ``x_tg``, to which the law's ``x_ps`` is added (seed §3.1)."""
-        clearance_m = self.clearance()  # where the arm is while the sensors are read
-        sample = self.loop.step(np.concatenate(twist), frame="world")
-        self.trace.add(phase, sample, axis_error_m=axis_error_m, clearance_m=clearance_m)
+        self.clearances_m.append(self.clearance())  # where the arm is while the sensors are read
+        self.samples.append(self.loop.step(np.concatenate(twist), frame="world"))
+        self.phases.append(phase)
+        self.axis_errors_m.append(axis_error_m)
+
+    def trace(self) -> dict[str, Any]:
+        """The :class:`Transit` columns: the loop's samples stacked by :class:`LoopTrace` (one stacking for
+        the demo and the transits), then the transit's own phase, axis error and clearance."""
+        if self.samples:
+            loop = LoopTrace.from_samples(self.samples)
+            stacked = {name: getattr(loop, column) for name, column in _LOOP_COLUMNS.items()}
+        else:  # out of reach: nothing moved
+            stacked = {name: np.empty((0, 2) if name.startswith("range_") else 0) for name in _LOOP_COLUMNS}
+        return stacked | {
+            "phase": np.asarray(self.phases, dtype=np.str_),
+            "axis_error_m": np.asarray(self.axis_errors_m, dtype=np.float64),
+            "clearance_m": np.asarray(self.clearances_m, dtype=np.float64),
+        }
 
     def move_to(self, phase: str, tip_m: FloatArray, rotation: FloatArray) -> bool:
         """Straight line and turn to a tool pose at capped speeds, the guard law on; True when there."""
         self.loop.law, self.loop.mode = GUARD_LAW, "avoidance"
-        for _ in range(round(PHASE_TIMEOUT_S * SAMPLE_RATE_HZ)):
+        for _ in range(round(PHASE_TIMEOUT_S * PROXIMITY_SAMPLE_RATE_HZ)):
             position, current = self.arm.tool_pose()
             error, turn = tip_m - position, orientation_error(rotation, current)
             if np.linalg.norm(error) < MOVE_TOLERANCE_M and np.linalg.norm(turn) < MOVE_TOLERANCE_RAD:
@@ -479,13 +278,21 @@ class _Mover:
             self.step(phase, twist)
         return False
 
+    def visit(self, pose: ViewingPose, law: ProximityLaw, mode: str) -> None:
+        """The three phases: retract along the tool axis, transfer to the approach start, approach."""
+        tip, rotation = self.arm.tool_pose()
+        self.move_to("retract", tip - RETRACT_M * rotation[:, 2], rotation)
+        staging = pose.tool_m - APPROACH_START_M * pose.tool_rotation[:, 2]
+        self.move_to("transfer", staging, pose.tool_rotation)
+        self.approach(pose, law, mode)
+
     def approach(self, pose: ViewingPose, law: ProximityLaw, mode: str) -> None:
         """Along the viewing axis: feed-forward plus the law on the rangefinders, until settled."""
         self.loop.law, self.loop.mode = law, mode
         axis = pose.tool_rotation[:, 2]
         limit = law.joystick_speed_m_s
         settled = 0
-        for _ in range(round(APPROACH_TIMEOUT_S * SAMPLE_RATE_HZ)):
+        for _ in range(round(APPROACH_TIMEOUT_S * PROXIMITY_SAMPLE_RATE_HZ)):
             position, current = self.arm.tool_pose()
             error = pose.tool_m - position
             to_go = float(axis @ error)
@@ -583,13 +390,9 @@ def transit(
     mover = _Mover(world, v.as_rng(rng))
     began = time.perf_counter()
     if where.reachable:
-        tip, rotation = mover.arm.tool_pose()
-        mover.move_to("retract", tip - RETRACT_M * rotation[:, 2], rotation)
-        staging = pose.tool_m - APPROACH_START_M * pose.tool_rotation[:, 2]
-        mover.move_to("transfer", staging, pose.tool_rotation)
-        mover.approach(pose, law, "servo" if servo else "avoidance")
+        mover.visit(pose, law, "servo" if servo else "avoidance")
     camera, camera_rotation = mover.arm.camera_pose("left")
-    arrays = mover.trace.arrays()
+    arrays = mover.trace()
     result = Transit(
         vista=vista,
         label=str(label),
@@ -616,16 +419,7 @@ __all__ = [
     "ARRIVAL_TOLERANCE_M",
     "ARRIVAL_TOLERANCE_RAD",
     "GUARD_LAW",
-    "Reach",
     "Transit",
-    "ViewingPose",
     "approach_law",
-    "expected_ranges_m",
-    "focal_px",
-    "look_rotation",
-    "reach",
     "transit",
-    "viewing_pose",
-    "world_arm",
-    "world_vista",
 ]

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import STROBE_DURATION_S, STROBE_ENERGY_LM_S
 from rsi.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -288,8 +289,8 @@ class Strobe:
         Widest gap between the jaws, > 0 m.
     """
 
-    pulse_s: float = 20e-6
-    luminous_energy_lm_s: float = 1.3
+    pulse_s: float = STROBE_DURATION_S
+    luminous_energy_lm_s: float = STROBE_ENERGY_LM_S
     mount_offset_m: float = 0.02
     setback_m: float = 0.11
     max_jaw_opening_m: float = 0.08

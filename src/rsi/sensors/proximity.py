@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from scipy import signal
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -100,7 +101,7 @@ class ProximitySensor:
     full_scale_v: float = 5.0
     noise_std_v: float = 0.005
     adc_bits: int = 12
-    sample_rate_hz: float = 44.0
+    sample_rate_hz: float = PROXIMITY_SAMPLE_RATE_HZ
     cutoff_hz: float = 4.0
     filter_order: int = 1
 

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from scipy import optimize, special
 
 from rsi import _validate as v
+from rsi.constants import ROOM_TEMPERATURE_K
 from rsi.errors import InputError
 from rsi.units import fahrenheit_to_kelvin
 
@@ -133,7 +134,7 @@ class Pyrometer:
     """
 
     emissivity_setting: float = 0.95
-    reflected_temperature_k: float = 293.15
+    reflected_temperature_k: float = ROOM_TEMPERATURE_K
     min_temperature_k: float = fahrenheit_to_kelvin(0.0)
     max_temperature_k: float = fahrenheit_to_kelvin(1000.0)
     noise_std_k: float = 0.1
@@ -215,7 +216,7 @@ def read_pyrometer(
     surface_emissivity: object,
     pyrometer: Pyrometer | None = None,
     *,
-    background_temperature_k: float = 293.15,
+    background_temperature_k: float = ROOM_TEMPERATURE_K,
     rng: np.random.Generator | int | None = None,
 ) -> PyrometerReading:
     """Pyrometer reading of grey surfaces at known temperatures and emissivities.

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.control.redundancy import (
     JointLimits,
     RedundancySettings,
@@ -915,7 +916,7 @@ def track_path(
     path: str = "circle",
     *,
     speed_m_s: float = 0.1,
-    rate_hz: float = 44.0,
+    rate_hz: float = PROXIMITY_SAMPLE_RATE_HZ,
     mode: str = "kinematic",
     arm_angle_set_rad: float | None = None,
 ) -> TrackingResult:

@@ -30,13 +30,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import ROOM_TEMPERATURE_K
 from rsi.errors import InputError
 from rsi.sim.anomalies import KAPTON_RADIUS_M, AnomalySet, GasLeak, Site, ThermalSpot
 
 FloatArray = NDArray[np.float64]
 
 # A laboratory room (seed §4: the mock-up stands in a darkened room); the pyrometer's default background.
-AMBIENT_K = 293.15
+AMBIENT_K = ROOM_TEMPERATURE_K
 
 # Thermal-infrared (8-12 um, the pyrometer's band, seed §3) emissivities of the mock-up's materials.
 # Specular (polished) aluminium 0.04-0.1, black Kapton ~0.95, silicon solar cells behind cover glass ~0.85

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi import constants
 from rsi.errors import InputError
 from rsi.sim import solar_simulator as ss
 
@@ -43,13 +44,14 @@ BoolArray = NDArray[np.bool_]
 
 EARTH_MU_M3_S2 = 3.986004418e14  # IERS / WGS-84 geocentric gravitational constant
 EARTH_RADIUS_M = 6_378_137.0  # WGS-84 equatorial radius
-SUN_ILLUMINANCE_LUX = 130_000.0  # seed §2.1: solar illumination in Earth orbit
+# The paper's numbers live in rsi.constants; these names are the orbit room's aliases of them.
+SUN_ILLUMINANCE_LUX = constants.SUN_ILLUMINANCE_LUX  # seed §2.1: solar illumination in Earth orbit
 LAB_SUN_FRACTION = 0.015  # seed §4.1: the simulated sun is 1.5 % of orbital sunlight
-ORBIT_EXPOSURE_S = 1.0e-4  # seed §2.1: electronic shutter at 1/10000 s in orbit
-STROBE_LM_S = 1.3  # seed §2.1: the laboratory strobe's illumination
+ORBIT_EXPOSURE_S = constants.SHUTTER_S  # seed §2.1: electronic shutter at 1/10000 s in orbit
+STROBE_LM_S = constants.STROBE_ENERGY_LM_S  # seed §2.1: the laboratory strobe's illumination
 SCENE_AREA_M2 = 0.1  # seed §2.1: a typical inspection scene
-FIELD_S = 1.0 / 60.0  # seed §2.1: one video field; the shutter cannot stay open longer
-FLASH_S = 2.0e-5  # seed §2.1: the strobe's ~20 us flash, the shortest shutter that still holds all of it
+FIELD_S = constants.FIELD_S  # seed §2.1: one video field; the shutter cannot stay open longer
+FLASH_S = constants.STROBE_DURATION_S  # seed §2.1: the ~20 us flash; no shorter shutter holds all of it
 
 # Default lab placement of the station's LVLH axes (columns: images of x, y, z LVLH in the world).
 DEFAULT_WORLD_FROM_LVLH: FloatArray = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])

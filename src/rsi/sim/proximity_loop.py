@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.control.blending import blend_commands
 from rsi.control.proximity_law import MODES, ProximityLaw
 from rsi.errors import InputError
@@ -33,7 +34,6 @@ from rsi.sim.arm import RANGEFINDER_CUTOFF_M
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-SAMPLE_RATE_HZ = 44.0  # seed §3.1: the sensors were read through an A/D at 44 Hz
 RANGE_SITES = ("range_left", "range_right")
 """The arm's two rangefinder sites (seed §3.1: two sensors on the ISEE's face), left and right."""
 FRAMES = ("tool", "world")
@@ -53,7 +53,7 @@ ARM_LAW = ProximityLaw(
     hold_distance_m=0.34,
     servo_end_m=0.73,
     max_distance_m=0.75,
-    sample_rate_hz=SAMPLE_RATE_HZ,
+    sample_rate_hz=PROXIMITY_SAMPLE_RATE_HZ,  # seed §3.1: the sensors were read through an A/D at 44 Hz
 )
 
 
@@ -257,6 +257,8 @@ class LoopTrace:
         Velocity sent along the sensor axis (positive toward the surface).
     proximity_m_s : ndarray of shape (T,)
         The proximity law's part of it (Fig. 4's ``x_ps``).
+    trajectory_m_s : ndarray of shape (T,)
+        The free motion's part along the sensor axis (Fig. 4's ``x_tg``).
     origin_m : ndarray of shape (T, 2, 3)
         World positions of the two sensor faces when each sample was taken.
     axis : ndarray of shape (T, 3)
@@ -269,6 +271,7 @@ class LoopTrace:
     out_of_range: BoolArray
     command_m_s: FloatArray
     proximity_m_s: FloatArray
+    trajectory_m_s: FloatArray
     origin_m: FloatArray
     axis: FloatArray
 
@@ -288,6 +291,7 @@ class LoopTrace:
             out_of_range=stacked("out_of_range", bool),
             command_m_s=stacked("command_m_s"),
             proximity_m_s=stacked("proximity_m_s"),
+            trajectory_m_s=stacked("trajectory_m_s"),
             origin_m=stacked("origin_m"),
             axis=stacked("axis"),
         )
@@ -366,7 +370,6 @@ def run_closed_loop(
 __all__: list[str] = [
     "ARM_LAW",
     "RANGE_SITES",
-    "SAMPLE_RATE_HZ",
     "LoopSample",
     "LoopTrace",
     "ProximityLoop",

@@ -1,0 +1,237 @@
+"""Seed §3.1 in the mission: where the ISEE must be for a vista, whether the arm reaches it, what its
+rangefinders will read there.
+
+A **viewing pose** (:func:`viewing_pose`) puts the left ISEE camera at a vista's position, looking along its
+forward with its up (0.5 m standoff), shifted by a visit's repeatability offset; :func:`reach` says whether
+the arm on its rail can get the ISEE there; :func:`expected_ranges_m` ray-casts what the two rangefinders
+will read at the pose, the standoff of a transit's approach law (:mod:`rsi.mission.transit`). The ISEE's
+geometry is read from the arm's model, no numbers copied. See docs/mission.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi.errors import InputError
+from rsi.sim.arm import FOREARM_M, LIMITS, RANGEFINDER_CUTOFF_M, UPPER_ARM_M
+from rsi.sim.clearance import is_arm_geom
+from rsi.sim.render import import_mujoco
+from rsi.sim.scene import CAMERA_FOVY_DEG
+
+if TYPE_CHECKING:
+    from rsi.sim.arm import Arm
+    from rsi.sim.mockup import Vista
+    from rsi.sim.world import World
+
+FloatArray = NDArray[np.float64]
+
+REACH_MARGIN_M = 0.02  # the elbow never fully straight: configuration control damps near that singularity
+
+
+def _unit(vector: FloatArray) -> FloatArray:
+    result: FloatArray = vector / np.linalg.norm(vector)
+    return result
+
+
+def look_rotation(forward: FloatArray, up: FloatArray) -> FloatArray:
+    """A camera looking along `forward` with `up` up: columns right, up, backward, as
+    :class:`rsi.sim.render.CameraPose` (MuJoCo cameras look along -z)."""
+    back = -_unit(forward)
+    right = _unit(np.cross(up, back))
+    return np.column_stack([right, np.cross(back, right), back])
+
+
+def focal_px(rows: int) -> float:
+    """Focal length in pixels of the ISEE camera (``CAMERA_FOVY_DEG``) in a frame of `rows` rows."""
+    return rows / 2 / math.tan(math.radians(CAMERA_FOVY_DEG) / 2)
+
+
+def world_arm(world: World) -> Arm:
+    """The world's arm, or an InputError that says how to build a world with one."""
+    try:
+        return world.arm
+    except InputError:
+        raise InputError(
+            "world has no arm; build it with rsi.sim.load('truss', seed=..., arm=True) to move the ISEE."
+        ) from None
+
+
+def world_vista(world: World, vista: object) -> Vista:
+    """The world's vista `vista`, or an InputError listing them (and where a mission's extras come from)."""
+    if not isinstance(vista, str) or vista not in world.vistas:
+        raise InputError(
+            f"vista must be one of this world's vistas {sorted(world.vistas)}; got {vista!r}. A mission's "
+            "extra views are added by rsi.mission.plan_vistas(world)."
+        )
+    return world.vista(vista)
+
+
+# ----------------------------------------------------------------------------------------- the ISEE
+
+
+@dataclass(frozen=True)
+class _Isee:
+    """The ISEE's fixed geometry in the tool frame, read from the model (no numbers copied)."""
+
+    camera_m: FloatArray  # left camera, tool frame
+    camera_rotation: FloatArray  # tool_R.T @ camera_R
+    wrist_m: FloatArray  # wrist site (on the w2 axis), tool frame
+    sensors_m: FloatArray  # (2, 3) rangefinder sites, tool frame
+    sensor_body: int  # the body a rangefinder ignores
+    shoulder_at_rail_zero_m: FloatArray
+
+
+def _isee(world: World) -> _Isee:
+    arm = world_arm(world)
+    tip, rotation = arm.tool_pose()
+    camera, camera_rotation = arm.camera_pose("left")
+    sensors = np.array([arm.site_position_m(name) for name in ("range_left", "range_right")])
+    site = world.model.site(f"{arm.prefix}range_left").id
+    rail_m = float(arm.joint_positions[0])
+    return _Isee(
+        camera_m=rotation.T @ (camera - tip),
+        camera_rotation=rotation.T @ camera_rotation,
+        wrist_m=rotation.T @ (arm.site_position_m("wrist") - tip),
+        sensors_m=(sensors - tip) @ rotation,
+        sensor_body=int(world.model.site_bodyid[site]),
+        shoulder_at_rail_zero_m=arm.site_position_m("shoulder") - rail_m * np.array([1.0, 0.0, 0.0]),
+    )
+
+
+@dataclass(frozen=True)
+class ViewingPose:
+    """Where the ISEE must be to take a vista's frame.
+
+    Attributes
+    ----------
+    vista : str
+    camera_m : ndarray of shape (3,)
+        Left ISEE camera (the frame's camera), world metres: the vista's position plus the visit's offset.
+    camera_rotation : ndarray of shape (3, 3)
+        Columns image right, image up, backward (the vista's forward and up).
+    tool_m : ndarray of shape (3,)
+        Tool tip (jaw tips) at that pose.
+    tool_rotation : ndarray of shape (3, 3)
+        Tool frame (z along the viewing axis).
+    offset_m : (float, float)
+        Lateral offset from the vista's position along image right and up, metres.
+    """
+
+    vista: str
+    camera_m: FloatArray
+    camera_rotation: FloatArray
+    tool_m: FloatArray
+    tool_rotation: FloatArray
+    offset_m: tuple[float, float]
+
+
+def viewing_pose(world: World, vista: str, *, offset_m: tuple[float, float] = (0.0, 0.0)) -> ViewingPose:
+    """The tool pose that puts the left ISEE camera on `vista`'s viewpoint, shifted by `offset_m`.
+
+    Raises InputError for a world without the arm, an unknown vista or a non-finite offset.
+    """
+    point = world_vista(world, vista)
+    isee = _isee(world)
+    offset = np.asarray(offset_m, dtype=np.float64)
+    if offset.shape != (2,) or not np.isfinite(offset).all():
+        raise InputError(f"offset_m must be two finite numbers (right, up; metres); got {offset_m!r}.")
+    rotation = look_rotation(np.asarray(point.forward, float), np.asarray(point.up, float))
+    camera = np.asarray(point.position_m, float) + rotation[:, :2] @ offset
+    tool_rotation = rotation @ isee.camera_rotation.T
+    return ViewingPose(
+        vista=vista,
+        camera_m=camera,
+        camera_rotation=rotation,
+        tool_m=camera - tool_rotation @ isee.camera_m,
+        tool_rotation=tool_rotation,
+        offset_m=(float(offset[0]), float(offset[1])),
+    )
+
+
+# ------------------------------------------------------------------------------------------- reach
+
+
+@dataclass(frozen=True)
+class Reach:
+    """Whether the arm on its rail can put the ISEE at a vista's viewing pose (geometry of the chain).
+
+    Attributes
+    ----------
+    vista : str
+    reachable : bool
+        The wrist's goal lies within the arm's reach from some rail position (less ``REACH_MARGIN_M``).
+    shortfall_m : float
+        Distance from the wrist's goal to the nearest reachable point, metres (negative: inside by that).
+    rail_m : float
+        Rail position (joint value) from which the shoulder is nearest the wrist's goal.
+    """
+
+    vista: str
+    reachable: bool
+    shortfall_m: float
+    rail_m: float
+
+
+def reach(world: World, vista: str) -> Reach:
+    """Can the arm reach `vista`'s viewing pose? Shoulder-to-wrist distance against the two links.
+
+    The wrist site lies on the w2 pitch axis, fixed in the tool frame, so the goal fixes it; the shoulder
+    rides the rail along world x. Raises InputError for a world without the arm or an unknown vista.
+    """
+    pose = viewing_pose(world, vista)
+    isee = _isee(world)
+    wrist = pose.tool_m + pose.tool_rotation @ isee.wrist_m
+    low, high = float(LIMITS.lower[0]), float(LIMITS.upper[0])
+    rail = float(np.clip(wrist[0] - isee.shoulder_at_rail_zero_m[0], low, high))
+    shoulder = isee.shoulder_at_rail_zero_m + rail * np.array([1.0, 0.0, 0.0])
+    shortfall = float(np.linalg.norm(wrist - shoulder)) - (UPPER_ARM_M + FOREARM_M - REACH_MARGIN_M)
+    return Reach(vista=vista, reachable=shortfall <= 0.0, shortfall_m=shortfall, rail_m=rail)
+
+
+# --------------------------------------------------------------------------------- the rangefinders
+
+
+def expected_ranges_m(world: World, pose: ViewingPose) -> FloatArray:
+    """What the two rangefinders will read at `pose`, from the mock-up's model (``inf``: no return).
+
+    A ray from each sensor site along the viewing axis, as MuJoCo's rangefinder casts it (its own body
+    ignored), passing through any part of the arm where the arm is now.
+    """
+    isee = _isee(world)
+    prefix = world_arm(world).prefix
+    mujoco = import_mujoco()
+    axis = pose.tool_rotation[:, 2].copy()
+    ranges = np.full(2, np.inf)
+    for index, site in enumerate(isee.sensors_m):
+        origin = pose.tool_m + pose.tool_rotation @ site
+        travelled, geom = 0.0, np.zeros(1, dtype=np.int32)
+        for _ in range(8):
+            hit = mujoco.mj_ray(world.model, world.data, origin, axis, None, 1, isee.sensor_body, geom)
+            if hit < 0:
+                break
+            travelled += hit
+            if not is_arm_geom(world.model, int(geom[0]), prefix):
+                ranges[index] = travelled if travelled < RANGEFINDER_CUTOFF_M else np.inf
+                break
+            # an arm part where the arm is now, not where it will be: look past it
+            origin, travelled = origin + (hit + 1e-6) * axis, travelled + 1e-6
+    return ranges
+
+
+__all__ = [
+    "REACH_MARGIN_M",
+    "Reach",
+    "ViewingPose",
+    "expected_ranges_m",
+    "focal_px",
+    "look_rotation",
+    "reach",
+    "viewing_pose",
+    "world_arm",
+    "world_vista",
+]
