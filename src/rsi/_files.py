@@ -1,11 +1,15 @@
-"""Atomic file writes shared by every package: nothing already stored is ever half-overwritten."""
+"""Files shared by every package: atomic writes (nothing stored is ever half-overwritten) and bounded reads
+(only a regular file, only up to a size: a FIFO, a device or a huge file never hangs or floods a process)."""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import tempfile
 from pathlib import Path
+
+from rsi.errors import FileError
 
 
 def _read_umask() -> int:
@@ -56,3 +60,46 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
             os.unlink(temporary)
         raise
     return target
+
+
+def read_regular_file(
+    path: str | os.PathLike[str],
+    *,
+    max_bytes: int,
+    error: type[FileError] = FileError,
+    too_big: str = "raise the limit if the file is genuine",
+) -> bytes:
+    """The bytes of a regular file of at most `max_bytes`; anything else raises `error` naming the path.
+
+    The file is opened without blocking (a FIFO with no writer would otherwise wait forever) and checked on
+    the open descriptor: a folder, FIFO, socket or device, or a link to one, is refused before a byte is
+    read, as is a file larger than `max_bytes` (`too_big` says what to do about it).
+
+    Raises
+    ------
+    FileError (or `error`)
+        Missing, unreadable, not a regular file, or too large.
+    """
+    file = Path(path)
+    try:
+        descriptor = os.open(file, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as failure:
+        raise error(f"path {str(file)!r} cannot be read: {failure.strerror or failure}.") from failure
+    try:
+        status = os.fstat(descriptor)
+        if not stat.S_ISREG(status.st_mode):
+            raise error(
+                f"path {str(file)!r} is not a regular file (a folder, FIFO, socket or device, or a link to "
+                "one); pass a file."
+            )
+        if status.st_size > max_bytes:
+            raise error(f"path {str(file)!r} is {status.st_size} bytes, over {max_bytes}: {too_big}.")
+        with os.fdopen(os.dup(descriptor), "rb") as stream:
+            data = stream.read(max_bytes + 1)
+    except OSError as failure:
+        raise error(f"path {str(file)!r} cannot be read: {failure.strerror or failure}.") from failure
+    finally:
+        os.close(descriptor)
+    if len(data) > max_bytes:  # it grew while being read
+        raise error(f"path {str(file)!r} grew past {max_bytes} bytes while being read: {too_big}.")
+    return data

@@ -60,7 +60,7 @@ class BlendedCommand:
 
 
 def _as_velocity(value: object, name: str, *, limit_m_s: float | None = None) -> FloatArray:
-    velocity = np.asarray(value, dtype=np.float64)
+    velocity = v.as_float_array(value, name)
     if not np.isfinite(velocity).all():
         raise InputError(f"{name} contains NaN or inf; pass finite velocities in m/s.")
     if limit_m_s is not None and (np.abs(velocity) > limit_m_s).any():
@@ -88,7 +88,7 @@ def proximity_term(
     -------
     velocity_m_s, nearest_m, no_valid_reading : ndarrays of shape (...)
     """
-    settings = ProximityLaw() if law is None else law
+    settings = ProximityLaw() if law is None else v.instance_of(law, "law", ProximityLaw)
     v.choice(mode, "mode", MODES)
     readings = as_sensed_distances_m(distances_m, "distances_m")
     if readings.ndim == 0 or readings.shape[-1] == 0:
@@ -136,7 +136,7 @@ def blend_commands(
     >>> bool(command.velocity_m_s <= 0.0)
     True
     """
-    settings = ProximityLaw() if law is None else law
+    settings = ProximityLaw() if law is None else v.instance_of(law, "law", ProximityLaw)
     joystick = _as_velocity(joystick_m_s, "joystick_m_s", limit_m_s=settings.joystick_speed_m_s)
     trajectory = _as_velocity(trajectory_m_s, "trajectory_m_s")
     proximity, nearest, no_valid = proximity_term(distances_m, settings, mode=mode)
