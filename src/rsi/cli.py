@@ -690,17 +690,24 @@ ArchiveOption = Annotated[
     str, typer.Option("--archive", help="SQLite file or SQLAlchemy URL of the archive (it must exist).")
 ]
 DEFAULT_ARCHIVE = "rsi-archive.db"
+ImagesDirOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--images-dir",
+        help="Folder of the archive's image files; default <archive file>.images; needed for other URLs.",
+    ),
+]
 
 
 @archive_app.command("list", epilog=_EPILOG)
-def archive_list(*, archive: ArchiveOption = DEFAULT_ARCHIVE) -> None:
-    """List the inspection runs, newest last."""
+def archive_list(*, archive: ArchiveOption = DEFAULT_ARCHIVE, images_dir: ImagesDirOption = None) -> None:
+    """List the inspection runs, newest last (the archive is opened read-only)."""
     with _errors():
         from rich.table import Table
 
         from rsi.archive import Archive
 
-        with Archive.open(archive, create=False) as store:
+        with Archive.open(archive, read_only=True, images_dir=images_dir) as store:
             runs = store.runs()
         table = Table(title=f"Runs in {archive}")
         for column in ("run", "label", "status", "seed", "started", "findings"):
@@ -717,14 +724,15 @@ def archive_show(
     *,
     run: Annotated[int, typer.Argument(help="Run number (see `rsi archive list`).")],
     archive: ArchiveOption = DEFAULT_ARCHIVE,
+    images_dir: ImagesDirOption = None,
 ) -> None:
-    """Show one run's findings, each with its earlier sighting when it was seen before."""
+    """Show one run's findings, each with its earlier sighting when it was seen before (read-only)."""
     with _errors():
         from rich.table import Table
 
         from rsi.archive import Archive
 
-        with Archive.open(archive, create=False) as store:
+        with Archive.open(archive, read_only=True, images_dir=images_dir) as store:
             record, findings = store.run(run), store.findings(run)
         table = Table(
             title=f"Run {record.run_id} ({record.label}, {record.status}): {len(findings)} findings"
@@ -745,12 +753,13 @@ def archive_export(
     run: Annotated[int, typer.Argument(help="Run number (see `rsi archive list`).")],
     out: Annotated[Path, typer.Option("--out", help="Folder for the run's JSON and its images.")],
     archive: ArchiveOption = DEFAULT_ARCHIVE,
+    images_dir: ImagesDirOption = None,
 ) -> None:
-    """Export one run (JSON with its findings and history links, plus the referenced images)."""
+    """Export one run (JSON with its findings and history links, plus the referenced images; read-only)."""
     with _errors():
         from rsi.archive import Archive
 
-        with Archive.open(archive, create=False) as store:
+        with Archive.open(archive, read_only=True, images_dir=images_dir) as store:
             path = store.export_run(run, out)
         _stdout().print(f"Wrote {path}")
 
@@ -767,6 +776,7 @@ def batch(
         str,
         typer.Option("--archive", help="SQLite file or SQLAlchemy URL of the archive (created if missing)."),
     ] = DEFAULT_ARCHIVE,
+    images_dir: ImagesDirOption = None,
     scheduler: Annotated[
         str | None,
         typer.Option(help="Address of a running dask scheduler (tcp://host:8786); default: local processes."),
@@ -806,7 +816,7 @@ def batch(
             method=method.value,
         )
         items = read_manifest(manifest)
-        with Archive.open(archive) as store, _progress_bar("batch") as update:
+        with Archive.open(archive, images_dir=images_dir) as store, _progress_bar("batch") as update:
             result = run_batch(
                 items, archive=store, out_dir=out, scheduler=scheduler, workers=workers, settings=settings,
                 label=f"batch {manifest.name}", progress=update,

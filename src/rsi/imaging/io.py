@@ -107,7 +107,7 @@ def read_image(path: PathLike, *, max_pixels: int | None = None) -> NDArray[np.f
         If `max_pixels` is not an integer >= 1.
     """
     limit = max_image_pixels() if max_pixels is None else positive_int(max_pixels, "max_pixels")
-    file = Path(path)
+    file = _as_path(path)
     if file.suffix.lower() not in READ_SUFFIXES:
         raise ImageFileError(
             f"path {str(file)!r} has suffix {file.suffix!r}, which is not supported. "
@@ -252,6 +252,17 @@ def _captured_stderr() -> Iterator[_Captured]:
             captured.text = stream.read(4096).decode("utf-8", "replace")
 
 
+def _as_path(path: object) -> Path:
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise InputError(
+            f"path must be a file path (str or os.PathLike); got {type(path).__name__} {path!r:.60}."
+        )
+    try:
+        return Path(path)
+    except TypeError:  # an os.PathLike returning bytes
+        raise InputError(f"path must be a text file path; got {path!r:.60}.") from None
+
+
 def _grey(image: NDArray[Any], file: Path) -> NDArray[np.float32]:
     channels = 1 if image.ndim == 2 else image.shape[2]
     if channels not in (1, *_TO_GREY):
@@ -279,7 +290,7 @@ def write_image(path: PathLike, image: NDArray[Any]) -> None:
     ImageFileError
         If the dtype, shape or suffix does not fit, or the file cannot be written; the message names the path.
     """
-    file = Path(path)
+    file = _as_path(path)
     payload = _encode(file, image)
     try:
         atomic_write_bytes(file, payload)
