@@ -59,6 +59,23 @@ def as_image(image: object, name: str, *, allow_nan: bool = False) -> FloatArray
     return result
 
 
+MAX_INTENSITY = 1e15
+"""Largest pixel magnitude registration and detection take: they work in float32 (max 3.4e38) and square
+intensities and their sums over the image, so 1e15 keeps every sum finite (any camera reads below 2**32)."""
+
+
+def as_intensity_image(image: object, name: str) -> FloatArray:
+    """:func:`as_image`, and every pixel's magnitude at most :data:`MAX_INTENSITY`."""
+    result = as_image(image, name)
+    peak = max(abs(float(result.min())), abs(float(result.max())))
+    if peak > MAX_INTENSITY:
+        raise InputError(
+            f"{name} holds a pixel of magnitude {peak:.3g}, over {MAX_INTENSITY:g}: registration and "
+            "detection work in float32 and square intensities: divide both images by one constant."
+        )
+    return result
+
+
 def as_mask(mask: object, name: str, shape: tuple[int, ...]) -> NDArray[np.bool_]:
     """Return `mask` as a bool array of `shape` (True = use this pixel)."""
     if not isinstance(mask, np.ndarray):

@@ -42,7 +42,9 @@ _ELEMENTS = {
     64: st.one_of(st.floats(width=64), st.sampled_from([0.0, 1.0, 255.0, 1e18, -1e18, 1e300, 3.5e38])),
     32: st.one_of(st.floats(width=32), st.sampled_from([0.0, 1.0, 255.0, 1e18, -1e18, 3.0e38])),
 }
-_SHAPES = st.sampled_from([(0,), (1,), (3,), (6,), (2, 2), (3, 3), (4, 5), (8, 8), (3, 3, 3), (0, 4), (16, 16)])
+_SHAPES = st.sampled_from(
+    [(0,), (1,), (3,), (6,), (2, 2), (3, 3), (4, 5), (8, 8), (3, 3, 3), (0, 4), (16, 16)]
+)
 
 
 def _array(dtype: Any) -> st.SearchStrategy[np.ndarray]:
@@ -78,16 +80,16 @@ def names_an_argument(message: str, names: Iterator[str] | list[str] | tuple[str
     return any(re.search(rf"(?<![A-Za-z_]){re.escape(name)}(?![A-Za-z_])", message) for name in names)
 
 
-class Hang(Exception):
+class HangError(Exception):
     """A call ran past its time limit."""
 
 
 @contextmanager
 def time_limit(seconds: float) -> Iterator[None]:
-    """Raise :class:`Hang` in the calling thread after `seconds` (SIGALRM; main thread only)."""
+    """Raise :class:`HangError` in the calling thread after `seconds` (SIGALRM; main thread only)."""
 
     def expire(_signum: int, _frame: object) -> None:
-        raise Hang(f"no answer within {seconds} s")
+        raise HangError(f"no answer within {seconds} s")
 
     previous = signal.signal(signal.SIGALRM, expire)
     signal.setitimer(signal.ITIMER_REAL, seconds)
@@ -112,7 +114,7 @@ def call_keeps_the_rule(function: Callable[..., Any], arguments: Mapping[str, An
         if names_an_argument(str(error), names):
             return ""
         return f"{type(error).__name__} not naming an argument: {error}"[:400]
-    except Hang as error:
+    except HangError as error:
         return f"hang: {error}"
     except Exception as error:
         return f"{type(error).__name__}: {error}"[:400]
