@@ -9,7 +9,7 @@ import stat
 import tempfile
 from pathlib import Path
 
-from rsi.errors import FileError
+from rsi.errors import FileError, InputError
 
 
 def _read_umask() -> int:
@@ -103,3 +103,35 @@ def read_regular_file(
     if len(data) > max_bytes:  # it grew while being read
         raise error(f"path {str(file)!r} grew past {max_bytes} bytes while being read: {too_big}.")
     return data
+
+
+def writable_folder(out_dir: object, name: str) -> tuple[Path, Path | None]:
+    """`out_dir` as a folder that can be written, checked before any work is done.
+
+    Returns the folder and the outermost folder a writer will have to create (None if it exists).
+
+    Raises
+    ------
+    InputError
+        `out_dir` is not a path.
+    FileError
+        It is a file, lies under a file, or cannot be written by this user.
+    """
+    if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir):
+        raise InputError(f"{name} must be a folder path (str or pathlib.Path); got {out_dir!r:.60}.")
+    folder = Path(out_dir)
+    existing, missing = folder, None
+    while not existing.exists() and existing.parent != existing:
+        existing, missing = existing.parent, existing
+    if not existing.is_dir():
+        where = "is a file" if existing == folder else f"lies under {str(existing)!r}, which is a file"
+        raise FileError(
+            f"{name}={str(folder)!r} {where}, not a folder; nothing was written. "
+            "Choose an existing folder or a path where one can be created."
+        )
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise FileError(
+            f"{name}={str(folder)!r} cannot be written: {str(existing)!r} is not writable by this user; "
+            "nothing was written. Choose a folder you can write to."
+        )
+    return folder, missing

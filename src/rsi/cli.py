@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from enum import Enum
 from pathlib import Path
@@ -127,17 +128,51 @@ def _fail(code: int, message: str) -> NoReturn:
     raise typer.Exit(code)
 
 
+# Numerical chatter (overflow in a cast, a mean of an empty slice) is not for the user: the result or the
+# error says what matters. Other warnings (rsi's own advice) are printed, one line each, after success.
+_SILENT_WARNINGS = (
+    RuntimeWarning,
+    DeprecationWarning,
+    PendingDeprecationWarning,
+    FutureWarning,
+    ResourceWarning,
+)
+
+
 @contextlib.contextmanager
 def _errors() -> Iterator[None]:
-    """Map library errors to the documented exit codes (file errors first: they are InputErrors too)."""
-    try:
-        yield
-    except (FileError, OSError) as error:
-        _fail(EXIT_FILE, str(error) or type(error).__name__)
-    except InputError as error:
-        _fail(EXIT_INVALID_VALUE, str(error))
-    except Exception as error:
-        _fail(EXIT_INTERNAL, f"internal error ({type(error).__name__}): {error}")
+    """Map library errors to the documented exit codes (file errors first: they are InputErrors too).
+
+    stderr gets one clean line: warnings raised meanwhile are held back (and dropped on failure), so no
+    RuntimeWarning or library chatter lands before the ``rsi: error:`` line.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        except (FileError, OSError) as error:
+            _fail(EXIT_FILE, str(error) or type(error).__name__)
+        except InputError as error:
+            _fail(EXIT_INVALID_VALUE, str(error))
+        except MemoryError as error:
+            _fail(EXIT_INTERNAL, f"internal error: out of memory ({error}); please report the command line")
+        except Exception as error:
+            _fail(EXIT_INTERNAL, f"internal error ({type(error).__name__}): {error}")
+    shown = dict.fromkeys(
+        " ".join(str(warning.message).split())
+        for warning in caught
+        if not issubclass(warning.category, _SILENT_WARNINGS)
+    )
+    for message in shown:
+        typer.echo(f"rsi: warning: {message}", err=True)
+
+
+def _out_folder(out: Path) -> Path:
+    """--out checked before any work: a folder, or a path where one can be created (FileError, exit 4)."""
+    from rsi._files import writable_folder
+
+    folder, _ = writable_folder(out, "--out")
+    return folder
 
 
 def _stdout() -> Console:
@@ -202,12 +237,12 @@ def demo(
     ] = DEFAULT_OUT,
 ) -> None:
     """The whole inspection mission over the simulated truss mock-up, scored, archived and reported.
-
     Reference pass, anomalies, inspection pass with active second looks, pyrometer and gas surveys (seed
     §2-4); findings scored against the world's ground truth; everything stored in OUT/archive.db; the run's
     self-contained HTML report in OUT/report.html (a copy per run under OUT/runs/).
     """
     with _errors():
+        _out_folder(out)
         import time
 
         from rsi.archive import Archive
@@ -230,9 +265,7 @@ def demo(
 
 
 def _results_folder(out: Path) -> None:
-    if out.exists() and not out.is_dir():
-        raise FileError(f"--out {out} is a file; pass a folder (it is created if missing).")
-    out.mkdir(parents=True, exist_ok=True)
+    _out_folder(out).mkdir(parents=True, exist_ok=True)
 
 
 class _FinalStage:
@@ -324,6 +357,7 @@ def demo_pair(
 ) -> None:
     """One synthetic reference/inspection pair with seeded ~1 mm flaws: found, pictured and scored."""
     with _errors():
+        _out_folder(out)
         from rsi.mission.pair import simulate_demo
         from rsi.report.writers import write_demo_report
 
@@ -374,6 +408,7 @@ def inspect_command(
 ) -> None:
     """Register REFERENCE to INSPECTION, detect flaws, write flaws.json/.csv and PNG pictures to --out."""
     with _errors():
+        _out_folder(out)
         from rsi.imaging.io import read_image
         from rsi.mission.pair import inspect_pair
         from rsi.report.writers import write_pair_report
@@ -465,6 +500,7 @@ def roc(
 ) -> None:
     """Theoretical ROC curves (seed §2.4: P_D against P_F) as roc.png and roc.csv."""
     with _errors():
+        _out_folder(out)
         import numpy as np
 
         from rsi.detection.roc import theoretical_roc
@@ -542,14 +578,15 @@ def sim_render(
     seed: Annotated[int, typer.Option(min=0, help="Seed of the world: anomalies, pose errors, noise.")] = 0,
     vista: Annotated[str, typer.Option(help="Vista point: index or name (see the table printed).")] = "0",
     out: Annotated[Path, typer.Option("--out", help="Folder for frames, depth and truth.")] = Path("rsi-sim"),
-    rows: Annotated[int, typer.Option(min=16, max=4096, help="Frame rows.")] = 480,
-    cols: Annotated[int, typer.Option(min=16, max=4096, help="Frame columns.")] = 640,
+    rows: Annotated[int, typer.Option(min=16, max=2048, help="Frame rows (the renderer's buffer).")] = 480,
+    cols: Annotated[int, typer.Option(min=16, max=2048, help="Frame columns.")] = 640,
     repeatability: Annotated[
         Repeatability, typer.Option(help="Viewpoint repeatability of each visit (seed §2.3).")
     ] = Repeatability.lab,
 ) -> None:
     """Visit a vista twice (reference, then inspection with anomalies) and write what the camera saw."""
     with _errors():
+        _out_folder(out)
         from rich.table import Table
 
         import rsi.sim
@@ -596,6 +633,7 @@ def sim_sun(
 ) -> None:
     """Sun direction along a low Earth orbit and the lamp trajectory that reproduces it (seed §4.1)."""
     with _errors():
+        _out_folder(out)
         import math
 
         import numpy as np
@@ -650,6 +688,7 @@ def isee_proximity_demo(
 ) -> None:
     """Close the 44 Hz proximity loop on the arm (seed §3.1) and draw Figs 3, 6, 7 and time plots."""
     with _errors():
+        _out_folder(out)
         from rsi.report.isee import write_proximity_report
         from rsi.sim.isee_demo import acceptance, simulate_proximity_demo
 
@@ -757,6 +796,7 @@ def archive_export(
 ) -> None:
     """Export one run (JSON with its findings and history links, plus the referenced images; read-only)."""
     with _errors():
+        _out_folder(out)
         from rsi.archive import Archive
 
         with Archive.open(archive, read_only=True, images_dir=images_dir) as store:
@@ -804,6 +844,7 @@ def batch(
     named like the options below override them for their row.
     """
     with _errors():
+        _out_folder(out)
         from rsi.archive import Archive
         from rsi.mission.batch import PairSettings, read_manifest, run_batch
 

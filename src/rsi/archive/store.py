@@ -27,7 +27,7 @@ from sqlalchemy import Connection, Engine, ExceptionContext, Row, event, exc, fu
 from sqlalchemy.pool import StaticPool
 
 from rsi import __version__
-from rsi._files import atomic_write_bytes
+from rsi._files import atomic_write_bytes, writable_folder
 from rsi._validate import in_range
 from rsi.archive import _images, _integrity, schema
 from rsi.archive.records import (
@@ -932,9 +932,7 @@ class Archive:
         Path
             The JSON file.
         """
-        folder = Path(out_dir)
-        if folder.exists() and not folder.is_dir():
-            raise InputError(f"out_dir={str(out_dir)!r} is a file; pass a folder (it is created if missing).")
+        folder, _ = writable_folder(out_dir, "out_dir")
         with self._transaction(write=False) as connection:
             self._run_row(connection, run_id)
             run = self._runs(connection, run_id=int(run_id))[0]
