@@ -40,7 +40,10 @@ _SCALARS = st.one_of(
 )
 _ELEMENTS = {
     64: st.one_of(st.floats(width=64), st.sampled_from([0.0, 1.0, 255.0, 1e18, -1e18, 1e300, 3.5e38])),
-    32: st.one_of(st.floats(width=32), st.sampled_from([0.0, 1.0, 255.0, 1e18, -1e18, 3.0e38])),
+    32: st.one_of(
+        st.floats(width=32),
+        st.sampled_from([0.0, 1.0, 255.0, float(np.float32(1e18)), float(np.float32(3e38))]),
+    ),
 }
 _SHAPES = st.sampled_from(
     [(0,), (1,), (3,), (6,), (2, 2), (3, 3), (4, 5), (8, 8), (3, 3, 3), (0, 4), (16, 16)]

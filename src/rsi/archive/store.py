@@ -28,7 +28,7 @@ from sqlalchemy.pool import StaticPool
 
 from rsi import __version__
 from rsi._files import atomic_write_bytes, writable_folder
-from rsi._validate import in_range
+from rsi._validate import choice, in_range
 from rsi.archive import _images, _integrity, schema
 from rsi.archive.records import (
     END_STATUSES,
@@ -617,9 +617,7 @@ class Archive:
         self, run_id: int, status: str = "finished", *, finished_at: datetime | None = None
     ) -> Run:
         """End a running run with `status` ("finished", "failed" or "aborted")."""
-        if status not in END_STATUSES:
-            choices = ", ".join(map(repr, END_STATUSES))
-            raise InputError(f"status={status!r} is not known. Choose one of {choices}.")
+        choice(status, "status", END_STATUSES)
         moment = _now() if finished_at is None else _moment(finished_at, "finished_at")
         with self._transaction(write=True) as connection:
             self._running_row(connection, run_id)
@@ -650,9 +648,8 @@ class Archive:
 
     def runs(self, *, status: str | None = None) -> tuple[Run, ...]:
         """Every run (or those with `status`), oldest first, with their finding counts."""
-        if status is not None and status not in RUN_STATUSES:
-            choices = ", ".join(map(repr, RUN_STATUSES))
-            raise InputError(f"status={status!r} is not known. Choose one of {choices}.")
+        if status is not None:
+            choice(status, "status", RUN_STATUSES)
         with self._transaction(write=False) as connection:
             return self._runs(connection, status=status)
 
@@ -698,6 +695,8 @@ class Archive:
         Among the finished runs that started before this one, the latest with such a sighting is used, and
         within it the nearest sighting.
         """
+        if isinstance(findings, (str, bytes, Finding)) or not isinstance(findings, Iterable):
+            raise InputError(f"findings must be an iterable of Finding; got {type(findings).__name__}.")
         batch = tuple(findings)
         for index, finding in enumerate(batch):
             if not isinstance(finding, Finding):

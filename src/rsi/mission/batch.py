@@ -168,6 +168,16 @@ class BatchItem:
             raise InputError(
                 f"pair_id must be a non-empty string of at most {_MAX_ID} characters; got {self.pair_id!r}."
             )
+        if not isinstance(self.settings, Mapping) or any(not isinstance(key, str) for key in self.settings):
+            raise InputError(
+                f"settings of pair {self.pair_id!r} must be a dict of setting name to value; got "
+                f"{type(self.settings).__name__}."
+            )
+        for name in ("reference", "inspection"):
+            if not isinstance(getattr(self, name), (str, os.PathLike)):
+                raise InputError(
+                    f"{name} of pair {self.pair_id!r} must be a path; got {getattr(self, name)!r:.60}."
+                )
         unknown = sorted(set(self.settings) - set(SETTING_COLUMNS))
         if unknown:
             raise InputError(
