@@ -246,7 +246,13 @@ class Archive:
     @staticmethod
     def _engine_for(url: sa.URL, busy_timeout_s: float) -> Engine:
         if url.get_backend_name() != "sqlite":
-            return sa.create_engine(url)
+            try:
+                return sa.create_engine(url)
+            except (ImportError, exc.NoSuchModuleError, exc.ArgumentError) as error:
+                raise InputError(
+                    f"the database {url.render_as_string(hide_password=True)} cannot be opened: its driver "
+                    f"is missing or unknown ({error}). Install it (e.g. pip install 'psycopg[binary]')."
+                ) from None
         in_memory = url.database in (None, "", ":memory:")
         engine = sa.create_engine(
             url,

@@ -802,8 +802,9 @@ def _probe_handshake(scheduler: str, timeout_s: float) -> None:
 
     A dask scheduler writes its handshake as soon as a connection is accepted: an 8-byte little-endian
     length, then a few dozen bytes. A server that says nothing would make the client wait forever, and one
-    that says something else gives the client an absurd length to allocate (a MemoryError). Addresses that
-    cannot be reached, and other schemes (tls://, inproc://), are left to the client, which names the reason.
+    that says something else gives the client an absurd length to allocate (a MemoryError). A scheduler
+    refusing the connection is not there; other failures (an unknown host) and other schemes (tls://) are
+    left to the client, which names the reason.
     """
     scheme, _, rest = scheduler.strip().rpartition("://")
     host, _, port = rest.rpartition(":")
@@ -813,6 +814,11 @@ def _probe_handshake(scheduler: str, timeout_s: float) -> None:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s) as connection:
             connection.settimeout(timeout_s)
             prelude = connection.recv(8, socket.MSG_WAITALL)
+    except ConnectionRefusedError:
+        raise InputError(
+            f"scheduler={scheduler!r} cannot be reached (connection refused: nothing listens there). Give "
+            "the address a running `dask scheduler` prints (tcp://host:8786), or omit it for local workers."
+        ) from None
     except TimeoutError:
         raise InputError(
             f"scheduler={scheduler!r} accepted the connection but sent no dask handshake within "
