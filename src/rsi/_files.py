@@ -100,8 +100,8 @@ def read_regular_file(
         raise error(f"path {str(file)!r} cannot be read: {failure.strerror or failure}.") from failure
     finally:
         os.close(descriptor)
-    if len(data) > max_bytes:  # it grew while being read
-        raise error(f"path {str(file)!r} grew past {max_bytes} bytes while being read: {too_big}.")
+    if len(data) > max_bytes:  # it grew after the size check
+        raise error(f"path {str(file)!r} is over {max_bytes} bytes: {too_big}.")
     return data
 
 

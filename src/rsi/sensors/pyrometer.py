@@ -257,6 +257,13 @@ def read_pyrometer(
     emissivity = v.as_float_array(surface_emissivity, "surface_emissivity")
     if not np.isfinite(emissivity).all() or (emissivity <= 0).any() or (emissivity > 1).any():
         raise InputError(f"surface_emissivity must lie in (0, 1]; got {surface_emissivity!r}.")
+    try:
+        np.broadcast_shapes(emissivity.shape, temperature.shape)
+    except ValueError:
+        raise InputError(
+            f"surface_emissivity (shape {emissivity.shape}) must broadcast to surface_temperature_k (shape "
+            f"{temperature.shape}); pass one emissivity, or one per temperature."
+        ) from None
     background = v.in_range(
         background_temperature_k, "background_temperature_k", low=0.0, low_inclusive=False
     )
