@@ -43,6 +43,8 @@ MODULES = (
     "rsi.mission.batch",
     "rsi.archive.records",
     "rsi.archive.store",
+    "rsi.sim.orbit",
+    "rsi.sim.fields",
 )
 # Covered elsewhere, not here: each runs a whole simulation or cluster for seconds per call.
 SLOW = {"rsi.mission.pair.simulate_demo", "rsi.mission.batch.run_batch"}
