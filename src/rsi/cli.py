@@ -38,7 +38,7 @@ EXIT_CODES: Mapping[int, str] = {
     EXIT_OK: "success",
     EXIT_USAGE: "usage error: unknown command or option, bad choice, missing argument (typer)",
     EXIT_INVALID_VALUE: "invalid value (InputError): e.g. p-false-alarm outside (0, 0.5), even flaw size",
-    EXIT_FILE: "missing, unreadable or corrupt file or folder (FileError, OS error)",
+    EXIT_FILE: "missing, unreadable or corrupt file or folder, or --out a file (FileError, OS error)",
     EXIT_INTERNAL: "internal error: a bug; please report it with the command line",
 }
 _EPILOG = (
