@@ -31,8 +31,13 @@ def _identifier(value: object) -> bool:
     return _integer(value, low=1)
 
 
+def _kind(check: Callable[[object], bool], kind: str) -> Callable[[object], bool]:
+    check.sql_kind = kind  # type: ignore[attr-defined]
+    return check
+
+
 def _optional(check: Callable[[object], bool]) -> Callable[[object], bool]:
-    return lambda value: value is None or check(value)
+    return _kind(lambda value: value is None or check(value), f"optional:{check.sql_kind}")  # type: ignore[attr-defined]
 
 
 def _number(value: object) -> bool:
@@ -40,7 +45,7 @@ def _number(value: object) -> bool:
 
 
 def _text(limit: int) -> Callable[[object], bool]:
-    return lambda value: isinstance(value, str) and len(value) <= limit
+    return _kind(lambda value: isinstance(value, str) and len(value) <= limit, f"text{limit}")
 
 
 def _name(value: object) -> bool:
@@ -76,6 +81,18 @@ def _confidence(value: object) -> bool:
     return _number(value) and 0.0 <= float(value) <= 1.0  # type: ignore[arg-type]
 
 
+for _check, _name_of_kind in (
+    (_identifier, "id"),
+    (_integer, "integer"),
+    (_number, "number"),
+    (_name, "name"),
+    (_moment, "moment"),
+    (_json_object, "json"),
+    (_sha256, "sha256"),
+    (_confidence, "confidence"),
+):
+    _kind(_check, _name_of_kind)
+
 _POSITION = {f"{prefix}_{axis}": _optional(_number) for prefix in ("position_m",) for axis in "xyz"}
 _POSE = {
     f"{prefix}_{axis}": _optional(_number)
@@ -88,7 +105,7 @@ _BBOX = {name: _optional(_integer) for name in ("row0", "col0", "row1", "col1")}
 COLUMN_CHECKS: Mapping[str, Mapping[str, Callable[[object], bool]]] = {
     "rsi_archive": {
         "id": _identifier,
-        "schema_version": lambda value: _integer(value, low=1),
+        "schema_version": _identifier,
         "created_at": _moment,
         "created_by": _text(64),
     },
@@ -104,7 +121,7 @@ COLUMN_CHECKS: Mapping[str, Mapping[str, Callable[[object], bool]]] = {
     "runs": {
         "id": _identifier,
         "label": _text(200),
-        "status": lambda value: value in RUN_STATUSES,
+        "status": _kind(lambda value: value in RUN_STATUSES, "status"),
         "seed": _optional(_integer),
         "settings_json": _json_object,
         "started_at": _moment,
@@ -130,6 +147,34 @@ COLUMN_CHECKS: Mapping[str, Mapping[str, Callable[[object], bool]]] = {
         "track_id": _optional(_identifier),
     },
 }
+
+
+# The same checks in SQLite's SQL, to find the bad rows without converting every row in Python (10,000
+# findings: 0.7 s in Python, a few ms here). Python then names the column of the few rows found.
+_NUMBER_SQL = "(typeof({c}) IN ('integer', 'real') AND abs({c}) <= 1.7976931348623157e308)"
+_SQL = {
+    "id": "(typeof({c}) = 'integer' AND {c} >= 1)",
+    "integer": "(typeof({c}) = 'integer' AND {c} >= 0)",
+    "number": _NUMBER_SQL,
+    "confidence": f"({_NUMBER_SQL} AND {{c}} BETWEEN 0 AND 1)",
+    "moment": "(typeof({c}) = 'text' AND julianday({c}) IS NOT NULL)",
+    "json": "(typeof({c}) = 'text' AND json_valid({c}) AND json_type({c}) = 'object')",
+    "sha256": "(typeof({c}) = 'text' AND length({c}) = 64 AND {c} NOT GLOB '*[^0-9a-f]*')",
+    "name": "(typeof({c}) = 'text' AND length(trim({c})) > 0 AND length({c}) <= 200)",
+    "status": "({c} IN (" + ", ".join(f"'{status}'" for status in RUN_STATUSES) + "))",
+}
+
+
+def _sql_of(check: Callable[[object], bool], column: str) -> str | None:
+    kind = getattr(check, "sql_kind", None)
+    if kind is None:
+        return None
+    optional, _, base = kind.partition(":") if kind.startswith("optional:") else ("", "", kind)
+    if base.startswith("text"):
+        clause = f"(typeof({column}) = 'text' AND length({column}) <= {int(base[4:])})"
+    else:
+        clause = _SQL[base].format(c=column)
+    return f"({column} IS NULL OR {clause})" if optional else clause
 
 
 def missing_schema(connection: Connection) -> list[str]:
@@ -165,8 +210,12 @@ def _table_problems(
     key = columns[0]
     quoted = ", ".join(_quote(connection, name) for name in columns)
     # Raw values, no type processing: a value SQLAlchemy would fail to convert is seen as it is stored.
-    result = connection.exec_driver_sql(f"SELECT {quoted} FROM {_quote(connection, table)}")
-    for raw in result:
+    query = f"SELECT {quoted} FROM {_quote(connection, table)}"
+    filtered = connection.dialect.name == "sqlite"
+    if filtered:
+        clauses = [_sql_of(check, _quote(connection, name)) for name, check in checks.items()]
+        query += f" WHERE NOT ({' AND '.join(clause for clause in clauses if clause)})"
+    for raw in connection.exec_driver_sql(query):
         row = dict(zip(columns, raw, strict=True))
         for name, check in checks.items():
             value: Any = row[name]
@@ -175,6 +224,9 @@ def _table_problems(
                 shown = shown if len(shown) <= 60 else shown[:57] + "..."
                 yield f"table {table} row {key}={row[key]!r}: {name}={shown} is not valid"
                 break
+        else:
+            if filtered:  # SQLite's test and Python's differ in some corner: still a row to look at
+                yield f"table {table} row {key}={row[key]!r}: a value is not valid"
 
 
 def _version_problems(connection: Connection) -> list[str]:
