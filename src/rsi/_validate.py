@@ -193,6 +193,10 @@ def as_float_array(value: object, name: str) -> NDArray[np.float64]:
     refused = isinstance(value, (str, bytes, os.PathLike, Mapping)) or (
         isinstance(value, np.ndarray) and value.dtype.kind not in "biuf"
     )
+    if isinstance(value, np.ndarray) and not refused:  # the hot path (control loops): nothing can warn
+        return np.asarray(value, dtype=np.float64)
+    if isinstance(value, (float, np.floating)) or (isinstance(value, int) and abs(value) < 2**1000):
+        return np.asarray(value, dtype=np.float64)
     if not refused:
         try:
             with warnings.catch_warnings():

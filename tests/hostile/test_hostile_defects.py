@@ -296,7 +296,7 @@ def test_inspect_of_a_black_frame_fails_with_the_reason(tmp_path: Path) -> None:
 def test_score_flaws_names_its_bad_arguments() -> None:
     with pytest.raises(InputError, match="flaws must be a tuple of Flaw"):
         score_flaws(None, np.zeros((1, 2)))  # type: ignore[arg-type]
-    with pytest.raises(InputError, match=r"flaws\[0\] must be a Flaw"):
+    with pytest.raises(InputError, match=r"flaws\[0\] must have a bbox of four integers"):
         score_flaws(("flaw",), np.zeros((1, 2)))  # type: ignore[arg-type]
     with pytest.raises(InputError, match="centres_rc must be"):
         score_flaws((), np.array([0.5, 1.0]))

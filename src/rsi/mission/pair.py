@@ -227,12 +227,19 @@ def score_flaws(
     -------
     Score
     """
-    from rsi.detection.detect import Flaw
-
     if isinstance(flaws, (str, bytes)) or not isinstance(flaws, (tuple, list)):
         raise InputError(f"flaws must be a tuple of Flaw (Detection.flaws); got {type(flaws).__name__}.")
     for index, flaw in enumerate(flaws):
-        v.instance_of(flaw, f"flaws[{index}]", Flaw)
+        bbox = getattr(flaw, "bbox", None)
+        if (
+            not isinstance(bbox, (tuple, list))
+            or len(bbox) != 4
+            or not all(isinstance(side, (int, np.integer)) and not isinstance(side, bool) for side in bbox)
+        ):
+            raise InputError(
+                f"flaws[{index}] must have a bbox of four integers (row0, col0, row1, col1), as a Flaw has; "
+                f"got {type(flaw).__name__}."
+            )
     tolerance_px = v.positive_int(tolerance_px, "tolerance_px", minimum=0, maximum=2**31)
     centres = _centres(centres_rc)
     if valid is not None:
