@@ -453,7 +453,7 @@ def test_read_only_opening_writes_nothing_and_refuses_writes(archive_file: Path)
     connection.close()
     before = archive_file.read_bytes()
     with Archive.open(archive_file, read_only=True) as archive:
-        assert [run.run_id for run in archive.runs()] == [1]
+        assert archive.read_only and [run.run_id for run in archive.runs()] == [1]
         with pytest.raises(ArchiveError, match="opened read-only"):
             archive.start_run()
     assert archive_file.read_bytes() == before  # not even the journal mode (WAL) was switched

@@ -432,6 +432,11 @@ class Archive:
         return self._location
 
     @property
+    def read_only(self) -> bool:
+        """Whether the archive was opened read-only (every write raises :class:`ArchiveError`)."""
+        return self._read_only
+
+    @property
     def images_dir(self) -> Path:
         """Folder of the content-addressed image files."""
         return self._images_dir
