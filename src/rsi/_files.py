@@ -1,11 +1,15 @@
-"""Atomic file writes shared by every package: nothing already stored is ever half-overwritten."""
+"""Files shared by every package: atomic writes (nothing stored is ever half-overwritten) and bounded reads
+(only a regular file, only up to a size: a FIFO, a device or a huge file never hangs or floods a process)."""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import tempfile
 from pathlib import Path
+
+from rsi.errors import FileError, InputError
 
 
 def _read_umask() -> int:
@@ -56,3 +60,78 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
             os.unlink(temporary)
         raise
     return target
+
+
+def read_regular_file(
+    path: str | os.PathLike[str],
+    *,
+    max_bytes: int,
+    error: type[FileError] = FileError,
+    too_big: str = "raise the limit if the file is genuine",
+) -> bytes:
+    """The bytes of a regular file of at most `max_bytes`; anything else raises `error` naming the path.
+
+    The file is opened without blocking (a FIFO with no writer would otherwise wait forever) and checked on
+    the open descriptor: a folder, FIFO, socket or device, or a link to one, is refused before a byte is
+    read, as is a file larger than `max_bytes` (`too_big` says what to do about it).
+
+    Raises
+    ------
+    FileError (or `error`)
+        Missing, unreadable, not a regular file, or too large.
+    """
+    file = Path(path)
+    try:
+        descriptor = os.open(file, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as failure:
+        raise error(f"path {str(file)!r} cannot be read: {failure.strerror or failure}.") from failure
+    try:
+        status = os.fstat(descriptor)
+        if not stat.S_ISREG(status.st_mode):
+            raise error(
+                f"path {str(file)!r} is not a regular file (a folder, FIFO, socket or device, or a link to "
+                "one); pass a file."
+            )
+        if status.st_size > max_bytes:
+            raise error(f"path {str(file)!r} is {status.st_size} bytes, over {max_bytes}: {too_big}.")
+        with os.fdopen(os.dup(descriptor), "rb") as stream:
+            data = stream.read(max_bytes + 1)
+    except OSError as failure:
+        raise error(f"path {str(file)!r} cannot be read: {failure.strerror or failure}.") from failure
+    finally:
+        os.close(descriptor)
+    if len(data) > max_bytes:  # it grew after the size check
+        raise error(f"path {str(file)!r} is over {max_bytes} bytes: {too_big}.")
+    return data
+
+
+def writable_folder(out_dir: object, name: str) -> tuple[Path, Path | None]:
+    """`out_dir` as a folder that can be written, checked before any work is done.
+
+    Returns the folder and the outermost folder a writer will have to create (None if it exists).
+
+    Raises
+    ------
+    InputError
+        `out_dir` is not a path.
+    FileError
+        It is a file, lies under a file, or cannot be written by this user.
+    """
+    if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir):
+        raise InputError(f"{name} must be a folder path (str or pathlib.Path); got {out_dir!r:.60}.")
+    folder = Path(out_dir)
+    existing, missing = folder, None
+    while not existing.exists() and existing.parent != existing:
+        existing, missing = existing.parent, existing
+    if not existing.is_dir():
+        where = "is a file" if existing == folder else f"lies under {str(existing)!r}, which is a file"
+        raise FileError(
+            f"{name}={str(folder)!r} {where}, not a folder; nothing was written. "
+            "Choose an existing folder or a path where one can be created."
+        )
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise FileError(
+            f"{name}={str(folder)!r} cannot be written: {str(existing)!r} is not writable by this user; "
+            "nothing was written. Choose a folder you can write to."
+        )
+    return folder, missing

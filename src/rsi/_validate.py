@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+import os
+import warnings
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -12,6 +14,7 @@ from numpy.typing import NDArray
 from rsi.errors import InputError
 
 FloatArray = NDArray[np.floating[Any]]
+T = TypeVar("T")
 
 _MIN_SIDE_PX = 2
 
@@ -56,6 +59,23 @@ def as_image(image: object, name: str, *, allow_nan: bool = False) -> FloatArray
     return result
 
 
+MAX_INTENSITY = 1e15
+"""Largest pixel magnitude registration and detection take: they work in float32 (max 3.4e38) and square
+intensities and their sums over the image, so 1e15 keeps every sum finite (any camera reads below 2**32)."""
+
+
+def as_intensity_image(image: object, name: str) -> FloatArray:
+    """:func:`as_image`, and every pixel's magnitude at most :data:`MAX_INTENSITY`."""
+    result = as_image(image, name)
+    peak = max(abs(float(result.min())), abs(float(result.max())))
+    if peak > MAX_INTENSITY:
+        raise InputError(
+            f"{name} holds a pixel of magnitude {peak:.3g}, over {MAX_INTENSITY:g}: registration and "
+            "detection work in float32 and square intensities: divide both images by one constant."
+        )
+    return result
+
+
 def as_mask(mask: object, name: str, shape: tuple[int, ...]) -> NDArray[np.bool_]:
     """Return `mask` as a bool array of `shape` (True = use this pixel)."""
     if not isinstance(mask, np.ndarray):
@@ -80,13 +100,25 @@ def same_shape(first: np.ndarray, second: np.ndarray, names: tuple[str, str]) ->
 
 
 def finite_number(value: object, name: str) -> float:
-    """Return `value` as a finite float or raise."""
+    """Return `value` as a finite float or raise (a Python int beyond the float range included)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InputError(f"{name} must be a number; got {value!r}.")
-    number = float(value)
+        raise InputError(f"{name} must be a number; got {_shown(value)}.")
+    try:
+        number = float(value)
+    except OverflowError:  # an int beyond 1.8e308 has no float
+        number = math.inf
     if not math.isfinite(number):
-        raise InputError(f"{name} must be finite; got {value!r}.")
+        raise InputError(f"{name} must be finite (a float within +-1.8e308); got {_shown(value)}.")
     return number
+
+
+def _shown(value: object) -> str:
+    """`value` for a message, cut to 80 characters (a 10**400 or a 1 MB string must not flood the line)."""
+    # repr of an int over 4300 digits raises (Python's int-to-str limit): give its size instead.
+    if isinstance(value, int) and abs(value) >= 10**30:
+        return f"an integer of {value.bit_length()} bits"
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def in_range(
@@ -106,16 +138,17 @@ def in_range(
         left = "[" if low_inclusive else "("
         right = "]" if high_inclusive else ")"
         interval = f"{left}{'-inf' if low is None else low}, {'inf' if high is None else high}{right}"
-        raise InputError(f"{name} must be in {interval}; got {value!r}.")
+        raise InputError(f"{name} must be in {interval}; got {_shown(value)}.")
     return number
 
 
-def positive_int(value: object, name: str, *, minimum: int = 1) -> int:
-    """Return `value` as an int >= `minimum` or raise."""
+def positive_int(value: object, name: str, *, minimum: int = 1, maximum: int | None = None) -> int:
+    """Return `value` as an int in [`minimum`, `maximum`] or raise naming the range."""
+    bounds = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name} must be an integer >= {minimum}; got {value!r}.")
-    if value < minimum:
-        raise InputError(f"{name} must be an integer >= {minimum}; got {value!r}.")
+        raise InputError(f"{name} must be an integer {bounds}; got {_shown(value)}.")
+    if value < minimum or (maximum is not None and value > maximum):
+        raise InputError(f"{name} must be an integer {bounds}; got {_shown(value)}.")
     return int(value)
 
 
@@ -124,17 +157,19 @@ def choice(value: object, name: str, options: Iterable[str]) -> str:
     allowed = tuple(options)
     if not isinstance(value, str) or value not in allowed:
         listed = ", ".join(repr(option) for option in allowed)
-        raise InputError(f"{name}={value!r} is not known. Choose one of {listed}.")
+        raise InputError(f"{name}={_shown(value)} is not known. Choose one of {listed}.")
     return value
 
 
-def as_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
-    """Return a Generator from a Generator, a seed or None (fresh entropy)."""
-    if rng is None or (isinstance(rng, (int, np.integer)) and not isinstance(rng, bool)):
+def as_rng(rng: np.random.Generator | int | None, name: str = "rng") -> np.random.Generator:
+    """Return a Generator from a Generator, a seed (an integer >= 0) or None (fresh entropy)."""
+    if rng is None or isinstance(rng, np.random.Generator):
         return np.random.default_rng(rng)
-    if isinstance(rng, np.random.Generator):
-        return rng
-    raise InputError(f"rng must be a numpy Generator, an int seed or None; got {rng!r}.")
+    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+        if rng < 0:
+            raise InputError(f"{name} seed must be an integer >= 0; got {_shown(rng)}.")
+        return np.random.default_rng(int(rng))
+    raise InputError(f"{name} must be a numpy Generator, an int seed >= 0 or None; got {_shown(rng)}.")
 
 
 def positive(value: object, name: str) -> float:
@@ -146,3 +181,54 @@ def store_checked(instance: object, checked: Mapping[str, object]) -> None:
     """Write checked (converted) field values onto a frozen dataclass from its ``__post_init__``."""
     for name, value in checked.items():
         object.__setattr__(instance, name, value)
+
+
+def as_float_array(value: object, name: str) -> NDArray[np.float64]:
+    """Return `value` (a number or an array of numbers, any shape) as a float64 array, or raise naming it.
+
+    Text, bytes, paths, mappings, complex and object arrays, ragged lists and ints beyond the float range
+    are refused here, so no numpy conversion error ever reaches the caller. NaN and inf are kept: the
+    caller knows whether its quantity may be infinite.
+    """
+    refused = isinstance(value, (str, bytes, os.PathLike, Mapping)) or (
+        isinstance(value, np.ndarray) and value.dtype.kind not in "biuf"
+    )
+    if isinstance(value, np.ndarray) and not refused:  # the hot path (control loops): nothing can warn
+        return np.asarray(value, dtype=np.float64)
+    if isinstance(value, (float, np.floating)) or (isinstance(value, int) and abs(value) < 2**1000):
+        return np.asarray(value, dtype=np.float64)
+    if not refused:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter(
+                    "error"
+                )  # a complex value is refused, not silently cut to its real part
+                return np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError, Warning):
+            pass
+    raise InputError(f"{name} must be a number or an array of numbers (float64); got {_shown(value)}.")
+
+
+def instance_of(value: object, name: str, kind: type[T]) -> T:
+    """Return `value` if it is a `kind`, else raise naming the argument and how to build one."""
+    if not isinstance(value, kind):
+        raise InputError(
+            f"{name} must be a {kind.__name__} (or None for the defaults); got {type(value).__name__}. "
+            f"Build one with {kind.__name__}(...)."
+        )
+    return value
+
+
+def increasing_pair(value: object, name: str, *, low: float = 0.0, unit: str = "") -> tuple[float, float]:
+    """Return `value` as (first, second), finite floats with `low` < first < second, or raise naming it."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (tuple, list, np.ndarray)) or len(value) != 2:
+        raise InputError(
+            f"{name} must be a pair (low, high){' in ' + unit if unit else ''}; got {_shown(value)}."
+        )
+    first, second = (finite_number(item, f"{name}[{index}]") for index, item in enumerate(value))
+    if not low < first < second:
+        raise InputError(
+            f"{name} must be (low, high) with {low:g} < low < high{' ' + unit if unit else ''}; got "
+            f"{_shown(value)}."
+        )
+    return first, second

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from enum import Enum
 from pathlib import Path
@@ -38,7 +39,7 @@ EXIT_CODES: Mapping[int, str] = {
     EXIT_OK: "success",
     EXIT_USAGE: "usage error: unknown command or option, bad choice, missing argument (typer)",
     EXIT_INVALID_VALUE: "invalid value (InputError): e.g. p-false-alarm outside (0, 0.5), even flaw size",
-    EXIT_FILE: "missing, unreadable or corrupt file or folder (FileError, OS error)",
+    EXIT_FILE: "missing, unreadable or corrupt file or folder, or --out a file (FileError, OS error)",
     EXIT_INTERNAL: "internal error: a bug; please report it with the command line",
 }
 _EPILOG = (
@@ -128,17 +129,51 @@ def _fail(code: int, message: str) -> NoReturn:
     raise typer.Exit(code)
 
 
+# Numerical chatter (overflow in a cast, a mean of an empty slice) is not for the user: the result or the
+# error says what matters. Other warnings (rsi's own advice) are printed, one line each, after success.
+_SILENT_WARNINGS = (
+    RuntimeWarning,
+    DeprecationWarning,
+    PendingDeprecationWarning,
+    FutureWarning,
+    ResourceWarning,
+)
+
+
 @contextlib.contextmanager
 def _errors() -> Iterator[None]:
-    """Map library errors to the documented exit codes (file errors first: they are InputErrors too)."""
-    try:
-        yield
-    except (FileError, OSError) as error:
-        _fail(EXIT_FILE, str(error) or type(error).__name__)
-    except InputError as error:
-        _fail(EXIT_INVALID_VALUE, str(error))
-    except Exception as error:
-        _fail(EXIT_INTERNAL, f"internal error ({type(error).__name__}): {error}")
+    """Map library errors to the documented exit codes (file errors first: they are InputErrors too).
+
+    stderr gets one clean line: warnings raised meanwhile are held back (and dropped on failure), so no
+    RuntimeWarning or library chatter lands before the ``rsi: error:`` line.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        except (FileError, OSError) as error:
+            _fail(EXIT_FILE, str(error) or type(error).__name__)
+        except InputError as error:
+            _fail(EXIT_INVALID_VALUE, str(error))
+        except MemoryError as error:
+            _fail(EXIT_INTERNAL, f"internal error: out of memory ({error}); please report the command line")
+        except Exception as error:
+            _fail(EXIT_INTERNAL, f"internal error ({type(error).__name__}): {error}")
+    shown = dict.fromkeys(
+        " ".join(str(warning.message).split())
+        for warning in caught
+        if not issubclass(warning.category, _SILENT_WARNINGS)
+    )
+    for message in shown:
+        typer.echo(f"rsi: warning: {message}", err=True)
+
+
+def _out_folder(out: Path) -> Path:
+    """--out checked before any work: a folder, or a path where one can be created (FileError, exit 4)."""
+    from rsi._files import writable_folder
+
+    folder, _ = writable_folder(out, "--out")
+    return folder
 
 
 def _stdout() -> Console:
@@ -154,7 +189,9 @@ def _progress_bar(description: str) -> Iterator[Callable[[str, int, int], None]]
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
+    console = Console(stderr=True)
+    # Only on a terminal: piped or captured stderr keeps its one clean line (a bar would leave a newline).
+    with Progress(*columns, console=console, transient=True, disable=not console.is_terminal) as progress:
         task = progress.add_task(description, total=None)
 
         def update(stage: str, completed: int, total: int) -> None:
@@ -203,12 +240,12 @@ def demo(
     ] = DEFAULT_OUT,
 ) -> None:
     """The whole inspection mission over the simulated truss mock-up, scored, archived and reported.
-
     Reference pass, anomalies, inspection pass with active second looks, pyrometer and gas surveys (seed
     §2-4); findings scored against the world's ground truth; everything stored in OUT/archive.db; the run's
     self-contained HTML report in OUT/report.html (a copy per run under OUT/runs/).
     """
     with _errors():
+        _out_folder(out)
         import time
 
         from rsi.archive import Archive
@@ -231,9 +268,7 @@ def demo(
 
 
 def _results_folder(out: Path) -> None:
-    if out.exists() and not out.is_dir():
-        raise FileError(f"--out {out} is a file; pass a folder (it is created if missing).")
-    out.mkdir(parents=True, exist_ok=True)
+    _out_folder(out).mkdir(parents=True, exist_ok=True)
 
 
 class _FinalStage:
@@ -325,6 +360,7 @@ def demo_pair(
 ) -> None:
     """One synthetic reference/inspection pair with seeded ~1 mm flaws: found, pictured and scored."""
     with _errors():
+        _out_folder(out)
         from rsi.datasets.demo import simulate_demo
         from rsi.report.writers import write_demo_report
 
@@ -375,6 +411,7 @@ def inspect_command(
 ) -> None:
     """Register REFERENCE to INSPECTION, detect flaws, write flaws.json/.csv and PNG pictures to --out."""
     with _errors():
+        _out_folder(out)
         from rsi.detection.pair import inspect_pair
         from rsi.imaging.io import read_image
         from rsi.report.writers import write_pair_report
@@ -466,6 +503,7 @@ def roc(
 ) -> None:
     """Theoretical ROC curves (seed §2.4: P_D against P_F) as roc.png and roc.csv."""
     with _errors():
+        _out_folder(out)
         import numpy as np
 
         from rsi.detection.roc import theoretical_roc
@@ -543,14 +581,15 @@ def sim_render(
     seed: Annotated[int, typer.Option(min=0, help="Seed of the world: anomalies, pose errors, noise.")] = 0,
     vista: Annotated[str, typer.Option(help="Vista point: index or name (see the table printed).")] = "0",
     out: Annotated[Path, typer.Option("--out", help="Folder for frames, depth and truth.")] = Path("rsi-sim"),
-    rows: Annotated[int, typer.Option(min=16, max=4096, help="Frame rows.")] = 480,
-    cols: Annotated[int, typer.Option(min=16, max=4096, help="Frame columns.")] = 640,
+    rows: Annotated[int, typer.Option(min=16, max=2048, help="Frame rows (the renderer's buffer).")] = 480,
+    cols: Annotated[int, typer.Option(min=16, max=2048, help="Frame columns.")] = 640,
     repeatability: Annotated[
         Repeatability, typer.Option(help="Viewpoint repeatability of each visit (seed §2.3).")
     ] = Repeatability.lab,
 ) -> None:
     """Visit a vista twice (reference, then inspection with anomalies) and write what the camera saw."""
     with _errors():
+        _out_folder(out)
         from rich.table import Table
 
         import rsi.sim
@@ -597,6 +636,7 @@ def sim_sun(
 ) -> None:
     """Sun direction along a low Earth orbit and the lamp trajectory that reproduces it (seed §4.1)."""
     with _errors():
+        _out_folder(out)
         import math
 
         import numpy as np
@@ -651,6 +691,7 @@ def isee_proximity_demo(
 ) -> None:
     """Close the 44 Hz proximity loop on the arm (seed §3.1) and draw Figs 3, 6, 7 and time plots."""
     with _errors():
+        _out_folder(out)
         from rsi.mission.proximity_demo import acceptance, simulate_proximity_demo
         from rsi.report.isee import write_proximity_report
 
@@ -691,17 +732,24 @@ ArchiveOption = Annotated[
     str, typer.Option("--archive", help="SQLite file or SQLAlchemy URL of the archive (it must exist).")
 ]
 DEFAULT_ARCHIVE = "rsi-archive.db"
+ImagesDirOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--images-dir",
+        help="Folder of the archive's image files; default <archive file>.images; needed for other URLs.",
+    ),
+]
 
 
 @archive_app.command("list", epilog=_EPILOG)
-def archive_list(*, archive: ArchiveOption = DEFAULT_ARCHIVE) -> None:
-    """List the inspection runs, newest last."""
+def archive_list(*, archive: ArchiveOption = DEFAULT_ARCHIVE, images_dir: ImagesDirOption = None) -> None:
+    """List the inspection runs, newest last (the archive is opened read-only)."""
     with _errors():
         from rich.table import Table
 
         from rsi.archive import Archive
 
-        with Archive.open(archive, create=False) as store:
+        with Archive.open(archive, read_only=True, images_dir=images_dir) as store:
             runs = store.runs()
         table = Table(title=f"Runs in {archive}")
         for column in ("run", "label", "status", "seed", "started", "findings"):
@@ -718,14 +766,15 @@ def archive_show(
     *,
     run: Annotated[int, typer.Argument(help="Run number (see `rsi archive list`).")],
     archive: ArchiveOption = DEFAULT_ARCHIVE,
+    images_dir: ImagesDirOption = None,
 ) -> None:
-    """Show one run's findings, each with its earlier sighting when it was seen before."""
+    """Show one run's findings, each with its earlier sighting when it was seen before (read-only)."""
     with _errors():
         from rich.table import Table
 
         from rsi.archive import Archive
 
-        with Archive.open(archive, create=False) as store:
+        with Archive.open(archive, read_only=True, images_dir=images_dir) as store:
             record, findings = store.run(run), store.findings(run)
         table = Table(
             title=f"Run {record.run_id} ({record.label}, {record.status}): {len(findings)} findings"
@@ -746,12 +795,14 @@ def archive_export(
     run: Annotated[int, typer.Argument(help="Run number (see `rsi archive list`).")],
     out: Annotated[Path, typer.Option("--out", help="Folder for the run's JSON and its images.")],
     archive: ArchiveOption = DEFAULT_ARCHIVE,
+    images_dir: ImagesDirOption = None,
 ) -> None:
-    """Export one run (JSON with its findings and history links, plus the referenced images)."""
+    """Export one run (JSON with its findings and history links, plus the referenced images; read-only)."""
     with _errors():
+        _out_folder(out)
         from rsi.archive import Archive
 
-        with Archive.open(archive, create=False) as store:
+        with Archive.open(archive, read_only=True, images_dir=images_dir) as store:
             path = store.export_run(run, out)
         _stdout().print(f"Wrote {path}")
 
@@ -768,6 +819,7 @@ def batch(
         str,
         typer.Option("--archive", help="SQLite file or SQLAlchemy URL of the archive (created if missing)."),
     ] = DEFAULT_ARCHIVE,
+    images_dir: ImagesDirOption = None,
     scheduler: Annotated[
         str | None,
         typer.Option(help="Address of a running dask scheduler (tcp://host:8786); default: local processes."),
@@ -795,6 +847,7 @@ def batch(
     named like the options below override them for their row.
     """
     with _errors():
+        _out_folder(out)
         from rsi.archive import Archive
         from rsi.mission.batch import PairSettings, read_manifest, run_batch
 
@@ -807,7 +860,7 @@ def batch(
             method=method.value,
         )
         items = read_manifest(manifest)
-        with Archive.open(archive) as store, _progress_bar("batch") as update:
+        with Archive.open(archive, images_dir=images_dir) as store, _progress_bar("batch") as update:
             result = run_batch(
                 items, archive=store, out_dir=out, scheduler=scheduler, workers=workers, settings=settings,
                 label=f"batch {manifest.name}", progress=update,

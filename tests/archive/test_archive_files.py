@@ -148,11 +148,17 @@ def test_a_damaged_page_is_reported_naming_the_archive(tmp_path: Path) -> None:
     assert len(data) > 6 * 4096
     data[2 * 4096 : len(data) - 4096] = b"\xa5" * (len(data) - 3 * 4096)  # keep the header page
     path.write_bytes(bytes(data))
+    # A writable open checks the pages before anything is written, and leaves the file as it is.
+    with pytest.raises(ArchiveFileError, match=f"{path} is damaged \\(SQLite quick_check: .*Page"):
+        Archive.open(path)
+    assert path.read_bytes() == bytes(data)
+    # A read-only open does not check the whole file; the read that meets the damage names the archive.
     with (
         pytest.raises(ArchiveFileError, match=f"{path} is not a readable rsi archive.*malformed"),
-        Archive.open(path) as archive,
+        Archive.open(path, read_only=True) as archive,
     ):
         archive.findings(run_id)
+    assert path.read_bytes() == bytes(data)
 
 
 def test_a_writer_locked_out_past_the_busy_timeout_gets_a_clear_error(tmp_path: Path) -> None:

@@ -160,7 +160,7 @@ def test_law_rejects_each_bad_setting_by_name(changes: dict[str, float], fragmen
     [
         ([0.1, float("nan")], "distance_m contains NaN"),
         ([-0.01, 0.2], "distance_m must be >= 0 m"),
-        (["near"], "distance_m must be an array of distances"),
+        (["near"], "distance_m must be a number or an array of numbers"),
     ],
 )
 def test_law_rejects_bad_distances(distance: object, fragment: str) -> None:

@@ -124,7 +124,7 @@ def test_unsupported_suffix_is_rejected(tmp_path: Path) -> None:
 
 def test_unusual_channel_counts_are_rejected(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     path = tmp_path / "two.tif"
-    path.write_bytes(b"x")
+    write_image(path, np.zeros((4, 4), dtype=np.uint8))
     monkeypatch.setattr(cv2, "imdecode", lambda *_: np.zeros((4, 4, 2), dtype=np.uint8))
     with pytest.raises(ImageFileError, match=r"two\.tif.*2 channels"):
         read_image(path)

@@ -176,7 +176,7 @@ def test_noise_only_pair_is_reported_not_raised() -> None:
 
 def test_flat_image_diverges() -> None:
     result = register(np.full((64, 64), 0.5), np.full((64, 64), 0.5))
-    assert result.reason == "diverged" and not result.converged
+    assert result.reason == "flat_reference" and not result.converged
 
 
 def test_image_too_small_for_the_margins_reports_divergence() -> None:

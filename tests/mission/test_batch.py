@@ -288,10 +288,10 @@ BAD_ARGUMENTS = {
     "a path": ({"items": "pairs.csv"}, "Read a manifest with read_manifest"),
     "not items": ({"items": [("a.png", "b.png")]}, r"items\[0\] must be a BatchItem"),
     "repeated id": ({"items": "twice"}, r"items\[1\] repeats pair_id 'a'"),
-    "workers": ({"workers": 0}, "workers must be an integer >= 1"),
+    "workers": ({"workers": 0}, r"workers must be an integer in \[1, "),
     "settings": ({"settings": {"size": 3}}, "settings must be a PairSettings"),
     "scheduler": ({"scheduler": " "}, "scheduler must be an address"),
-    "timeout": ({"connect_timeout_s": 0}, r"connect_timeout_s must be in \(0.0, inf\]"),
+    "timeout": ({"connect_timeout_s": 0}, r"connect_timeout_s must be in \(0.0, 3600.0\]"),
     "unreachable": ({"scheduler": "tcp://127.0.0.1:9", "connect_timeout_s": 0.5}, "cannot be reached"),
 }
 

@@ -133,7 +133,7 @@ def test_read_proximity_rejects_bad_distances(truth: object, fragment: str) -> N
 def test_distance_helper_and_filter_reject_bad_input() -> None:
     with pytest.raises(InputError, match="d contains NaN or inf"):
         as_distances_m([np.inf], "d")
-    with pytest.raises(InputError, match="d must be an array of distances"):
+    with pytest.raises(InputError, match="d must be a number or an array of numbers"):
         as_distances_m(["far"], "d")
     with pytest.raises(InputError, match="cutoff_hz must be in"):
         LowPassFilter(30.0, 44.0)

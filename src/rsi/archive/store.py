@@ -19,6 +19,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from types import TracebackType
 from typing import Any
+from urllib.parse import quote
 
 import numpy as np
 import sqlalchemy as sa
@@ -26,9 +27,9 @@ from sqlalchemy import Connection, Engine, ExceptionContext, Row, event, exc, fu
 from sqlalchemy.pool import StaticPool
 
 from rsi import __version__
-from rsi._files import atomic_write_bytes
-from rsi._validate import in_range
-from rsi.archive import _images, schema
+from rsi._files import atomic_write_bytes, writable_folder
+from rsi._validate import choice, in_range
+from rsi.archive import _images, _integrity, schema
 from rsi.archive.records import (
     END_STATUSES,
     RUN_STATUSES,
@@ -48,6 +49,7 @@ from rsi.errors import FileError, InputError, RsiError
 
 _MAX_SEED = 2**63
 _MAX_NOTE = 10_000
+_MAX_BUSY_TIMEOUT_S = 86_400.0
 
 
 class ArchiveError(RsiError):
@@ -56,6 +58,17 @@ class ArchiveError(RsiError):
 
 class ArchiveFileError(ArchiveError, FileError):
     """The archive file is unusable: corrupt, another program's database, or a newer schema."""
+
+
+def _check_id(value: object, name: str) -> None:
+    """Ids are SQL integers: 1 to 2**63 - 1 (a larger int cannot even be compared by the database)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value < _MAX_SEED:
+        raise InputError(f"{name} must be an integer in [1, 2**63); got {value!r:.60}.")
+
+
+def _read_only_url(path: Path) -> sa.URL:
+    """SQLite's read-only URI for a file: no write of any kind, not even a journal-mode change."""
+    return sa.URL.create("sqlite", database=f"file:{quote(path.as_posix())}?mode=ro", query={"uri": "true"})
 
 
 def _now() -> datetime:
@@ -136,11 +149,14 @@ class Archive:
     forked copy of an open one is not safe). It is a context manager that closes the database connections.
     """
 
-    def __init__(self, engine: Engine, *, location: str, images_dir: Path, schema_version: int) -> None:
+    def __init__(
+        self, engine: Engine, *, location: str, images_dir: Path, schema_version: int, read_only: bool = False
+    ) -> None:
         self._engine = engine
         self._location = location
         self._images_dir = images_dir
         self._schema_version = schema_version
+        self._read_only = read_only
 
     # ------------------------------------------------------------------ opening
 
@@ -152,8 +168,13 @@ class Archive:
         images_dir: str | os.PathLike[str] | None = None,
         create: bool = True,
         busy_timeout_s: float = 30.0,
+        read_only: bool = False,
     ) -> Archive:
         """Open (or create) an archive.
+
+        A writable open of an existing archive first checks it whole (SQLite's ``quick_check``, every table
+        and column of the schema, every row readable): a damaged archive is refused before anything is
+        written to it, and left byte for byte as it was.
 
         Parameters
         ----------
@@ -166,6 +187,10 @@ class Archive:
             Create a missing archive. With False a missing file raises instead.
         busy_timeout_s : float, default 30
             How long a write waits for another writer before giving up.
+        read_only : bool, default False
+            Open for reading only (implies ``create=False``): nothing is written, not even the journal mode,
+            so an archive one may not write can be read, and a damaged one is never touched. Writes raise
+            :class:`ArchiveError`.
 
         Raises
         ------
@@ -175,7 +200,10 @@ class Archive:
             The file is corrupt, another program's database, or from a newer rsi; an older archive with no
             migration. The file is not modified.
         """
-        busy_timeout_s = in_range(busy_timeout_s, "busy_timeout_s", low=0.0)
+        busy_timeout_s = in_range(busy_timeout_s, "busy_timeout_s", low=0.0, high=_MAX_BUSY_TIMEOUT_S)
+        if not isinstance(read_only, bool) or not isinstance(create, bool):
+            raise InputError(f"create and read_only must be True or False; got {create!r} and {read_only!r}.")
+        create = create and not read_only
         url, path = _location(url_or_path)
         if path is not None:
             if path.is_dir():
@@ -195,12 +223,22 @@ class Archive:
                     "pass the folder where the archive keeps its image files."
                 )
             images_dir = path.with_name(path.name + ".images")
+        if not isinstance(images_dir, (str, os.PathLike)) or not str(images_dir):
+            raise InputError(f"images_dir must be a folder path; got {images_dir!r}.")
         location = str(path) if path is not None else url.render_as_string(hide_password=True)
+        if read_only and path is not None:
+            url = _read_only_url(path)
         engine = cls._engine_for(url, busy_timeout_s)
-        archive = cls(engine, location=location, images_dir=Path(images_dir).absolute(), schema_version=0)
+        archive = cls(
+            engine,
+            location=location,
+            images_dir=Path(images_dir).absolute(),
+            schema_version=0,
+            read_only=read_only,
+        )
         try:
             archive._schema_version = archive._prepare_schema()
-            if url.get_backend_name() == "sqlite":
+            if url.get_backend_name() == "sqlite" and not read_only:
                 archive._use_wal()
         except BaseException:
             engine.dispose()
@@ -210,7 +248,13 @@ class Archive:
     @staticmethod
     def _engine_for(url: sa.URL, busy_timeout_s: float) -> Engine:
         if url.get_backend_name() != "sqlite":
-            return sa.create_engine(url)
+            try:
+                return sa.create_engine(url)
+            except (ImportError, exc.NoSuchModuleError, exc.ArgumentError) as error:
+                raise InputError(
+                    f"the database {url.render_as_string(hide_password=True)} cannot be opened: its driver "
+                    f"is missing or unknown ({error}). Install it (e.g. pip install 'psycopg[binary]')."
+                ) from None
         in_memory = url.database in (None, "", ":memory:")
         engine = sa.create_engine(
             url,
@@ -223,10 +267,10 @@ class Archive:
         return engine
 
     def _prepare_schema(self) -> int:
-        """Create the tables of a new archive, check the version of an existing one, migrate an older one."""
-        with self._transaction(write=True) as connection:
+        """Create the tables of a new archive; check an existing one whole; migrate an older one."""
+        with self._transaction(write=not self._read_only) as connection:
             tables = set(sa.inspect(connection).get_table_names())
-            if not tables:
+            if not tables and not self._read_only:
                 schema.metadata.create_all(connection)
                 connection.execute(
                     schema.archive_info.insert().values(
@@ -240,27 +284,74 @@ class Archive:
             if schema.archive_info.name not in tables:
                 raise ArchiveFileError(
                     f"{self._location} is a database but not an rsi archive (its tables: "
-                    f"{', '.join(sorted(tables))}); it was not modified. Open another path."
+                    f"{', '.join(sorted(tables)) or 'none'}); it was not modified. Open another path."
                 )
-            version = connection.execute(select(schema.archive_info.c.schema_version)).scalar_one()
+            version = self._stored_version(connection)
             if version > schema.SCHEMA_VERSION:
                 raise ArchiveFileError(
                     f"archive {self._location} has schema version {version}, newer than this rsi "
                     f"{__version__} understands ({schema.SCHEMA_VERSION}); it was not modified. "
                     "Upgrade rsi (pip install -U rsi) to open it."
                 )
+            if version == schema.SCHEMA_VERSION and not self._read_only:
+                self._check_whole(connection)
             while version < schema.SCHEMA_VERSION:
                 step = schema.MIGRATIONS.get(version)
-                if step is None:
+                if step is None or self._read_only:
+                    why = "opens it read-only: it cannot migrate it" if step else "has no migration from it"
                     raise ArchiveFileError(
-                        f"archive {self._location} has schema version {version} and this rsi has no "
-                        f"migration from it to {schema.SCHEMA_VERSION}; it was not modified. Open it with "
-                        "the rsi that wrote it and export its runs (rsi archive export)."
+                        f"archive {self._location} has schema version {version} and this rsi {why} to "
+                        f"{schema.SCHEMA_VERSION}; it was not modified. Open it writable with this rsi, or "
+                        "with the rsi that wrote it and export its runs (rsi archive export)."
                     )
                 step(connection)
                 version += 1
                 connection.execute(schema.archive_info.update().values(schema_version=version))
             return int(version)
+
+    def _stored_version(self, connection: Connection) -> int:
+        rows = connection.exec_driver_sql("SELECT schema_version FROM rsi_archive").fetchmany(2)
+        if (
+            len(rows) != 1
+            or isinstance(rows[0][0], bool)
+            or not isinstance(rows[0][0], int)
+            or rows[0][0] < 1
+        ):
+            found = "no row" if not rows else ("several rows" if len(rows) > 1 else f"{rows[0][0]!r}")
+            raise ArchiveFileError(
+                f"archive {self._location} has no valid schema version (table rsi_archive holds {found}); it "
+                "was not modified. Restore it from a backup."
+            )
+        return int(rows[0][0])
+
+    def _check_whole(self, connection: Connection) -> None:
+        """Refuse a damaged archive before any write: SQLite's page check, the schema, every row."""
+        if connection.dialect.name == "sqlite":
+            verdict = [str(row[0]) for row in connection.exec_driver_sql("PRAGMA quick_check(5)")]
+            if verdict != ["ok"]:
+                said = " ".join("; ".join(verdict).split())
+                raise ArchiveFileError(
+                    f"archive {self._location} is damaged (SQLite quick_check: {said}); it was not modified. "
+                    "Restore it from a backup; `rsi archive list` may still read it."
+                )
+        missing = _integrity.missing_schema(connection)
+        if missing:
+            raise ArchiveFileError(
+                f"archive {self._location} lacks {', '.join(missing)}; it is damaged and was not modified. "
+                "Restore it from a backup."
+            )
+        self._refuse_bad_rows(connection)
+
+    def _refuse_bad_rows(self, connection: Connection) -> None:
+        bad = _integrity.bad_rows(connection)
+        if bad:
+            raise self._rows_error(bad)
+
+    def _rows_error(self, bad: list[str]) -> ArchiveFileError:
+        return ArchiveFileError(
+            f"archive {self._location} has rows it cannot read back ({'; '.join(bad)}); it was not "
+            "modified. Fix or delete those rows, or restore the archive from a backup."
+        )
 
     def _use_wal(self) -> None:
         """Switch a SQLite archive to the WAL journal (persistent; set once the file is known to be ours).
@@ -278,13 +369,19 @@ class Archive:
 
     @contextlib.contextmanager
     def _transaction(self, *, write: bool) -> Iterator[Connection]:
-        """One transaction; database failures become errors that name the archive."""
+        """One transaction; database failures and unreadable rows become errors that name the archive."""
+        if write and self._read_only:
+            raise ArchiveError(
+                f"archive {self._location} was opened read-only; open it with read_only=False to write."
+            )
         try:
             with self._engine.connect() as connection:
                 if write:
                     connection.execution_options(rsi_write=True)
                 with connection.begin():
                     yield connection
+        except RsiError:
+            raise
         except exc.DatabaseError as error:
             message = str(error.orig)
             if isinstance(error, exc.IntegrityError):
@@ -295,6 +392,17 @@ class Archive:
                     f"({message}); retry, or open it with a longer busy_timeout_s."
                 ) from error
             raise self._unreadable(error) from error
+        except (ValueError, TypeError, OverflowError, KeyError) as error:
+            # A stored value the archive cannot turn back into a record (a tampered row): name the row.
+            raise self._bad_row_error(error) from error
+
+    def _bad_row_error(self, error: Exception) -> Exception:
+        try:
+            with self._engine.connect() as connection, connection.begin():
+                bad = _integrity.bad_rows(connection)
+        except exc.DatabaseError:
+            bad = []
+        return self._rows_error(bad) if bad else error
 
     def _unreadable(self, error: exc.DBAPIError) -> ArchiveFileError:
         return ArchiveFileError(
@@ -324,6 +432,11 @@ class Archive:
     def location(self) -> str:
         """The database file path, or its URL without password."""
         return self._location
+
+    @property
+    def read_only(self) -> bool:
+        """Whether the archive was opened read-only (every write raises :class:`ArchiveError`)."""
+        return self._read_only
 
     @property
     def images_dir(self) -> Path:
@@ -517,9 +630,7 @@ class Archive:
         self, run_id: int, status: str = "finished", *, finished_at: datetime | None = None
     ) -> Run:
         """End a running run with `status` ("finished", "failed" or "aborted")."""
-        if status not in END_STATUSES:
-            choices = ", ".join(map(repr, END_STATUSES))
-            raise InputError(f"status={status!r} is not known. Choose one of {choices}.")
+        choice(status, "status", END_STATUSES)
         moment = _now() if finished_at is None else _moment(finished_at, "finished_at")
         with self._transaction(write=True) as connection:
             self._running_row(connection, run_id)
@@ -531,8 +642,7 @@ class Archive:
         return self.run(run_id)
 
     def _run_row(self, connection: Connection, run_id: int) -> Row[Any]:
-        if isinstance(run_id, bool) or not isinstance(run_id, (int, np.integer)):
-            raise InputError(f"run_id must be an integer; got {run_id!r}.")
+        _check_id(run_id, "run_id")
         row = connection.execute(select(schema.runs).where(schema.runs.c.id == int(run_id))).first()
         if row is None:
             raise InputError(
@@ -551,9 +661,8 @@ class Archive:
 
     def runs(self, *, status: str | None = None) -> tuple[Run, ...]:
         """Every run (or those with `status`), oldest first, with their finding counts."""
-        if status is not None and status not in RUN_STATUSES:
-            choices = ", ".join(map(repr, RUN_STATUSES))
-            raise InputError(f"status={status!r} is not known. Choose one of {choices}.")
+        if status is not None:
+            choice(status, "status", RUN_STATUSES)
         with self._transaction(write=False) as connection:
             return self._runs(connection, status=status)
 
@@ -599,6 +708,8 @@ class Archive:
         Among the finished runs that started before this one, the latest with such a sighting is used, and
         within it the nearest sighting.
         """
+        if isinstance(findings, (str, bytes, Finding)) or not isinstance(findings, Iterable):
+            raise InputError(f"findings must be an iterable of Finding; got {type(findings).__name__}.")
         batch = tuple(findings)
         for index, finding in enumerate(batch):
             if not isinstance(finding, Finding):
@@ -794,8 +905,7 @@ class Archive:
 
     def finding(self, finding_id: int) -> StoredFinding:
         """The finding with this id."""
-        if isinstance(finding_id, bool) or not isinstance(finding_id, (int, np.integer)):
-            raise InputError(f"finding_id must be an integer; got {finding_id!r}.")
+        _check_id(finding_id, "finding_id")
         with self._transaction(write=False) as connection:
             found = self._findings(connection, schema.findings.c.id == int(finding_id))
         if not found:
@@ -879,9 +989,7 @@ class Archive:
         Path
             The JSON file.
         """
-        folder = Path(out_dir)
-        if folder.exists() and not folder.is_dir():
-            raise InputError(f"out_dir={str(out_dir)!r} is a file; pass a folder (it is created if missing).")
+        folder, _ = writable_folder(out_dir, "out_dir")
         with self._transaction(write=False) as connection:
             self._run_row(connection, run_id)
             run = self._runs(connection, run_id=int(run_id))[0]
@@ -946,13 +1054,21 @@ def _run_of(row: Row[Any]) -> Run:
         label=row.label,
         status=row.status,
         seed=row.seed,
-        settings=json.loads(row.settings_json),
+        settings=_json_mapping(row.settings_json),
         started_at=_from_db(row.started_at),
         finished_at=None if row.finished_at is None else _from_db(row.finished_at),
         finding_count=int(row.finding_count),
         host=row.host,
         pid=int(row.pid),
     )
+
+
+def _json_mapping(text: str) -> dict[str, Any]:
+    """A stored JSON object; anything else is a damaged row (ValueError, named by the caller's check)."""
+    value = json.loads(text)
+    if not isinstance(value, dict):
+        raise ValueError(f"stored JSON {text[:40]!r} is not an object")
+    return value
 
 
 def _centre(finding: Finding, by_position: bool) -> tuple[float, ...]:
@@ -1012,7 +1128,7 @@ def _stored_finding_of(row: Row[Any]) -> StoredFinding:
         score=row.score,
         reference_sha256=row.reference_sha256,
         inspection_sha256=row.inspection_sha256,
-        extras=json.loads(row.extras_json),
+        extras=_json_mapping(row.extras_json),
         previous_id=row.previous_id,
         track_id=int(row.track_id),
         seen_at=_from_db(row.started_at),

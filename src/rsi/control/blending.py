@@ -74,7 +74,7 @@ class BlendedCommand:
 
 
 def _as_velocity(value: object, name: str, *, limit_m_s: float | None = None) -> FloatArray:
-    velocity = np.asarray(value, dtype=np.float64)
+    velocity = v.as_float_array(value, name)
     if not np.isfinite(velocity).all():
         raise InputError(f"{name} contains NaN or inf; pass finite velocities in m/s.")
     if limit_m_s is not None and (np.abs(velocity) > limit_m_s).any():
@@ -110,7 +110,7 @@ def law_distance_m(
     >>> [round(float(law_distance_m([d, d + 0.04], law, mode="servo")[0]), 3) for d in (0.30, 0.373, 0.50)]
     [0.3, 0.383, 0.52]
     """
-    settings = ProximityLaw() if law is None else law
+    settings = ProximityLaw() if law is None else v.instance_of(law, "law", ProximityLaw)
     v.choice(mode, "mode", MODES)
     readings = as_sensed_distances_m(distances_m, "distances_m")
     if readings.ndim == 0 or readings.shape[-1] == 0:
@@ -175,7 +175,7 @@ def blend_commands(
     >>> bool(command.velocity_m_s <= 0.0)
     True
     """
-    settings = ProximityLaw() if law is None else law
+    settings = ProximityLaw() if law is None else v.instance_of(law, "law", ProximityLaw)
     joystick = _as_velocity(joystick_m_s, "joystick_m_s", limit_m_s=settings.joystick_speed_m_s)
     trajectory = _as_velocity(trajectory_m_s, "trajectory_m_s")
     proximity, nearest, no_valid = proximity_term(distances_m, settings, mode=mode)

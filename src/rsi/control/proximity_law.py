@@ -230,10 +230,7 @@ class ProximityCommand:
 
 def as_sensed_distances_m(distance_m: object, name: str) -> FloatArray:
     """Sensed distances as float64; ``+inf`` (no return) is allowed, NaN and negatives are not."""
-    try:
-        values = np.asarray(distance_m, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be an array of distances in metres; got {distance_m!r}.") from exc
+    values = v.as_float_array(distance_m, name)
     if np.isnan(values).any():
         raise InputError(f"{name} contains NaN; pass distances in metres, or inf for no return.")
     if (values < 0).any():
@@ -265,7 +262,7 @@ def proximity_velocity(
     >>> command.region.tolist(), command.out_of_range.tolist()
     (['A', 'D', 'F', '-'], [False, False, False, True])
     """
-    settings = ProximityLaw() if law is None else law
+    settings = ProximityLaw() if law is None else v.instance_of(law, "law", ProximityLaw)
     shape = MODES[v.choice(mode, "mode", MODES)]
     distance = as_sensed_distances_m(distance_m, "distance_m")
     knots, speeds = settings.knots_m

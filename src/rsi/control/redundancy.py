@@ -51,7 +51,7 @@ _ARM_ANGLE_STEP_M = 1e-6
 def _matrix(value: object, name: str, *, rows: int | None = None, cols: int | None = None) -> FloatArray:
     if not isinstance(value, np.ndarray | list | tuple):
         raise InputError(f"{name} must be a 2-D array; got {type(value).__name__}. Try np.asarray({name}).")
-    array = np.asarray(value, dtype=np.float64)
+    array = v.as_float_array(value, name)
     if array.ndim != 2 or array.size == 0:
         raise InputError(f"{name} must be a non-empty 2-D array (rows, joints); got shape {array.shape}.")
     if rows is not None and array.shape[0] != rows:
@@ -64,10 +64,7 @@ def _matrix(value: object, name: str, *, rows: int | None = None, cols: int | No
 
 
 def _vector(value: object, name: str, size: int | None = None, *, allow_inf: bool = False) -> FloatArray:
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise InputError(f"{name} must be a 1-D array of numbers; got {value!r}.") from error
+    array = v.as_float_array(value, name)
     if array.ndim == 0:
         array = array.reshape(1)
     if array.ndim != 1:
@@ -319,7 +316,7 @@ def limit_avoidance_velocity(
     ndarray of shape (n,)
         rad/s or m/s.
     """
-    q = _vector(joint_positions, "joint_positions", limits.n_joints)
+    q = _vector(joint_positions, "joint_positions", v.instance_of(limits, "limits", JointLimits).n_joints)
     frac = v.in_range(margin, "margin", low=0.0, high=0.5, low_inclusive=False)
     gain = v.in_range(gain_per_s, "gain_per_s", low=0.0)
     finite = np.isfinite(limits.lower) & np.isfinite(limits.upper)
@@ -503,6 +500,8 @@ def resolve_joint_rates(
     RateResolution
     """
     conf = settings if settings is not None else RedundancySettings()
+    conf = v.instance_of(conf, "settings", RedundancySettings)
+    limits = v.instance_of(limits, "limits", JointLimits)
     jac = _matrix(task_jacobian, "task_jacobian")
     n = jac.shape[1]
     xdot = _vector(task_velocity, "task_velocity", jac.shape[0])

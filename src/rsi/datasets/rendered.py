@@ -16,37 +16,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rsi import _validate as v
+from rsi._files import writable_folder
 from rsi.errors import InputError
 from rsi.sim.render import STATES
 from rsi.sim.world import DEFAULT_SIZE
 
 if TYPE_CHECKING:
     from rsi.sim.world import World
-
-
-def _output_folder(out_dir: object) -> tuple[Path, Path | None]:
-    """`out_dir` as a folder that can be written, checked before anything is rendered.
-
-    Returns the folder and the outermost folder this call will have to create (None if it exists).
-    """
-    if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir):
-        raise InputError(f"out_dir must be a folder path (str or pathlib.Path); got {out_dir!r}.")
-    folder = Path(out_dir)
-    existing, missing = folder, None
-    while not existing.exists() and existing.parent != existing:
-        existing, missing = existing.parent, existing
-    if not existing.is_dir():
-        where = "is a file" if existing == folder else f"lies under {str(existing)!r}, which is a file"
-        raise InputError(
-            f"out_dir={str(folder)!r} {where}, not a folder; nothing was written. "
-            "Choose an existing folder or a path where one can be created."
-        )
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise InputError(
-            f"out_dir={str(folder)!r} cannot be written: {str(existing)!r} is not writable by this user; "
-            "nothing was written. Choose a folder you can write to."
-        )
-    return folder, missing
 
 
 def render_vista_to_folder(
@@ -79,7 +55,7 @@ def render_vista_to_folder(
 
     world.vista(vista)
     v.choice(state, "state", STATES)
-    folder, created = _output_folder(out_dir)
+    folder, created = writable_folder(out_dir, "out_dir")
     stem = f"{vista}_{state}"
     paths = {
         "frame": folder / f"{stem}_frame.png",

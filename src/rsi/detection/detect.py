@@ -21,7 +21,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi._validate import as_image, as_mask, choice, in_range, positive_int, same_shape
+from rsi._validate import (
+    MAX_INTENSITY,
+    as_image,
+    as_intensity_image,
+    as_mask,
+    choice,
+    in_range,
+    positive_int,
+    same_shape,
+)
 from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
@@ -144,8 +153,20 @@ def _unpack(image: object, name: str, noise_sigma: float | None) -> _Input:
             f"{name} must be a numpy array of shape (rows, cols) or a Compensated image; "
             f"got {type(image).__name__}."
         )
-    pixels = as_image(image, name).astype(np.float32, copy=False)
+    pixels = as_intensity_image(image, name).astype(np.float32, copy=False)
     return _Input(pixels, None, None if noise_sigma is None else noise_sigma**2)
+
+
+def _refuse_uninformative(reference: _Input, inspection: _Input) -> None:
+    """A constant inspection against a textured reference (a dark or saturated frame) says nothing about
+    flaws: every pixel changed, or none can be seen. Reporting "0 flaws" for it would be silently wrong."""
+    pixels = inspection.image
+    if pixels.min() == pixels.max() and reference.image.min() != reference.image.max():
+        raise InputError(
+            f"inspection has one value everywhere ({float(pixels.flat[0]):g}) while the reference is "
+            "textured: the pair carries no information about flaws (a dark or saturated frame?). Check the "
+            "exposure and the lamp, and retake the inspection."
+        )
 
 
 def _resolve_registration(
@@ -403,7 +424,9 @@ def detect(
         p_false_alarm, "p_false_alarm", low=0.0, high=0.5, low_inclusive=False, high_inclusive=False
     )
     sigma_known = (
-        None if noise_sigma is None else in_range(noise_sigma, "noise_sigma", low=0.0, low_inclusive=False)
+        None
+        if noise_sigma is None
+        else in_range(noise_sigma, "noise_sigma", low=0.0, high=MAX_INTENSITY, low_inclusive=False)
     )
     choice(registration_model, "registration_model", MODELS)
     min_area = positive_int(min_area_px, "min_area_px")
@@ -412,6 +435,7 @@ def detect(
 
     reference_in = _unpack(reference, "reference", sigma_known)
     inspection_in = _unpack(inspection, "inspection", sigma_known)
+    _refuse_uninformative(reference_in, inspection_in)
     used_registration = _resolve_registration(registration, reference_in, inspection_in, registration_model)
     aligned = _align(reference_in, inspection_in, used_registration)
     valid = aligned.valid if inspection_in.valid is None else aligned.valid & inspection_in.valid

@@ -22,8 +22,13 @@ FloatArray = NDArray[np.float64]
 FLAW_MODELS = ("single", "uniform", "peak", "kernel")
 
 
+MAX_SIZE_PX = 255
+"""Widest flaw window: seed §2.4 flaws span a few pixels, and a window is a (size x size) array, so an
+unbounded size is an unbounded allocation (99999 would ask for 74.5 GiB)."""
+
+
 def _odd_size(size: object) -> int:
-    side = positive_int(size, "size")
+    side = positive_int(size, "size", maximum=MAX_SIZE_PX)
     if side % 2 == 0:
         raise InputError(f"size must be odd so the flaw has a centre pixel; got {side}. Try {side + 1}.")
     return side

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.errors import InputError
 
 if TYPE_CHECKING:
     from rsi.detection.detect import Detection, Flaw
@@ -163,6 +164,17 @@ class Score:
         return (detected - self.false_alarms) / detected if detected else 1.0
 
 
+def _centres(centres_rc: object) -> IntArray:
+    values = v.as_float_array(centres_rc, "centres_rc")
+    if values.size % 2 or not np.isfinite(values).all() or (values != np.round(values)).any():
+        raise InputError(
+            f"centres_rc must be (row, col) integer pairs, shape (K, 2); got shape {values.shape}."
+        )
+    if values.size and np.abs(values).max() > 2**31:
+        raise InputError("centres_rc holds a centre beyond 2**31 pixels; pass pixel (row, col) pairs.")
+    return values.astype(np.int64).reshape(-1, 2)
+
+
 def score_flaws(
     flaws: tuple[Flaw, ...],
     centres_rc: IntArray,
@@ -187,9 +199,31 @@ def score_flaws(
     -------
     Score
     """
-    centres = np.asarray(centres_rc, dtype=np.int64).reshape(-1, 2)
+    if isinstance(flaws, (str, bytes)) or not isinstance(flaws, (tuple, list)):
+        raise InputError(f"flaws must be a tuple of Flaw (Detection.flaws); got {type(flaws).__name__}.")
+    for index, flaw in enumerate(flaws):
+        bbox = getattr(flaw, "bbox", None)
+        if (
+            not isinstance(bbox, (tuple, list))
+            or len(bbox) != 4
+            or not all(isinstance(side, (int, np.integer)) and not isinstance(side, bool) for side in bbox)
+        ):
+            raise InputError(
+                f"flaws[{index}] must have a bbox of four integers (row0, col0, row1, col1), as a Flaw has; "
+                f"got {type(flaw).__name__}."
+            )
+    tolerance_px = v.positive_int(tolerance_px, "tolerance_px", minimum=0, maximum=2**31)
+    centres = _centres(centres_rc)
     if valid is not None:
-        centres = centres[np.asarray(valid, dtype=bool)[centres[:, 0], centres[:, 1]]]
+        mask = v.as_mask(valid, "valid", np.shape(valid)) if isinstance(valid, np.ndarray) else None
+        if mask is None or mask.ndim != 2:
+            raise InputError(f"valid must be a 2-D bool array (rows, cols); got {type(valid).__name__}.")
+        outside = (centres < 0).any(axis=1) | (centres >= mask.shape).any(axis=1)
+        if outside.any():
+            raise InputError(
+                f"centres_rc has a centre outside valid's shape {mask.shape}: {centres[outside][0]}."
+            )
+        centres = centres[mask[centres[:, 0], centres[:, 1]]]
     covers = np.zeros((len(flaws), len(centres)), dtype=bool)
     for index, flaw in enumerate(flaws):
         row0, col0, row1, col1 = flaw.bbox

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, special
 
+from rsi import _validate as v
 from rsi._validate import as_image, as_mask, choice, in_range, positive_int
 from rsi.detection.flaw_models import flaw_kernel
 from rsi.errors import InputError
@@ -93,8 +94,10 @@ def footprint_size(weights: FloatArray) -> int:
 
 
 def thresholds(p_false_alarm: FloatArray, *, polarity: str, method: str, weights: FloatArray) -> FloatArray:
-    """Thresholds for already validated arguments; ``p_false_alarm`` may be any values in (0, 1]."""
-    return _THRESHOLDS[method](np.asarray(p_false_alarm, dtype=np.float64), polarity, footprint_size(weights))
+    """Thresholds of the test; ``p_false_alarm`` may be any values in (0, 1] (checked by the caller)."""
+    chosen = _THRESHOLDS[v.choice(method, "method", METHODS)]
+    probabilities = v.as_float_array(p_false_alarm, "p_false_alarm")
+    return chosen(probabilities, v.choice(polarity, "polarity", POLARITIES), footprint_size(weights))
 
 
 def threshold_for(

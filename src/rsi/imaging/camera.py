@@ -13,6 +13,7 @@ lets ambient-light subtraction (seed §2.2) be computed on DN directly.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -323,10 +324,15 @@ def expose(
     seconds = v.in_range(exposure_s, "exposure_s", low=0.0, low_inclusive=False)
     _check_bad_pixels(bad_pixels, ambient.shape)
     generator = v.as_rng(rng)
-    lux_s = ambient * seconds + strobe * _lit_rows(ambient.shape, lit_field)
-    electrons = camera.electrons_per_lux_s * lux_s
+    with np.errstate(over="ignore"):  # an overflow to inf only saturates the pixel (clipped just below)
+        lux_s = ambient * seconds + strobe * _lit_rows(ambient.shape, lit_field)
+        electrons = camera.electrons_per_lux_s * lux_s
     if bad_pixels is not None:
         electrons = electrons + HOT_DARK_FRACTION * camera.full_well_e * bad_pixels.hot
+    # A mean 40 sigma over the full well fills the well whatever the shot noise draws: clipping there
+    # changes no frame, and keeps the Poisson draw within numpy's range however bright the scene (1e16 lux s
+    # and up would otherwise fail inside numpy).
+    electrons = np.minimum(electrons, camera.full_well_e + 40.0 * math.sqrt(camera.full_well_e) + 40.0)
     # The well clips first (seed §2.2: ambient plus strobe must not saturate), then read noise, then the ADC.
     collected = np.minimum(generator.poisson(electrons).astype(np.float64), camera.full_well_e)
     well_full = collected >= camera.full_well_e

@@ -65,6 +65,11 @@ class Compensated:
     row_step: int
 
 
+MAX_DN = 1e15
+"""Largest DN magnitude compensation accepts: it works in float32 (max 3.4e38) and squares second
+differences of DN, so 1e15 keeps every square finite (any real camera reads under 2**32)."""
+
+
 @dataclass(frozen=True)
 class _Sensed:
     """One input frame in float32 DN, which pixels must not be used, and its sensor variance (DN^2)."""
@@ -88,11 +93,20 @@ def _sense(
         camera = frame.camera if camera is None else camera
         bad_pixels = frame.bad_pixels if bad_pixels is None else bad_pixels
     else:
-        image = v.as_image(data, name).astype(np.float32, copy=False)
+        values = v.as_image(data, name)
+        peak = float(np.max(np.abs(values)))
+        if peak > MAX_DN:
+            raise InputError(
+                f"{name} holds a value of magnitude {peak:.3g} DN, over {MAX_DN:g}: compensation works in "
+                "float32 and squares differences of DN, which would overflow. Pass the frame in DN."
+            )
+        image = values.astype(np.float32, copy=False)
         camera = DEFAULT_CAMERA if camera is None else camera
     _check_camera(camera)
     _check_bad_pixels(bad_pixels, image.shape)
-    limit = camera.max_dn if saturation_dn is None else v.finite_number(saturation_dn, "saturation_dn")
+    limit = (
+        camera.max_dn if saturation_dn is None else v.in_range(saturation_dn, "saturation_dn", high=MAX_DN)
+    )
     invalid = image >= np.float32(limit)
     if frame is not None:
         invalid |= frame.saturated

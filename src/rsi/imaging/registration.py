@@ -17,7 +17,7 @@ from functools import partial
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi._validate import as_image, as_mask, choice, in_range, positive_int
+from rsi._validate import as_intensity_image, as_mask, choice, in_range, positive_int
 from rsi.errors import InputError
 from rsi.imaging._gauss_newton import Settings, Terms, reference_terms, solve_level
 from rsi.imaging._pyramid import (
@@ -40,7 +40,7 @@ _EDGE_TOLERANCE_PX = 1e-6
 
 def _as_float32(image: object, name: str) -> Image:
     # Images are float32 on this hot path (docs: dtype policy); parameters and sums stay float64.
-    return np.asarray(as_image(image, name), dtype=np.float32)
+    return np.asarray(as_intensity_image(image, name), dtype=np.float32)
 
 
 @dataclass(frozen=True)
@@ -59,7 +59,8 @@ class Registration:
     converged : bool
         Whether the last update at full resolution was below the tolerance.
     reason : str
-        "converged", "max_iterations", "deadline" or "diverged".
+        "converged", "max_iterations", "deadline" or "diverged"; "flat_reference" or "flat_inspection" when an
+        image has one value everywhere (no texture: nothing to register, the identity is returned).
     iterations : int
         Gauss-Newton iterations over all pyramid levels.
     residual_rms : float
@@ -322,6 +323,31 @@ def _start(initial: object, photometric: bool) -> Estimate | None:
     return Estimate(matrix / matrix[2, 2], gain=gain, bias=bias)
 
 
+def _flat_image(reference: PreparedReference, inspection: Image) -> str | None:
+    """Which image, if any, holds one value everywhere: no gradient, so no warp can be told from another."""
+    for name, image in (("reference", reference.images[0]), ("inspection", inspection)):
+        if image.min() == image.max():
+            return name
+    return None
+
+
+def _untextured(flat: str, reference: PreparedReference, inspection: Image, started: float) -> Registration:
+    """The honest answer for an untextured pair: not converged, identity warp, the reason named."""
+    return Registration(
+        model=reference.model,
+        matrix=np.eye(3),
+        gain=1.0,
+        bias=0.0,
+        converged=False,
+        reason=f"flat_{flat}",
+        iterations=0,
+        residual_rms=float(np.std(inspection, dtype=np.float64)),
+        # No gradient: a shift changes no prediction of the flat image, so it adds no noise either.
+        shift_std_px=(0.0, 0.0),
+        elapsed_s=time.perf_counter() - started,
+    )
+
+
 def register(
     reference: NDArray[np.generic] | PreparedReference,
     inspection: NDArray[np.generic],
@@ -421,6 +447,9 @@ def register(
         else started + in_range(deadline_s, "deadline_s", low=0.0, low_inclusive=False),
     )
     start = _start(initial, settings.photometric)
+    flat = _flat_image(prepared, inspection_image)
+    if flat is not None:
+        return _untextured(flat, prepared, inspection_image, started)
     count = min(len(prepared.images), level_count(prepared.shape, inspection_image.shape))
     inspections = inspection_pyramid(inspection_image, count)
     levels = [

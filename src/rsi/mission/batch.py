@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rsi import _validate as v
-from rsi._files import atomic_write_bytes
+from rsi._files import atomic_write_bytes, read_regular_file
 from rsi.errors import DatasetError, InputError
 
 if TYPE_CHECKING:
@@ -72,6 +72,23 @@ short transactions (few fsyncs) that never hold the archive's write lock for lon
 CONNECT_TIMEOUT_S = 10.0
 _MAX_LISTED_ERRORS = 10
 _MAX_ID = 200
+MAX_MANIFEST_BYTES = 64 * 2**20
+"""Largest manifest read: about a million pairs of 60-character paths."""
+MAX_FIELD_CHARS = 4096
+"""Longest manifest cell: PATH_MAX on Linux; a longer path cannot be opened anyway."""
+MAX_CONNECT_TIMEOUT_S = 3600.0
+MAX_CLUSTER_WORKERS = 100_000
+"""Most workers a batch waits for on an existing cluster."""
+
+
+def max_local_workers() -> int:
+    """Most local worker processes: two per usable core. One single-threaded process per core is the most
+    that runs at once; past two per core they only add memory (each holds its own interpreter and images)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return 2 * max(cores, 1)
 
 
 @dataclass(frozen=True)
@@ -151,6 +168,16 @@ class BatchItem:
             raise InputError(
                 f"pair_id must be a non-empty string of at most {_MAX_ID} characters; got {self.pair_id!r}."
             )
+        if not isinstance(self.settings, Mapping) or any(not isinstance(key, str) for key in self.settings):
+            raise InputError(
+                f"settings of pair {self.pair_id!r} must be a dict of setting name to value; got "
+                f"{type(self.settings).__name__}."
+            )
+        for name in ("reference", "inspection"):
+            if not isinstance(getattr(self, name), (str, os.PathLike)):
+                raise InputError(
+                    f"{name} of pair {self.pair_id!r} must be a path; got {getattr(self, name)!r:.60}."
+                )
         unknown = sorted(set(self.settings) - set(SETTING_COLUMNS))
         if unknown:
             raise InputError(
@@ -343,24 +370,35 @@ def read_manifest(path: PathLike) -> tuple[BatchItem, ...]:
     door,ref/door.png,new/door.png,
     hinge,ref/hinge.png,new/hinge.png,1e-6
     """
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise InputError(f"path must be the manifest's file path (str or os.PathLike); got {path!r:.60}.")
     file = Path(path)
+    data = read_regular_file(
+        file,
+        max_bytes=MAX_MANIFEST_BYTES,
+        error=DatasetError,
+        too_big="split the manifest into several batches",
+    )
     try:
-        text = file.read_text(encoding="utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as error:
         raise DatasetError(
             f"manifest {str(file)!r} is not UTF-8 text ({error.reason} at byte {error.start}). "
             "Save it as UTF-8 CSV."
         ) from None
-    except OSError as error:
-        raise DatasetError(f"manifest {str(file)!r} cannot be read: {error.strerror or error}.") from None
-    rows = csv.reader(io.StringIO(text, newline=""))
-    header = _header(file, next(rows, None))
+    rows = _csv_rows(file, text)
+    header = _header(file, next(rows, (1, None))[1])
     folder = file.resolve().parent
     items: list[BatchItem] = []
     problems: list[str] = []
     first_line: dict[str, int] = {}
-    for cells in rows:
-        line = rows.line_num
+    for line, cells in rows:
+        if cells is None:  # the CSV reader gave up on this line
+            problems.append(
+                f"{file}:{line}: is not valid CSV (a field over the CSV reader's limit of "
+                f"{csv.field_size_limit()} characters); nothing after it was read."
+            )
+            break
         if not any(cell.strip() for cell in cells):
             continue
         try:
@@ -390,6 +428,20 @@ def read_manifest(path: PathLike) -> tuple[BatchItem, ...]:
             f"manifest {str(file)!r} has a header but no pairs. Add rows 'reference,inspection' below it."
         )
     return tuple(items)
+
+
+def _csv_rows(file: Path, text: str) -> Iterator[tuple[int, list[str] | None]]:
+    """(line, cells) of each CSV row; (line, None) once, where the reader fails (then it stops)."""
+    reader = csv.reader(io.StringIO(text, newline=""))
+    while True:
+        try:
+            cells = next(reader)
+        except StopIteration:
+            return
+        except csv.Error:
+            yield reader.line_num, None
+            return
+        yield reader.line_num, cells
 
 
 def _header(file: Path, cells: list[str] | None) -> tuple[str, ...]:
@@ -422,6 +474,12 @@ def _item(header: tuple[str, ...], cells: list[str], line: int, folder: Path) ->
             "Quote cells that hold commas."
         )
     values = {name: cell.strip() for name, cell in zip(header, cells, strict=True)}
+    for name, value in values.items():
+        if len(value) > MAX_FIELD_CHARS or "\x00" in value:
+            raise InputError(
+                f"the {name} cell is {len(value)} characters long or holds a NUL byte; cells are at most "
+                f"{MAX_FIELD_CHARS} characters (the longest path Linux opens)."
+            )
     for name in REQUIRED_COLUMNS:
         if not values[name]:
             raise InputError(f"the {name} path is empty. Give the image file, relative to the manifest.")
@@ -463,6 +521,8 @@ def inspect_item(item: BatchItem, settings: PairSettings) -> PairRecord:
     PairRecord
         ``status="ok"`` with the flaws, or ``status="failed"`` with the error and the stage it stopped at.
     """
+    v.instance_of(item, "item", BatchItem)
+    v.instance_of(settings, "settings", PairSettings)
     worker = f"{socket.gethostname()}:{os.getpid()}"
     start_s = time.perf_counter()
     try:
@@ -595,12 +655,20 @@ def run_batch(
         pair never raises. If the driver itself is stopped (Ctrl-C, a failing archive), the pairs already
         written stay, and the run is marked "aborted" or "failed".
     """
+    from rsi.archive import Archive
+
     batch, pair_settings = _checked(items, settings)
+    v.instance_of(archive, "archive", Archive)
+    if scheduler is not None and (
+        not isinstance(scheduler, str) or not scheduler.strip() or len(scheduler) > 1000
+    ):
+        raise InputError(f"scheduler must be an address such as 'tcp://host:8786'; got {scheduler!r:.80}.")
     if workers is not None:
-        workers = v.positive_int(workers, "workers")
-    if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
-        raise InputError(f"scheduler must be an address such as 'tcp://host:8786'; got {scheduler!r}.")
-    v.in_range(connect_timeout_s, "connect_timeout_s", low=0.0, low_inclusive=False)
+        most = MAX_CLUSTER_WORKERS if scheduler is not None else max_local_workers()
+        workers = v.positive_int(workers, "workers", maximum=most)
+    connect_timeout_s = v.in_range(
+        connect_timeout_s, "connect_timeout_s", low=0.0, high=MAX_CONNECT_TIMEOUT_S, low_inclusive=False
+    )
     start_s = time.perf_counter()
     with _cluster(scheduler, workers, connect_timeout_s) as client:
         startup_s = time.perf_counter() - start_s
@@ -696,14 +764,22 @@ def _cluster(scheduler: str | None, workers: int | None, timeout_s: float) -> It
         ):
             yield client
         return
+    _probe_handshake(scheduler, timeout_s)
     try:
         client = Client(scheduler, timeout=f"{timeout_s}s")  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError, ValueError) as error:
         reason = " ".join(str(error).split()) or type(error).__name__
         raise InputError(
-            f"scheduler={scheduler!r} cannot be reached ({reason}). "
+            f"scheduler={scheduler!r} cannot be reached ({reason[:300]}). "
             "Give the address a running `dask scheduler` prints (tcp://host:8786), or omit it for local "
             "worker processes."
+        ) from None
+    except (Exception, MemoryError) as error:
+        # Something answered that is not a dask scheduler: its bytes, read as dask frames, give absurd
+        # lengths (a MemoryError from allocating one) or garbage. The handshake failed; nothing was allocated.
+        raise InputError(
+            f"scheduler={scheduler!r} answered, but not as a dask scheduler (handshake failed: "
+            f"{type(error).__name__}). Check the address and port (`dask scheduler` prints them)."
         ) from None
     with client:
         if workers is not None:
@@ -716,6 +792,46 @@ def _cluster(scheduler: str | None, workers: int | None, timeout_s: float) -> It
                     f"{timeout_s:g} s. Start more workers or ask for fewer."
                 ) from None
         yield client
+
+
+_MAX_HANDSHAKE_BYTES = 64 * 2**20
+
+
+def _probe_handshake(scheduler: str, timeout_s: float) -> None:
+    """Check that a TCP scheduler address answers like dask before the client trusts it.
+
+    A dask scheduler writes its handshake as soon as a connection is accepted: an 8-byte little-endian
+    length, then a few dozen bytes. A server that says nothing would make the client wait forever, and one
+    that says something else gives the client an absurd length to allocate (a MemoryError). A scheduler
+    refusing the connection is not there; other failures (an unknown host) and other schemes (tls://) are
+    left to the client, which names the reason.
+    """
+    scheme, _, rest = scheduler.strip().rpartition("://")
+    host, _, port = rest.rpartition(":")
+    if scheme not in ("", "tcp") or not port.isdigit() or not host:
+        return
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s) as connection:
+            connection.settimeout(timeout_s)
+            prelude = connection.recv(8, socket.MSG_WAITALL)
+    except ConnectionRefusedError:
+        raise InputError(
+            f"scheduler={scheduler!r} cannot be reached (connection refused: nothing listens there). Give "
+            "the address a running `dask scheduler` prints (tcp://host:8786), or omit it for local workers."
+        ) from None
+    except TimeoutError:
+        raise InputError(
+            f"scheduler={scheduler!r} accepted the connection but sent no dask handshake within "
+            f"{timeout_s:g} s (connect_timeout_s). Check the address and port (`dask scheduler` prints them)."
+        ) from None
+    except OSError:
+        return
+    length = int.from_bytes(prelude, "little") if len(prelude) == 8 else 0
+    if not 0 < length <= _MAX_HANDSHAKE_BYTES:
+        raise InputError(
+            f"scheduler={scheduler!r} answered, but not as a dask scheduler (its first bytes {prelude!r}). "
+            "Check the address and port (`dask scheduler` prints them)."
+        )
 
 
 def _gather(

@@ -21,7 +21,7 @@ WRENCH_SIZE = 6
 
 
 def _as_wrenches(wrench: object, name: str) -> FloatArray:
-    values = np.asarray(wrench, dtype=np.float64)
+    values = v.as_float_array(wrench, name)
     if values.ndim == 0 or values.shape[-1] != WRENCH_SIZE:
         raise InputError(
             f"{name} must have shape (..., 6) = (Fx, Fy, Fz, Tx, Ty, Tz) in N and N m; got {values.shape}."
@@ -84,7 +84,7 @@ def read_wrench(
     -------
     ndarray of shape (..., 6), float64
     """
-    settings = ForceTorqueSensor() if sensor is None else sensor
+    settings = ForceTorqueSensor() if sensor is None else v.instance_of(sensor, "sensor", ForceTorqueSensor)
     wrench = _as_wrenches(true_wrench, "true_wrench")
     noise = settings.noise_std * v.as_rng(rng).standard_normal(wrench.shape)
     return np.asarray(wrench + np.asarray(settings.bias) + noise, dtype=np.float64)

@@ -34,7 +34,7 @@ FloatArray = NDArray[np.float64]
 
 
 def _as_concentrations_ppm(concentration_ppm: object, name: str) -> FloatArray:
-    values = np.asarray(concentration_ppm, dtype=np.float64)
+    values = v.as_float_array(concentration_ppm, name)
     if not np.isfinite(values).all() or (values < 0).any():
         raise InputError(f"{name} must be finite and >= 0 ppm; got {concentration_ppm!r}.")
     return values
@@ -100,7 +100,7 @@ class MosGasSensor:
 
         Resistances above the baseline (noise in clean air) read 0 ppm.
         """
-        resistance = np.asarray(resistance_ohm, dtype=np.float64)
+        resistance = v.as_float_array(resistance_ohm, "resistance_ohm")
         if not np.isfinite(resistance).all() or (resistance <= 0).any():
             raise InputError(f"resistance_ohm must be finite and > 0 ohm; got {resistance_ohm!r}.")
         base = self.baseline_ohm if baseline_ohm is None else v.positive(baseline_ohm, "baseline_ohm")
@@ -167,7 +167,7 @@ def read_gas(
     -------
     GasReadings
     """
-    settings = MosGasSensor() if sensor is None else sensor
+    settings = MosGasSensor() if sensor is None else v.instance_of(sensor, "sensor", MosGasSensor)
     concentration = _as_concentrations_ppm(concentration_ppm, "concentration_ppm")
     if concentration.ndim != 1 or concentration.size == 0:
         raise InputError(f"concentration_ppm must be a non-empty 1-D time series; got {concentration.shape}.")

@@ -41,6 +41,23 @@ from rsi.errors import InputError
 FloatArray = NDArray[np.float64]
 
 
+_MAX_VOLTAGE_V = 1e4
+_LAMP_LIMITS = {
+    "rated_illuminance_lux": 1e7,
+    "rated_voltage_v": _MAX_VOLTAGE_V,
+    "light_exponent": 10.0,
+    "filament_time_s": 1e3,
+}
+_CONTROLLER_LIMITS = {
+    "setpoint_lux": 1e7,
+    "proportional_gain": 1e6,
+    "integral_time_s": 1e6,
+    "sample_rate_hz": 1e6,
+}
+MAX_LAMP_SAMPLES = 10**6
+"""Loop steps :func:`simulate_lamp` runs at most (one Python step each: 10**6 is about 10 s)."""
+
+
 @dataclass(frozen=True)
 class HalogenLamp:
     """A halogen lamp on a switching regulator.
@@ -66,12 +83,14 @@ class HalogenLamp:
     filament_time_s: float = 0.05
 
     def __post_init__(self) -> None:
+        # Upper bounds far past any lamp (sunlight is ~1.2e5 lux, halogen gamma ~3.4) keep every power and
+        # product below the float range.
         checks = {
-            name: v.positive(getattr(self, name), name)
-            for name in ("rated_illuminance_lux", "rated_voltage_v", "light_exponent", "filament_time_s")
+            name: v.in_range(getattr(self, name), name, low=0.0, high=high, low_inclusive=False)
+            for name, high in _LAMP_LIMITS.items()
         }
         checks["supply_voltage_v"] = v.in_range(
-            self.supply_voltage_v, "supply_voltage_v", low=checks["rated_voltage_v"]
+            self.supply_voltage_v, "supply_voltage_v", low=checks["rated_voltage_v"], high=_MAX_VOLTAGE_V
         )
         v.store_checked(self, checks)
 
@@ -113,11 +132,11 @@ class LampController:
 
     def __post_init__(self) -> None:
         checks = {
-            name: v.positive(getattr(self, name), name)
-            for name in ("setpoint_lux", "proportional_gain", "integral_time_s", "sample_rate_hz")
+            name: v.in_range(getattr(self, name), name, low=0.0, high=high, low_inclusive=False)
+            for name, high in _CONTROLLER_LIMITS.items()
         }
         checks["sensor_noise_relative"] = v.in_range(
-            self.sensor_noise_relative, "sensor_noise_relative", low=0.0
+            self.sensor_noise_relative, "sensor_noise_relative", low=0.0, high=1.0
         )
         v.store_checked(self, checks)
 
@@ -236,10 +255,22 @@ def simulate_lamp(
     LampRun
         Starts dark; with the defaults the loop settles within 0.3 s.
     """
-    lamp = HalogenLamp() if lamp is None else lamp
-    controller = LampController() if controller is None else controller
-    disturbance = LampDisturbance() if disturbance is None else disturbance
+    lamp = HalogenLamp() if lamp is None else v.instance_of(lamp, "lamp", HalogenLamp)
+    controller = (
+        LampController() if controller is None else v.instance_of(controller, "controller", LampController)
+    )
+    disturbance = (
+        LampDisturbance()
+        if disturbance is None
+        else v.instance_of(disturbance, "disturbance", LampDisturbance)
+    )
     duration = v.positive(duration_s, "duration_s")
+    if duration * controller.sample_rate_hz > MAX_LAMP_SAMPLES:
+        raise InputError(
+            f"duration_s={duration_s!r} at sample_rate_hz={controller.sample_rate_hz!r} is "
+            f"{duration * controller.sample_rate_hz:.3g} loop steps, over {MAX_LAMP_SAMPLES}; shorten the "
+            "run or lower the rate."
+        )
     if disturbance.ageing_per_s * duration >= 1.0:
         raise InputError(
             f"duration_s={duration_s!r} with ageing_per_s={disturbance.ageing_per_s!r} burns the bulb out; "
@@ -325,8 +356,8 @@ class Strobe:
         standoff_m : array_like
             From the fingertips to the scene centre, >= 0 m.
         """
-        opening = np.asarray(jaw_opening_m, dtype=np.float64)
-        standoff = np.asarray(standoff_m, dtype=np.float64)
+        opening = v.as_float_array(jaw_opening_m, "jaw_opening_m")
+        standoff = v.as_float_array(standoff_m, "standoff_m")
         if not np.isfinite(opening).all() or (opening < 0).any() or (opening > self.max_jaw_opening_m).any():
             raise InputError(
                 f"jaw_opening_m must lie in [0, {self.max_jaw_opening_m}] m (the gripper's travel); "

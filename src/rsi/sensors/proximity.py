@@ -51,10 +51,7 @@ def as_distances_m(distance_m: object, name: str, *, allow_inf: bool = False) ->
     allow_inf : bool
         Accept ``+inf`` (a sensor's "no return"); NaN is never accepted.
     """
-    try:
-        values = np.asarray(distance_m, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be an array of distances in metres; got {distance_m!r}.") from exc
+    values = v.as_float_array(distance_m, name)
     if np.isnan(values).any() or (not allow_inf and np.isinf(values).any()):
         kind = "NaN or inf" if not allow_inf else "NaN"
         raise InputError(f"{name} contains {kind}; pass finite distances in metres.")
@@ -170,7 +167,7 @@ class ProximitySensor:
 
         Voltages at or below zero (no return) give ``inf``.
         """
-        volts = np.asarray(voltage_v, dtype=np.float64)
+        volts = v.as_float_array(voltage_v, "voltage_v")
         scale_v_m = self.voltage_at_min_v * (self.min_distance_m + self.lens_offset_m)
         with np.errstate(divide="ignore"):
             distance = scale_v_m / volts - self.lens_offset_m
@@ -186,7 +183,7 @@ class ProximitySensor:
 
     def out_of_range(self, reading_m: object) -> BoolArray:
         """True where a reading lies below ``min_distance_m`` or beyond ``max_distance_m``."""
-        reading = np.asarray(reading_m, dtype=np.float64)
+        reading = v.as_float_array(reading_m, "reading_m")
         return (reading < self.min_distance_m) | (reading > self.max_distance_m)
 
 
@@ -221,7 +218,7 @@ class LowPassFilter:
 
     def filter(self, samples: object) -> FloatArray:
         """Filter a 1-D run of samples, continuing from the current state."""
-        values = np.atleast_1d(np.asarray(samples, dtype=np.float64))
+        values = np.atleast_1d(v.as_float_array(samples, "samples"))
         if values.ndim != 1 or values.size == 0:
             raise InputError(f"samples must be a non-empty 1-D array; got shape {values.shape}.")
         if self._state is None:
@@ -294,7 +291,7 @@ def read_proximity(
     >>> bool(abs(readings.filtered_m[-1] - 0.3) < 0.005)
     True
     """
-    settings = ProximitySensor() if sensor is None else sensor
+    settings = ProximitySensor() if sensor is None else v.instance_of(sensor, "sensor", ProximitySensor)
     distance = as_distances_m(true_distance_m, "true_distance_m", allow_inf=True)
     if distance.ndim != 1 or distance.size == 0:
         raise InputError(f"true_distance_m must be a non-empty 1-D time series; got shape {distance.shape}.")
@@ -324,7 +321,9 @@ class ProximityChannel:
     def __init__(
         self, sensor: ProximitySensor | None = None, *, rng: np.random.Generator | int | None = None
     ) -> None:
-        self.sensor = ProximitySensor() if sensor is None else sensor
+        self.sensor = (
+            ProximitySensor() if sensor is None else v.instance_of(sensor, "sensor", ProximitySensor)
+        )
         self._rng = v.as_rng(rng)
         self._filter = LowPassFilter(
             self.sensor.cutoff_hz, self.sensor.sample_rate_hz, order=self.sensor.filter_order

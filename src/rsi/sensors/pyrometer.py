@@ -50,7 +50,7 @@ def _band_nodes_m(band_m: tuple[float, float]) -> tuple[FloatArray, FloatArray]:
 
 
 def _as_temperatures_k(temperature_k: object, name: str) -> FloatArray:
-    values = np.asarray(temperature_k, dtype=np.float64)
+    values = v.as_float_array(temperature_k, name)
     if not np.isfinite(values).all() or (values <= 0).any():
         raise InputError(f"{name} must be finite and > 0 K; got {temperature_k!r}.")
     return values
@@ -76,7 +76,7 @@ def band_radiance_w_m2_sr(temperature_k: object, *, band_m: tuple[float, float] 
     ``c1 = 2 h c^2`` and ``c2 = h c / k``, by 24-point Gauss-Legendre quadrature (scipy.special).
     """
     temperature = _as_temperatures_k(temperature_k, "temperature_k")
-    wavelength_m, weight_m = _band_nodes_m(band_m)
+    wavelength_m, weight_m = _band_nodes_m(v.increasing_pair(band_m, "band_m", unit="m"))
     spectral = _C1_W_M2_SR / wavelength_m**5 / np.expm1(_C2_M_K / (wavelength_m * temperature[..., None]))
     return np.asarray(spectral @ weight_m, dtype=np.float64)
 
@@ -97,9 +97,13 @@ def invert_band_radiance_k(
     Radiances are first clipped to the radiances of `bracket_k`, so the answer always lies in the bracket
     (the band radiance is strictly increasing in temperature).
     """
-    low_k, high_k = bracket_k
+    low_k, high_k = v.increasing_pair(bracket_k, "bracket_k", unit="K")
+    band_m = v.increasing_pair(band_m, "band_m", unit="m")
     limits = band_radiance_w_m2_sr(np.array([low_k, high_k]), band_m=band_m)
-    target = np.clip(np.asarray(radiance_w_m2_sr, dtype=np.float64), limits[0], limits[1])
+    radiance = v.as_float_array(radiance_w_m2_sr, "radiance_w_m2_sr")
+    if np.isnan(radiance).any():
+        raise InputError("radiance_w_m2_sr contains NaN; pass radiances in W m^-2 sr^-1.")
+    target = np.clip(radiance, limits[0], limits[1])
     start = np.full(target.shape, high_k)  # L is convex in T: Newton from above never overshoots below
     root: FloatArray = optimize.newton(
         lambda t: band_radiance_w_m2_sr(t, band_m=band_m) - target,
@@ -170,10 +174,7 @@ class Pyrometer:
             low=float(checks["min_temperature_k"]),  # type: ignore[arg-type]
             low_inclusive=False,
         )
-        low_m, high_m = (v.finite_number(edge, "band_m") for edge in self.band_m)
-        if not 0.0 < low_m < high_m:
-            raise InputError(f"band_m must be (low, high) with 0 < low < high metres; got {self.band_m!r}.")
-        checks["band_m"] = (low_m, high_m)
+        checks["band_m"] = v.increasing_pair(self.band_m, "band_m", unit="m")
         v.store_checked(self, checks)
 
     @property
@@ -186,7 +187,7 @@ class Pyrometer:
 
         ``aperture + 2 d tan(fov / 2)``: the cone of the optics widens from the lens aperture.
         """
-        distance = np.asarray(distance_m, dtype=np.float64)
+        distance = v.as_float_array(distance_m, "distance_m")
         if not np.isfinite(distance).all() or (distance < 0).any():
             raise InputError(f"distance_m must be finite and >= 0 m; got {distance_m!r}.")
         return np.asarray(self.aperture_m + 2.0 * distance * np.tan(self.field_of_view_rad / 2.0))
@@ -245,7 +246,7 @@ def read_pyrometer(
     >>> bool(abs(float(reading.temperature_k) - 350.0) < 0.5)
     True
     """
-    settings = Pyrometer() if pyrometer is None else pyrometer
+    settings = Pyrometer() if pyrometer is None else v.instance_of(pyrometer, "pyrometer", Pyrometer)
     temperature = _as_temperatures_k(surface_temperature_k, "surface_temperature_k")
     low_k, high_k = settings.span_k
     if (temperature < low_k).any() or (temperature > high_k).any():
@@ -254,9 +255,16 @@ def read_pyrometer(
             f"(0-1000 degF, seed §3); got {surface_temperature_k!r}. Widen the span or convert units "
             "(rsi.units.fahrenheit_to_kelvin)."
         )
-    emissivity = np.asarray(surface_emissivity, dtype=np.float64)
+    emissivity = v.as_float_array(surface_emissivity, "surface_emissivity")
     if not np.isfinite(emissivity).all() or (emissivity <= 0).any() or (emissivity > 1).any():
         raise InputError(f"surface_emissivity must lie in (0, 1]; got {surface_emissivity!r}.")
+    try:
+        np.broadcast_shapes(emissivity.shape, temperature.shape)
+    except ValueError:
+        raise InputError(
+            f"surface_emissivity (shape {emissivity.shape}) must broadcast to surface_temperature_k (shape "
+            f"{temperature.shape}); pass one emissivity, or one per temperature."
+        ) from None
     background = v.in_range(
         background_temperature_k, "background_temperature_k", low=0.0, low_inclusive=False
     )

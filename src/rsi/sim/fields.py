@@ -194,8 +194,15 @@ def emissivity(
     [0.05]
     """
     points = _as_points(points_m)
+    if not isinstance(table, Mapping):
+        raise InputError(f"table must be a mapping of material to emissivity; got {type(table).__name__}.")
     for material, value in table.items():
         v.in_range(value, f"table[{material!r}]", low=0.0, high=1.0, low_inclusive=False)
+    for name, given in (("surface", surface), ("kapton_sites", kapton_sites)):
+        if not isinstance(given, (list, tuple, np.ndarray)) and not (
+            name == "surface" and isinstance(given, str)
+        ):
+            raise InputError(f"{name} must be a sequence (list or tuple); got {type(given).__name__}.")
     names = [surface] * points.shape[0] if isinstance(surface, str) else list(surface)
     if len(names) != points.shape[0]:
         raise InputError(
@@ -204,7 +211,7 @@ def emissivity(
     for material in set(names):
         v.choice(material, "surface", table)
     values = np.array([table[material] for material in names], dtype=np.float64)
-    if kapton_sites:
+    if len(kapton_sites):
         if "kapton" not in table:
             raise InputError("table has no 'kapton' entry but kapton_sites were given; add one.")
         radius_m = v.in_range(kapton_radius_m, "kapton_radius_m", low=0.0, low_inclusive=False)

@@ -70,6 +70,7 @@ SCENES = ("truss",)
 REPEATABILITY_PX: dict[str, tuple[float, float]] = {"lab": (1.0, 2.0), "space": (8.0, 12.0)}
 LAB_LAMP_LUX = LAB_SUN_FRACTION * SUN_ILLUMINANCE_LUX  # seed §4.1: 1.5 % of sunlight, 1950 lux
 MAX_STROBE_ENERGY = 8.0  # a xenon strobe's discharge spans about three stops
+MAX_EXPOSURE_S = 1.0  # 10**4 seed shutters (seed §2.1: 1/10000 s); any scene saturates long before
 MIN_SHUTTER = FLASH_S / ORBIT_EXPOSURE_S  # 0.2: a shorter shutter would cut the flash itself
 STROBE_LUX_S = STROBE_LM_S / SCENE_AREA_M2  # seed §2.1: 1.3 lm s over 0.1 m^2 at the inspection standoff
 HALOGEN_LUX = 1500.0  # end-effector lamps' regulated illuminance at the standoff (rsi.sensors.LampController)
@@ -569,7 +570,7 @@ class World:
         seconds = (
             compensating_exposure(intensity).lab_exposure_s * self.shutter
             if exposure_s is None
-            else v.in_range(exposure_s, "exposure_s", low=0.0, low_inclusive=False)
+            else v.in_range(exposure_s, "exposure_s", low=0.0, high=MAX_EXPOSURE_S, low_inclusive=False)
         )
         settings: dict[str, Any] = {
             "state": state,

@@ -1,0 +1,124 @@
+"""Hostile values and the rule every public entry point must keep (issue 17).
+
+The rule: whatever it is given, a public function returns, or raises one of rsi's own errors, or a
+ValueError / TypeError whose message names one of its arguments. Anything else (OverflowError, LinAlgError,
+ZeroDivisionError, a numpy or OpenCV error, a MemoryError, a hang) is a defect.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import re
+import signal
+import warnings
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from rsi.errors import RsiError
+
+HUGE_INT = 10**400  # no float holds it: float(HUGE_INT) raises OverflowError
+
+# Scalars that have broken rsi before: beyond the float range, not finite, subnormal, negative zero,
+# huge, the wrong type altogether.
+_SCALARS = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.sampled_from([HUGE_INT, -HUGE_INT, 2**63, 2**64 + 1, -1, 0, 1, 99999, 10**9]),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([1e200, -1e200, 1e-320, -0.0, 3.5e38, 1e16, 1e300, math.nan, math.inf, -math.inf]),
+    st.text(max_size=12),
+    st.sampled_from(["", " ", "nan", "1e400", "translation", "single", "both", "lrt", "x" * 300]),
+    st.binary(max_size=8),
+)
+_ELEMENTS = {
+    64: st.one_of(st.floats(width=64), st.sampled_from([0.0, 1.0, 255.0, 1e18, -1e18, 1e300, 3.5e38])),
+    32: st.one_of(
+        st.floats(width=32),
+        st.sampled_from([0.0, 1.0, 255.0, float(np.float32(1e18)), float(np.float32(3e38))]),
+    ),
+}
+_SHAPES = st.sampled_from(
+    [(0,), (1,), (3,), (6,), (2, 2), (3, 3), (4, 5), (8, 8), (3, 3, 3), (0, 4), (16, 16)]
+)
+
+
+def _array(dtype: Any) -> st.SearchStrategy[np.ndarray]:
+    kind = np.dtype(dtype)
+    if kind.kind == "f":
+        return hnp.arrays(dtype, _SHAPES, elements=_ELEMENTS[8 * kind.itemsize])
+    return hnp.arrays(dtype, _SHAPES)
+
+
+ARRAYS = st.one_of(
+    _array(np.float64),
+    _array(np.float32),
+    _array(np.uint8),
+    _array(np.int64),
+    _array(np.bool_),
+    hnp.arrays(np.complex128, st.sampled_from([(3,), (4, 4)])),
+    st.just(np.empty((2, 2), dtype=object)),
+    st.sampled_from([np.zeros((16, 16)), np.full((16, 16), 255.0), np.eye(3), np.eye(6), np.ones(6)]),
+)
+HOSTILE = st.one_of(
+    _SCALARS,
+    ARRAYS,
+    st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=7),
+    st.tuples(st.floats(), st.floats()),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=3),
+    st.just(object()),
+    st.just(Path("/dev/zero")),
+)
+
+
+def names_an_argument(message: str, names: Iterator[str] | list[str] | tuple[str, ...]) -> bool:
+    """True when `message` names one of `names` as a word (``size``, ``band_m[1]``, ``rng seed``)."""
+    return any(re.search(rf"(?<![A-Za-z_]){re.escape(name)}(?![A-Za-z_])", message) for name in names)
+
+
+class HangError(Exception):
+    """A call ran past its time limit."""
+
+
+@contextmanager
+def time_limit(seconds: float) -> Iterator[None]:
+    """Raise :class:`HangError` in the calling thread after `seconds` (SIGALRM; main thread only)."""
+
+    def expire(_signum: int, _frame: object) -> None:
+        raise HangError(f"no answer within {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def call_keeps_the_rule(function: Callable[..., Any], arguments: Mapping[str, Any], *, limit_s: float) -> str:
+    """Call `function(**arguments)`; return "" if it kept the rule, else what went wrong."""
+    names = list(arguments) or list(inspect.signature(function).parameters)
+    try:
+        # Warnings are not errors here (the CLI turns them into one line, tested there).
+        with time_limit(limit_s), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            function(**arguments)
+    except RsiError:
+        return ""
+    except (ValueError, TypeError) as error:
+        if names_an_argument(str(error), names):
+            return ""
+        return f"{type(error).__name__} not naming an argument: {error}"[:400]
+    except HangError as error:
+        return f"hang: {error}"
+    except Exception as error:
+        return f"{type(error).__name__}: {error}"[:400]
+    return ""

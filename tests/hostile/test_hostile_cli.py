@@ -1,0 +1,315 @@
+"""Every ``rsi`` command run in-process with hostile arguments and files (issue 17).
+
+What must hold for each invocation: the exit code is a documented one (0, 2 usage, 3 value, 4 file), never
+5 (a bug) or an uncaught exception; a failure (3 or 4) prints exactly one line on stderr, ``rsi: error:
+...``, with no library chatter or warning before it; a success prints nothing on stderr but ``rsi:
+warning:`` lines; and every corrupt archive the command was pointed at is byte for byte as it was.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sqlite3
+import struct
+import zlib
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from rsi.archive import Archive, Finding
+from rsi.cli import EXIT_FILE, EXIT_INVALID_VALUE, EXIT_OK, EXIT_USAGE, app
+
+pytestmark = pytest.mark.filterwarnings("ignore::hypothesis.errors.HypothesisWarning")
+
+CASES = {
+    "inspect": 200,
+    "register": 120,
+    "roc": 60,
+    "batch": 150,
+    "archive": 270,
+    "quick_fail": 200,
+    "sun": 30,
+}
+
+
+def _png_claiming(cols: int, rows: int) -> bytes:
+    """A small, valid-looking grey PNG whose header claims cols x rows (a decompression bomb's shape)."""
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    header = struct.pack(">IIBBBBB", cols, rows, 8, 0, 0, 0, 0)
+    pixels = zlib.compress(b"\x00" * (cols + 1) * 8)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", pixels) + chunk(b"IEND", b"")
+
+
+@dataclass(frozen=True)
+class Files:
+    root: Path
+    images: tuple[str, ...]
+    manifests: tuple[str, ...]
+    archives: tuple[str, ...]
+    corrupt: dict[str, bytes]
+
+
+def _write_archives(root: Path) -> tuple[list[str], dict[str, bytes]]:
+    good = root / "good.db"
+    with Archive.open(good) as archive:
+        archive.add_vista("A_door")
+        run_id = archive.start_run(seed=1)
+        findings = [Finding("A_door", "impact", 0.5, bbox=(i, i, i + 2, i + 2)) for i in range(300)]
+        archive.add_findings(run_id, findings)
+        archive.finish_run(run_id)
+    tampers = {
+        "settings.db": "UPDATE runs SET settings_json = '{bad'",
+        "started.db": "UPDATE runs SET started_at = 'yesterday'",
+        "version_gone.db": "DELETE FROM rsi_archive",
+        "version_text.db": "UPDATE rsi_archive SET schema_version = 'one'",
+        "dropped.db": "DROP TABLE findings",
+        "extras.db": "UPDATE findings SET extras_json = '[1]' WHERE id = 7",
+        "huge_id.db": "UPDATE runs SET id = 9223372036854775807",
+    }
+    corrupt: dict[str, bytes] = {}
+    for name, statement in tampers.items():
+        shutil.copy(good, root / name)
+        connection = sqlite3.connect(root / name)
+        connection.execute("PRAGMA journal_mode=DELETE")
+        connection.execute("PRAGMA foreign_keys=OFF")
+        connection.execute(statement)
+        connection.commit()
+        connection.close()
+    data = bytearray(good.read_bytes())
+    data[2 * 4096 : len(data) - 4096] = b"\xa5" * (len(data) - 3 * 4096)  # malformed pages, header kept
+    (root / "pages.db").write_bytes(bytes(data))
+    (root / "garbage.db").write_bytes(np.random.default_rng(2).bytes(20000))
+    for name in (*tampers, "pages.db", "garbage.db"):
+        corrupt[name] = (root / name).read_bytes()
+    return ["good.db", *corrupt, "missing.db", "folder"], corrupt
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> Files:
+    root = tmp_path_factory.mktemp("cli")
+    texture = (np.random.default_rng(0).random((32, 32)) * 255).astype(np.uint8)
+    cv2.imwrite(str(root / "good.png"), texture)
+    cv2.imwrite(str(root / "shifted.png"), np.roll(texture, 2, axis=1))
+    cv2.imwrite(str(root / "black.png"), np.zeros((32, 32), np.uint8))
+    cv2.imwrite(str(root / "white.png"), np.full((32, 32), 255, np.uint8))
+    cv2.imwrite(str(root / "tiny.png"), np.zeros((1, 1), np.uint8))
+    (root / "bomb.png").write_bytes(_png_claiming(20000, 20000))
+    (root / "huge.png").write_bytes(_png_claiming(100000, 100000))
+    good = (root / "good.png").read_bytes()
+    (root / "truncated.png").write_bytes(good[: len(good) // 2])
+    (root / "bmp.png").write_bytes(cv2.imencode(".bmp", texture)[1].tobytes())
+    (root / "empty.png").write_bytes(b"")
+    os.symlink("/dev/zero", root / "zero.png")
+    os.mkfifo(root / "fifo.png")
+    (root / "folder.png").mkdir()
+    (root / "folder").mkdir()
+    (root / "file").write_text("not a folder")
+    images = ("good.png", "shifted.png", "black.png", "white.png", "tiny.png", "bomb.png", "huge.png",
+              "truncated.png", "bmp.png", "empty.png", "zero.png", "fifo.png", "folder.png", "missing.png",
+              "good.tif", "file")  # fmt: skip
+    manifests = {
+        "pairs.csv": "reference,inspection\ngood.png,shifted.png\ngood.png,black.png\n",
+        "long_field.csv": "reference,inspection\n" + "x" * 200_000 + ",good.png\n",
+        "long_cell.csv": "reference,inspection\n" + "y" * 5000 + ",good.png\n",
+        "bad_rows.csv": "reference,inspection,p_false_alarm\ngood.png,good.png,often\n,good.png,\n",
+        "no_header.csv": "\n\n",
+        "binary.csv": "\x00\xff\xfe",
+    }
+    for name, text in manifests.items():
+        (root / name).write_bytes(
+            text.encode("utf-8", "surrogateescape") if name != "binary.csv" else b"\xff\xfe\x00"
+        )
+    archives, corrupt = _write_archives(root)
+    return Files(
+        root, images, (*manifests, "fifo.png", "zero.png", "folder", "missing.csv"), tuple(archives), corrupt
+    )
+
+
+runner = CliRunner()
+
+
+def _invoke(files: Files, arguments: Sequence[str]) -> None:
+    """Run one command in `files.root` and check every promise of the module docstring."""
+    previous = Path.cwd()
+    os.chdir(files.root)
+    try:
+        result = runner.invoke(app, list(arguments))
+    finally:
+        os.chdir(previous)
+    shown = f"rsi {' '.join(arguments)[:300]} -> exit {result.exit_code}; stderr {result.stderr[-600:]!r}"
+    assert result.exit_code in (EXIT_OK, EXIT_USAGE, EXIT_INVALID_VALUE, EXIT_FILE), shown
+    assert result.exception is None or isinstance(result.exception, SystemExit), shown
+    lines = result.stderr.splitlines()
+    if result.exit_code in (EXIT_INVALID_VALUE, EXIT_FILE):
+        assert len(lines) == 1 and lines[0].startswith("rsi: error: "), shown
+    if result.exit_code == EXIT_OK:
+        assert all(line.startswith("rsi: warning: ") for line in lines if line.strip()), shown
+    for name, data in files.corrupt.items():
+        assert (files.root / name).read_bytes() == data, f"{name} changed by: {shown}"
+
+
+def _cli_settings(cases: int) -> settings:
+    return settings(max_examples=cases, deadline=None, database=None, suppress_health_check=list(HealthCheck))
+
+
+NUMBERS = st.sampled_from(
+    ["3", "1", "0", "-1", "2", "255", "256", "99999", "1e-5", "0.5", "nan", "inf", "-inf", "1e200", "1e-400",
+     "1e400", "abc", "", "9223372036854775808", "0x10"]
+)  # fmt: skip
+OUTS = st.sampled_from(["out", "file", "file/below", "folder", "out/deeper"])
+
+
+def _options(pairs: dict[str, st.SearchStrategy[str]]) -> st.SearchStrategy[list[str]]:
+    """Any subset of the options, each with a drawn value."""
+    chosen = st.lists(st.sampled_from(sorted(pairs)), unique=True, max_size=len(pairs))
+    return chosen.flatmap(lambda names: st.tuples(*(pairs[name].map(lambda value, n=name: [n, value]) for name in names)).map(lambda items: [part for item in items for part in item]))  # noqa: E501  # fmt: skip
+
+
+DETECTOR = {
+    "--size": NUMBERS,
+    "--p-false-alarm": NUMBERS,
+    "--flaw-model": st.sampled_from(["single", "uniform", "peak", "kernel", "x"]),
+    "--polarity": st.sampled_from(["both", "dark", "bright", "none"]),
+    "--model": st.sampled_from(["translation", "affine", "homography", "zoom"]),
+    "--method": st.sampled_from(["lrt", "erosion", "x"]),
+}
+
+
+def test_the_cli_suite_generates_at_least_a_thousand_cases() -> None:
+    assert sum(CASES.values()) >= 1000
+
+
+def test_inspect(files: Files) -> None:
+    extra = {**DETECTOR, "--noise-sigma": NUMBERS, "--misregistration-std-px": NUMBERS}
+
+    @_cli_settings(CASES["inspect"])
+    @given(st.sampled_from(files.images), st.sampled_from(files.images), OUTS, _options(extra), st.booleans())
+    def run(reference: str, inspection: str, out: str, options: list[str], as_json: bool) -> None:
+        _invoke(
+            files,
+            ["inspect", reference, inspection, "--out", out, *options, *(["--json"] if as_json else [])],
+        )
+
+    run()
+
+
+def test_register(files: Files) -> None:
+    @_cli_settings(CASES["register"])
+    @given(
+        st.sampled_from(files.images),
+        st.sampled_from(files.images),
+        st.sampled_from(["translation", "affine", "x"]),
+    )
+    def run(reference: str, inspection: str, model: str) -> None:
+        _invoke(files, ["register", reference, inspection, "--model", model, "--json"])
+
+    run()
+
+
+def test_roc(files: Files) -> None:
+    strengths = st.sampled_from(["3", "nan", "inf", "-1", "0", "1e300", "abc", "1e-300"])
+
+    @_cli_settings(CASES["roc"])
+    @given(strengths, OUTS, _options({"--size": NUMBERS, "--flaw-model": DETECTOR["--flaw-model"]}))
+    def run(strength: str, out: str, options: list[str]) -> None:
+        _invoke(files, ["roc", "--strength", strength, "--out", out, *options])
+
+    run()
+
+
+def test_batch(files: Files) -> None:
+    # The scheduler refuses the connection: every case stops before a cluster would start, after the manifest,
+    # the archive and every option were checked.
+    options = {**DETECTOR, "--workers": NUMBERS, "--archive": st.sampled_from(files.archives)}
+
+    @_cli_settings(CASES["batch"])
+    @given(st.sampled_from(files.manifests), OUTS, _options(options))
+    def run(manifest: str, out: str, options: list[str]) -> None:
+        _invoke(files, ["batch", manifest, "--out", out, "--scheduler", "tcp://127.0.0.1:1", *options])
+
+    run()
+
+
+def test_archive_commands(files: Files) -> None:
+    archives = st.sampled_from(
+        [*files.archives, "postgresql://user:secret@127.0.0.1:1/rsi", "sqlite:///good.db"]
+    )
+    runs = st.sampled_from(["1", "0", "-1", "2", "9223372036854775807", "9223372036854775808", "abc", "1e3"])
+    command = st.one_of(
+        st.tuples(st.just(["archive", "list"])),
+        st.tuples(st.just(["archive", "show"]), runs.map(lambda run: [run])),
+        st.tuples(
+            st.just(["archive", "export"]), runs.map(lambda run: [run]), OUTS.map(lambda out: ["--out", out])
+        ),
+    ).map(lambda parts: [word for part in parts for word in part])
+
+    @_cli_settings(CASES["archive"])
+    @given(command, archives, st.sampled_from([None, "images", "file"]))
+    def run(words: list[str], archive: str, images_dir: str | None) -> None:
+        _invoke(files, [*words, "--archive", archive, *(["--images-dir", images_dir] if images_dir else [])])
+
+    run()
+
+
+def test_commands_that_must_fail_before_any_simulation(files: Files) -> None:
+    # demo, demo-pair, the proximity demo, sim render and eval run for seconds when they succeed: here each
+    # gets at least one bad value, which must be refused up front, with the documented exit code.
+    bad_seed = st.sampled_from(["-1", "abc", "1.5", "", "99999999999999999999999"])
+    bad_out = st.sampled_from(["file", "file/below"])
+    bad = st.one_of(bad_seed.map(lambda s: ["--seed", s]), bad_out.map(lambda o: ["--out", o]))
+    eval_roots = st.sampled_from(["missing", "file", "folder", "fifo.png", "zero.png"])
+    commands = st.one_of(
+        st.tuples(st.sampled_from([["demo"], ["demo-pair"], ["isee", "proximity-demo"]]), bad),
+        st.tuples(
+            st.just(["sim", "render"]),
+            st.one_of(
+                st.sampled_from(["15", "2049", "4096", "abc", "-5"]).map(lambda r: ["--rows", r]),
+                st.sampled_from(["15", "2049", "abc"]).map(lambda c: ["--cols", c]),
+                bad_seed.map(lambda s: ["--seed", s]),
+                bad_out.map(lambda o: ["--out", o]),
+            ),
+        ),
+        st.tuples(st.just(["eval", "deeppcb"]), eval_roots.map(lambda root: [root])),
+        st.tuples(st.sampled_from([["nope"], ["archive", "nope"], ["sim"], ["inspect"]]), st.just([])),
+    ).map(lambda parts: [word for part in parts for word in part])  # fmt: skip
+
+    @_cli_settings(CASES["quick_fail"])
+    @given(commands)
+    def run(words: list[str]) -> None:
+        _invoke(files, words)
+
+    run()
+
+
+def test_sim_sun(files: Files) -> None:
+    options = {
+        "--altitude-km": st.sampled_from(["400", "-1", "0", "1e300", "nan", "abc"]),
+        "--beta-deg": st.sampled_from(["0", "90", "1e300", "nan", "-inf"]),
+        "--orbits": st.sampled_from(["0.05", "0", "21", "nan", "abc"]),
+        "--step-s": st.sampled_from(["60", "0.05", "601", "nan"]),
+        "--vista": st.sampled_from(["0", "99", "-1", "A_door", "", "x" * 300]),
+    }
+
+    @_cli_settings(CASES["sun"])
+    @given(OUTS, _options(options))
+    def run(out: str, options: list[str]) -> None:
+        # Hostile values first: a valid run (seconds) only when the draw happens to be all good.
+        _invoke(files, ["sim", "sun", "--out", out, "--orbits", "0.05", "--step-s", "60", *options])
+
+    run()
+
+
+@pytest.fixture(autouse=True)
+def _no_stray_fifo_writers() -> Iterator[None]:
+    yield
