@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from scipy import ndimage
 import pytest
 
 import rsi
@@ -17,7 +18,7 @@ from rsi.imaging.compensation import compensate_interlaced
 from rsi.sim.world import REPEATABILITY_PX, World, load
 
 SMALL = (120, 160)
-SEED = 3  # the conftest world's seed: five impacts on the solar panel
+SEED = 16  # the conftest world's seed: five impacts on the solar panel
 
 
 def test_same_seed_same_world_and_frames_different_seed_different_anomalies(world: World) -> None:
@@ -58,7 +59,6 @@ def test_every_visible_flaw_is_dark_where_its_mask_says(world: World) -> None:
     assert len(view.flaw_masks) >= 4  # this seed plants its impacts on the panel
     compensated = compensate_interlaced(view.frame)
     field = compensated.image
-    background = float(np.median(field))
     checked = 0
     for index, mask in view.flaw_masks.items():
         rows = mask[1::2][: field.shape[0]]  # the strobe-lit (odd) rows of the frame
@@ -66,7 +66,13 @@ def test_every_visible_flaw_is_dark_where_its_mask_says(world: World) -> None:
             continue  # below the field's resolution: a spot of < 2 field pixels hides in the noise
         anomaly = world.anomalies.anomalies[index]
         assert anomaly.kind in ("impact", "missing_screw", "swapped_component")
-        assert float(field[rows].min()) < 0.8 * background, (index, anomaly)
+        # the surface around the flaw: a ring 3-8 px out (the panel's cells differ from place to place)
+        grown = ndimage.binary_dilation(rows, iterations=8) & ~ndimage.binary_dilation(rows, iterations=3)
+        surround = float(np.median(field[grown]))
+        # a pixel the flaw covers loses its darkening (seed §4: tape on the surface); a millimetre spot of 2-3
+        # field pixels covers none whole, and the 8-bit noise of the dark cells is ~1 DN: a quarter of it
+        darkening = getattr(anomaly, "darkening", 0.4)
+        assert float(field[rows].min()) < (1.0 - 0.25 * darkening) * surround, (index, anomaly, surround)
         checked += 1
     assert checked >= 3
 
@@ -102,7 +108,8 @@ def test_door_opens_and_fields_delegate(world: World) -> None:
     spots = world.anomalies.thermal_spots
     assert len(spots) == 2
     temperatures = world.temperature_k([spot.position_m for spot in spots])
-    assert np.allclose(np.abs(temperatures - 293.15), 30.0)
+    # 30 K at each spot's centre (seed §4 Peltier modules); the other spot's tail adds at most a few mK
+    assert np.allclose(np.abs(temperatures - 293.15), 30.0, atol=0.01)
     leak = world.anomalies.gas_leaks[0]
     ahead = np.asarray(leak.position_m) + 0.05 * np.asarray(leak.normal)
     assert world.gas_concentration_ppm([ahead], leak.start_time_s + 60.0)[0] > 0
