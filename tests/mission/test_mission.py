@@ -140,6 +140,7 @@ def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> N
         ({"seed": -1}, "seed"),
         ({"seed": 1.5}, "seed"),
         ({"seed": True}, "seed"),
+        ({"seed": 2**63}, "seed"),
         ({"seed": 0, "repeatability": "moon"}, "repeatability"),
         ({"seed": 0, "active": "yes"}, "active"),
         ({"seed": 0, "progress": 3}, "progress"),
@@ -187,6 +188,12 @@ def test_settings_reach_the_result_and_change_the_plan() -> None:
         assert world.vista("C_panel_centre").standoff_m == 0.4
     finally:
         world.close()
+
+
+def test_a_read_only_archive_is_refused_before_the_passes(archived: tuple[MissionResult, Path]) -> None:
+    _, path = archived
+    with Archive.open(path, read_only=True) as archive, pytest.raises(InputError, match="read-only"):
+        run_mission(SEED, archive=archive)
 
 
 def test_score_needs_a_mission_result() -> None:

@@ -8,8 +8,8 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 import pytest
+from scipy import ndimage
 
 import rsi
 from rsi.datasets.rendered import render_vista_to_folder

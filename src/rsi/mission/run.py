@@ -337,8 +337,8 @@ def _checked(
     **flags: object,
 ) -> MissionSettings:
     """The settings to run with, once every argument of run_mission has been checked by name."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be an integer >= 0; got {seed!r}.")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
+        raise InputError(f"seed must be an integer in [0, 2**63) (the archive's integer); got {seed!r}.")
     if settings is not None and not isinstance(settings, MissionSettings):
         raise InputError(
             f"settings must be None or an rsi.mission.MissionSettings; got {type(settings).__name__}."
@@ -358,6 +358,11 @@ def _checked(
             raise InputError(
                 f"archive must be None or an rsi.archive.Archive; got {type(archive).__name__}. "
                 "Open one with rsi.archive.Archive.open(path)."
+            )
+        if archive.read_only:
+            raise InputError(
+                "archive was opened read-only and the mission stores its references and run there; "
+                "open it writable (rsi.archive.Archive.open(path))."
             )
     return MissionSettings() if settings is None else settings
 

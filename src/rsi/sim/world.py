@@ -800,6 +800,5 @@ def load(
     anomalies = seed_anomalies(
         mockup.candidates, rng=np.random.default_rng(anomaly_stream), settings=settings
     )
-    world = World(mockup, anomalies, seed=world_stream, repeatability=repeatability, camera=camera, arm=arm)
-    world.seed = seed_number(seed)
-    return world
+    # a spawned child keeps its parent's entropy: world.seed is the user's integer
+    return World(mockup, anomalies, seed=world_stream, repeatability=repeatability, camera=camera, arm=arm)
