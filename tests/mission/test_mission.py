@@ -268,13 +268,13 @@ def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -
     assert region.mean() > 0.3  # the plate and the tank stay
 
 
-def test_screws_and_the_discoloured_tank_are_found_at_full_size() -> None:
-    # seed 26: screws A_1, A_3 and B_0 removed, D_tank_0 discoloured to 0.65 of its reflectance (seed §4)
+def test_screws_and_the_swapped_component_are_found_at_full_size() -> None:
+    # the mission's world of seed 26 has missing screws and one swapped component (seed §4 defects)
     result = run_mission(26, active=False, arm=False, orbit=False)
     score = score_mission(result)
-    assert score.per_type["missing_screw"].found == score.per_type["missing_screw"].truth == 3
+    assert score.per_type["missing_screw"].found == score.per_type["missing_screw"].truth >= 1
     assert score.per_type["missing_screw"].false_findings == 0
-    assert score.per_type["swapped_component"].found == 1
+    assert score.per_type["swapped_component"].found == score.per_type["swapped_component"].truth == 1
     assert score.per_type["impact"].false_findings <= 3
 
 
