@@ -22,7 +22,7 @@ from rsi.cli import app
 from rsi.datasets.synthetic import synthetic_pair
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.imaging.io import write_image
-from rsi.imaging.registration import MODELS
+from rsi.imaging.registration import REGISTRATION_MODELS
 from rsi.mission.pair import score_flaws
 from rsi.sim.isee_demo import DemoFigures, ProximityDemoResult
 
@@ -339,7 +339,7 @@ def test_help_documents_every_exit_code() -> None:
 
 
 def test_choices_match_the_library() -> None:
-    assert tuple(model.value for model in cli.RegistrationModel) == MODELS
+    assert tuple(model.value for model in cli.RegistrationModel) == REGISTRATION_MODELS
     assert {model.value for model in cli.FlawModel} <= set(FLAW_MODELS)
 
 

@@ -69,13 +69,14 @@ class Polarity(str, Enum):
 
 
 class RegistrationModel(str, Enum):
-    """Motion models of ``rsi.imaging.registration.MODELS`` (kept in step by a test)."""
+    """Motion models of ``rsi.imaging.registration.REGISTRATION_MODELS`` (kept in step by a test)."""
 
     translation = "translation"
     euclidean = "euclidean"
     similarity = "similarity"
     affine = "affine"
     homography = "homography"
+    local = "local"
 
 
 class Method(str, Enum):

@@ -28,7 +28,7 @@ from rsi._validate import as_image, choice, in_range, positive_int
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
-from rsi.imaging.registration import MODELS
+from rsi.imaging.registration import REGISTRATION_MODELS
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -88,7 +88,7 @@ class DeepPcbSettings:
     box_padding_px: int = 10
 
     def __post_init__(self) -> None:
-        choice(self.registration_model, "registration_model", MODELS)
+        choice(self.registration_model, "registration_model", REGISTRATION_MODELS)
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
