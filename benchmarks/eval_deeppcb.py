@@ -5,6 +5,13 @@ Run from the repository root (the data are read in place, never copied)::
     .venv/bin/python benchmarks/eval_deeppcb.py                      # full trainval, 1-3 min on 2 cores
     .venv/bin/python benchmarks/eval_deeppcb.py --every 10           # every 10th pair, quick look
     .venv/bin/python benchmarks/eval_deeppcb.py --misregistration-std-px 1,2,3   # sensitivity sweep
+    .venv/bin/python benchmarks/eval_deeppcb.py --logo                # leave-one-group-out
+
+``--logo`` scores every setting of ``--grid`` (registration model and mis-registration floor) on every
+board group, then, for each group in turn, picks the setting with the best F1 on the other six and scores
+it on that one: per group, pooled, and beside each setting's whole-trainval figure. The group named by
+``--final-group`` (default group50600) is also the final held-out check: its row is the setting chosen on
+the six others, looked at once, at the end.
 
 The baseline is what a user would write first: threshold |inspection - reference| at mid-grey (the images
 are binarised), open with a 5x5 square, report each connected component (no registration). Both detectors'
@@ -22,14 +29,18 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi.datasets.deeppcb import load_split
+from rsi.datasets.deeppcb import DeepPcbPair, load_split
 from rsi.datasets.evaluate import (
     DeepPcbSettings,
     EvaluationResult,
+    MatchCounts,
     PcbDetections,
+    count_pairs,
     detect_defects,
     evaluate_pairs,
     group_defects,
+    group_of,
+    leave_one_group_out,
 )
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "deeppcb"
@@ -51,6 +62,35 @@ def _row(name: str, result: EvaluationResult) -> str:
     return f"| {name} | {result.pairs} | {result.defects} | " + " | ".join(cells) + " |"
 
 
+def _settings(spec: str) -> DeepPcbSettings:
+    """ "affine:3" -> DeepPcbSettings(registration_model="affine", misregistration_std_px=3)."""
+    model, floor = spec.split(":")
+    return dataclasses.replace(
+        DeepPcbSettings(), registration_model=model, misregistration_std_px=float(floor)
+    )
+
+
+def logo(pairs: list[DeepPcbPair], grid: list[str], final_group: str) -> None:
+    """Leave-one-group-out over the board groups; see the module docstring."""
+    counts: dict[str, dict[str, MatchCounts]] = {}
+    for spec in grid:
+        settings = _settings(spec)
+        per_pair = count_pairs(
+            pairs, lambda reference, inspection, s=settings: detect_defects(reference, inspection, settings=s)
+        )
+        by_group: dict[str, MatchCounts] = {}
+        for pair, pair_counts in zip(pairs, per_pair, strict=True):
+            by_group[group_of(pair)] = by_group.get(group_of(pair), MatchCounts()) + pair_counts
+        counts[spec] = by_group
+        whole = sum(by_group.values(), MatchCounts())
+        print(_row(f"whole set, {spec} (tuned on it)", whole.result()), flush=True)
+    result = leave_one_group_out(counts)
+    for group, group_counts in result.held_out.items():
+        label = "final held-out check" if group == final_group else "left out"
+        print(_row(f"{group} ({label}; chosen on the others: {result.chosen[group]})", group_counts.result()))
+    print(_row("**pooled, leave-one-group-out**", result.pooled.result()), flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -64,6 +104,11 @@ def main(argv: list[str] | None = None) -> int:
         help="comma-separated values to sweep (default: DeepPcbSettings())",
     )
     parser.add_argument("--no-baseline", action="store_true")
+    parser.add_argument("--logo", action="store_true", help="leave-one-group-out over the board groups")
+    parser.add_argument(
+        "--grid", default="affine:2,affine:3,affine:4", help="settings for --logo: model:floor_px, ..."
+    )
+    parser.add_argument("--final-group", default="group50600", help="the final held-out check of --logo")
     args = parser.parse_args(argv)
     if not (args.root / "PCBData").is_dir():
         print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
@@ -78,6 +123,9 @@ def main(argv: list[str] | None = None) -> int:
         "| s/pair |"
     )
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    if args.logo:
+        logo(pairs, args.grid.split(","), args.final_group)
+        return 0
     default = DeepPcbSettings()
     stds = (
         [default.misregistration_std_px]
