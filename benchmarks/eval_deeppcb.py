@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
@@ -42,6 +43,7 @@ from rsi.datasets.evaluate import (
     group_of,
     leave_one_group_out,
 )
+from rsi.datasets.official import OfficialTally
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "deeppcb"
 MID_GREY_DN = 127.5
@@ -56,10 +58,41 @@ def baseline(reference: NDArray[np.float32], inspection: NDArray[np.float32]) ->
     return group_defects(opened.astype(bool), grow_px=PADDING_PX)
 
 
+COLUMNS = (
+    "recall",
+    "precision",
+    "f1",
+    "false_alarms_per_image",
+    "iou_recall",
+    "iou_precision",
+    "seconds_per_pair",
+    "official_precision",
+    "official_recall",
+    "official_f",
+    "map",
+)
+
+
 def _row(name: str, result: EvaluationResult) -> str:
     figures = result.to_dict()
-    cells = [f"{value:.3f}" for key, value in figures.items() if key not in ("pairs", "defects")]
+    cells = [f"{figures[key]:.3f}" for key in COLUMNS]
     return f"| {name} | {result.pairs} | {result.defects} | " + " | ".join(cells) + " |"
+
+
+def _class_table(result: EvaluationResult) -> None:
+    print("\n| class | boxes | detections | precision | recall | AP |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    for name, row in result.per_class.items():
+        print(
+            f"| {name} | {row['boxes']:.0f} | {row['detections']:.0f} | {row['precision']:.3f} "
+            f"| {row['recall']:.3f} | {row['ap']:.3f} |"
+        )
+    names = ["none", *result.per_class]
+    print("\nconfusion (rows: true class, columns: detected class; IoU > 0.33, class-agnostic pairing)\n")
+    print("| true \\ detected | " + " | ".join(names) + " |")
+    print("| --- |" + " ---: |" * len(names))
+    for name, row in zip(names, result.confusion, strict=True):
+        print(f"| {name} | " + " | ".join(str(value) for value in row) + " |")
 
 
 def _settings(spec: str) -> DeepPcbSettings:
@@ -70,20 +103,23 @@ def _settings(spec: str) -> DeepPcbSettings:
     )
 
 
-def logo(pairs: list[DeepPcbPair], grid: list[str], final_group: str) -> None:
+def logo(pairs: Sequence[DeepPcbPair], grid: list[str], final_group: str) -> None:
     """Leave-one-group-out over the board groups; see the module docstring."""
     counts: dict[str, dict[str, MatchCounts]] = {}
     for spec in grid:
         settings = _settings(spec)
+        tally = OfficialTally()
         per_pair = count_pairs(
-            pairs, lambda reference, inspection, s=settings: detect_defects(reference, inspection, settings=s)
+            pairs,
+            lambda reference, inspection, s=settings: detect_defects(reference, inspection, settings=s),
+            tally=tally,
         )
         by_group: dict[str, MatchCounts] = {}
         for pair, pair_counts in zip(pairs, per_pair, strict=True):
             by_group[group_of(pair)] = by_group.get(group_of(pair), MatchCounts()) + pair_counts
         counts[spec] = by_group
-        whole = sum(by_group.values(), MatchCounts())
-        print(_row(f"whole set, {spec} (tuned on it)", whole.result()), flush=True)
+        whole = dataclasses.replace(sum(by_group.values(), MatchCounts()).result(), **tally.figures())
+        print(_row(f"whole set, {spec} (tuned on it)", whole), flush=True)
     result = leave_one_group_out(counts)
     for group, group_counts in result.held_out.items():
         label = "final held-out check" if group == final_group else "left out"
@@ -120,9 +156,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(
         "| detector | pairs | defects | recall | precision | F1 | FA/image | IoU recall | IoU precision "
-        "| s/pair |"
+        "| s/pair | official P | official R | official F | mAP |"
     )
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    print("| --- |" + " ---: |" * 13)
     if args.logo:
         logo(pairs, args.grid.split(","), args.final_group)
         return 0
@@ -132,14 +168,18 @@ def main(argv: list[str] | None = None) -> int:
         if args.misregistration_std_px is None
         else [float(value) for value in args.misregistration_std_px.split(",")]
     )
+    last = None
     for std_px in stds:
         settings = dataclasses.replace(default, misregistration_std_px=std_px)
         result = evaluate_pairs(
             pairs, lambda reference, inspection, s=settings: detect_defects(reference, inspection, settings=s)
         )
         print(_row(f"rsi (sigma_s={std_px:g} px)", result), flush=True)
+        last = result
     if not args.no_baseline:
         print(_row("difference + 5x5 opening", evaluate_pairs(pairs, baseline)), flush=True)
+    if last is not None:
+        _class_table(last)
     return 0
 
 

@@ -38,6 +38,12 @@ KEYS = [
     "iou_recall",
     "iou_precision",
     "seconds_per_pair",
+    "official_precision",
+    "official_recall",
+    "official_f",
+    "map",
+    "per_class",
+    "confusion",
 ]
 
 
@@ -189,6 +195,10 @@ def test_evaluate_deeppcb_end_to_end_on_a_fake_tree(defect_tree: Path) -> None:
     assert (result.pairs, result.defects) == (3, 6)
     assert result.recall == 1.0 and result.false_alarms_per_image == 0.0
     assert result.iou_recall == 1.0 and result.iou_precision == 1.0
+    # Each defect is named: every detection lies in the official tally, its class table and confusion.
+    assert sum(row["detections"] for row in result.per_class.values()) == 6
+    assert np.array(result.confusion)[1:, 1:].sum() == 6
+    assert 0.0 <= result.official_f <= 1.0
 
 
 def test_evaluate_deeppcb_rejects_bad_settings(tmp_path: Path) -> None:

@@ -18,7 +18,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -26,9 +26,13 @@ from numpy.typing import NDArray
 
 from rsi._validate import as_image, choice, in_range, positive_int
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
+from rsi.datasets.pcb_classes import classify_defects
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
 from rsi.imaging.registration import REGISTRATION_MODELS
+
+if TYPE_CHECKING:
+    from rsi.datasets.official import OfficialTally
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -119,10 +123,17 @@ class PcbDetections:
         Centroid (x = column, y = row) of each defect's detected pixels.
     boxes_xyxy : ndarray of shape (D, 4), int64
         ``(x1, y1, x2, y2)``, corners inclusive, DeepPCB's convention.
+    classes : ndarray of shape (D,), int64, optional
+        Class of each defect, a key of :data:`rsi.datasets.deeppcb.DEFECT_TYPES`; None when unnamed
+        (then the official figures count every detection as unpaired).
+    confidences : ndarray of shape (D,), float64, optional
+        Ranking of the detections for average precision (higher first).
     """
 
     centres_xy: FloatArray
     boxes_xyxy: IntArray
+    classes: IntArray | None = None
+    confidences: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -152,8 +163,14 @@ class EvaluationResult:
     iou_recall: float
     iou_precision: float
     seconds_per_pair: float
+    official_precision: float = 0.0
+    official_recall: float = 0.0
+    official_f: float = 0.0
+    map: float = 0.0
+    per_class: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
+    confusion: list[list[int]] = dataclasses.field(default_factory=list)
 
-    def to_dict(self) -> dict[str, float | int]:
+    def to_dict(self) -> dict[str, Any]:
         """Return the figures as a plain dict (JSON-ready), keys in field order."""
         return dataclasses.asdict(self)
 
@@ -366,12 +383,16 @@ def detect_defects(
     _clear_border(mask, chosen.border_px)
     # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
     undo_erosion = chosen.size // 2 if chosen.method == "erosion" else 0
-    return group_defects(
+    found = group_defects(
         mask,
         merge_gap_px=chosen.merge_gap_px,
         min_area_px=chosen.min_area_px,
         grow_px=undo_erosion + chosen.box_padding_px,
     )
+    # The template as the detector predicted it in the test's frame: inspection less the difference.
+    template = np.where(detection.valid, inspection_image - detection.difference, inspection_image)
+    classes, confidences = classify_defects(template, inspection_image, found.boxes_xyxy)
+    return dataclasses.replace(found, classes=classes, confidences=confidences)
 
 
 Detector = Callable[[NDArray[np.float32], NDArray[np.float32]], PcbDetections]
@@ -444,9 +465,17 @@ def match_counts(pair: DeepPcbPair, found: PcbDetections, seconds: float = 0.0) 
 
 
 def count_pairs(
-    pairs: Sequence[DeepPcbPair], detector: Detector, *, progress: Progress | None = None
+    pairs: Sequence[DeepPcbPair],
+    detector: Detector,
+    *,
+    progress: Progress | None = None,
+    tally: OfficialTally | None = None,
 ) -> list[MatchCounts]:
-    """Run a detector over pairs; one :class:`MatchCounts` per pair (times include reading the images)."""
+    """Run a detector over pairs; one :class:`MatchCounts` per pair (times include reading the images).
+
+    With `tally` (:class:`rsi.datasets.official.OfficialTally`), each pair is also scored by the official
+    rule.
+    """
     if len(pairs) == 0:
         raise InputError("pairs is empty. Pass at least one DeepPcbPair (rsi.datasets.deeppcb.load_split).")
     counts = []
@@ -454,6 +483,15 @@ def count_pairs(
         start = time.perf_counter()
         found = detector(*read_pair(pair))
         counts.append(match_counts(pair, found, time.perf_counter() - start))
+        if tally is not None:
+            unnamed = np.zeros(len(found.boxes_xyxy), dtype=np.int64)
+            tally.add(
+                pair.boxes_xyxy,
+                pair.defect_types,
+                found.boxes_xyxy,
+                unnamed if found.classes is None else found.classes,
+                np.zeros(len(unnamed)) if found.confidences is None else found.confidences,
+            )
         if progress is not None:
             progress(pair.pair_id, done, len(pairs))
     return counts
@@ -477,7 +515,11 @@ def evaluate_pairs(
     -------
     EvaluationResult
     """
-    return sum(count_pairs(pairs, detector, progress=progress), MatchCounts()).result()
+    from rsi.datasets.official import OfficialTally  # it builds on this module's IoU
+
+    tally = OfficialTally()
+    counts = sum(count_pairs(pairs, detector, progress=progress, tally=tally), MatchCounts())
+    return dataclasses.replace(counts.result(), **tally.figures())
 
 
 def group_of(pair: DeepPcbPair) -> str:

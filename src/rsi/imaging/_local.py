@@ -61,12 +61,12 @@ _MAX_STD_PX = 0.5
 _MAX_CONDITION = 1e4
 _MIN_USED_FRACTION = 0.25
 _MIN_TILE_PX = 8
-_MAX_ITERATIONS = 20
+_MAX_ITERATIONS = 10
 _INVERSE_ROUNDS = 3
 # Largest change of the field in one Gauss-Newton step, pixels of the level: beyond it the linearisation
 # of lightly smoothed images (a binarised board's edges are ~2 px wide) no longer holds.
 _MAX_STEP_PX = 1.0
-_TOLERANCE_PX = 1e-3
+_TOLERANCE_PX = 0.01
 
 
 @dataclass(frozen=True)
