@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -30,7 +31,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi.datasets.deeppcb import DeepPcbPair, load_split
+from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.datasets.evaluate import (
     DeepPcbSettings,
     EvaluationResult,
@@ -44,6 +45,9 @@ from rsi.datasets.evaluate import (
     leave_one_group_out,
 )
 from rsi.datasets.official import OfficialTally
+from rsi.datasets.pcb_classes import classify_defects
+from rsi.detection.detect import detect
+from rsi.imaging.registration import register
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "deeppcb"
 MID_GREY_DN = 127.5
@@ -127,6 +131,52 @@ def logo(pairs: Sequence[DeepPcbPair], grid: list[str], final_group: str) -> Non
     print(_row("**pooled, leave-one-group-out**", result.pooled.result()), flush=True)
 
 
+def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
+    """CPU time of each stage of detect_defects per pair, one thread, reading the JPEGs included."""
+    cv2.setNumThreads(1)
+    stages: dict[str, list[float]] = {
+        name: [] for name in ("read", "register", "detect", "group", "classify", "total")
+    }
+    for pair in pairs:
+        clock = [time.thread_time()]
+
+        def lap(name: str, clock: list[float] = clock) -> None:
+            now = time.thread_time()
+            stages[name].append(now - clock[0])
+            clock[0] = now
+
+        start = clock[0]
+        reference, inspection = read_pair(pair)
+        lap("read")
+        fit = register(reference, inspection, model=settings.registration_model)
+        lap("register")
+        detection = detect(
+            reference,
+            inspection,
+            flaw_model=settings.flaw_model,
+            size=settings.size,
+            method=settings.method,
+            p_false_alarm=settings.p_false_alarm,
+            noise_sigma=settings.noise_sigma,
+            registration=fit,
+            misregistration_std_px=settings.misregistration_std_px,
+        )
+        lap("detect")
+        found = group_defects(
+            detection.mask, merge_gap_px=settings.merge_gap_px, grow_px=settings.box_padding_px + 1
+        )
+        lap("group")
+        template = np.where(detection.valid, inspection - detection.difference, inspection)
+        classify_defects(template, inspection, found.boxes_xyxy)
+        lap("classify")
+        stages["total"].append(time.thread_time() - start)
+    print(f"\nstage CPU ms per pair, one thread, {len(pairs)} pairs ({settings.registration_model})\n")
+    print("| stage | median ms | mean ms |")
+    print("| --- | ---: | ---: |")
+    for name, seconds in stages.items():
+        print(f"| {name} | {1e3 * float(np.median(seconds)):.1f} | {1e3 * float(np.mean(seconds)):.1f} |")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -145,6 +195,9 @@ def main(argv: list[str] | None = None) -> int:
         "--grid", default="affine:2,affine:3,affine:4", help="settings for --logo: model:floor_px, ..."
     )
     parser.add_argument("--final-group", default="group50600", help="the final held-out check of --logo")
+    parser.add_argument(
+        "--profile", default=None, help="model:floor_px: CPU time of each stage, one thread (no scoring)"
+    )
     args = parser.parse_args(argv)
     if not (args.root / "PCBData").is_dir():
         print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
@@ -161,6 +214,9 @@ def main(argv: list[str] | None = None) -> int:
     print("| --- |" + " ---: |" * 13)
     if args.logo:
         logo(pairs, args.grid.split(","), args.final_group)
+        return 0
+    if args.profile:
+        profile(pairs, _settings(args.profile))
         return 0
     default = DeepPcbSettings()
     stds = (
