@@ -110,25 +110,40 @@ def _settings(spec: str) -> DeepPcbSettings:
 def logo(pairs: Sequence[DeepPcbPair], grid: list[str], final_group: str) -> None:
     """Leave-one-group-out over the board groups; see the module docstring."""
     counts: dict[str, dict[str, MatchCounts]] = {}
+    tallies: dict[str, dict[str, OfficialTally]] = {}
+    groups = sorted({group_of(pair) for pair in pairs})
     for spec in grid:
         settings = _settings(spec)
-        tally = OfficialTally()
-        per_pair = count_pairs(
-            pairs,
-            lambda reference, inspection, s=settings: detect_defects(reference, inspection, settings=s),
-            tally=tally,
-        )
-        by_group: dict[str, MatchCounts] = {}
-        for pair, pair_counts in zip(pairs, per_pair, strict=True):
-            by_group[group_of(pair)] = by_group.get(group_of(pair), MatchCounts()) + pair_counts
-        counts[spec] = by_group
-        whole = dataclasses.replace(sum(by_group.values(), MatchCounts()).result(), **tally.figures())
-        print(_row(f"whole set, {spec} (tuned on it)", whole), flush=True)
+        counts[spec], tallies[spec] = {}, {}
+        for group in groups:
+            members = [pair for pair in pairs if group_of(pair) == group]
+            tallies[spec][group] = OfficialTally()
+            counts[spec][group] = sum(
+                count_pairs(
+                    members,
+                    lambda reference, inspection, s=settings: detect_defects(
+                        reference, inspection, settings=s
+                    ),
+                    tally=tallies[spec][group],
+                ),
+                MatchCounts(),
+            )
+        print(_row(f"whole set, {spec} (tuned on it)", _official(counts[spec], tallies[spec])), flush=True)
     result = leave_one_group_out(counts)
-    for group, group_counts in result.held_out.items():
+    chosen_tallies = {group: tallies[result.chosen[group]][group] for group in groups}
+    for group in groups:
         label = "final held-out check" if group == final_group else "left out"
-        print(_row(f"{group} ({label}; chosen on the others: {result.chosen[group]})", group_counts.result()))
-    print(_row("**pooled, leave-one-group-out**", result.pooled.result()), flush=True)
+        figures = _official({group: result.held_out[group]}, {group: chosen_tallies[group]})
+        print(_row(f"{group} ({label}; chosen on the others: {result.chosen[group]})", figures))
+    pooled = _official(result.held_out, chosen_tallies)
+    print(_row("**pooled, leave-one-group-out**", pooled), flush=True)
+    _class_table(pooled)
+
+
+def _official(counts: dict[str, MatchCounts], tallies: dict[str, OfficialTally]) -> EvaluationResult:
+    """Class-agnostic figures of the summed counts with the official ones of the summed tallies."""
+    total = sum(counts.values(), MatchCounts()).result()
+    return dataclasses.replace(total, **sum(tallies.values(), OfficialTally()).figures())
 
 
 def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:

@@ -61,3 +61,16 @@ def test_tally_gives_the_official_figures_and_the_confusion() -> None:
     assert confusion[2, 1] == 1  # the short, called open
     assert confusion[0, 6] == 1  # a pin-hole where there is nothing
     assert confusion.sum() == 3
+
+
+def test_tallies_add_up_to_the_tally_of_all_images() -> None:
+    first, second, both = OfficialTally(), OfficialTally(), OfficialTally()
+    images = [
+        (TRUTH, TRUTH_CLASSES, np.array([[0, 0, 9, 9]]), [1], [0.5]),
+        (TRUTH, TRUTH_CLASSES, np.array([[20, 20, 29, 29], [50, 50, 59, 59]]), [2, 3], [0.9, 0.2]),
+    ]
+    first.add(*images[0])
+    second.add(*images[1])
+    for image in images:
+        both.add(*image)
+    assert (first + second).figures() == both.figures()

@@ -111,6 +111,15 @@ class OfficialTally:
             self.detections[cls].append((score, hit))
         self._confuse(truth_xyxy, truth, detected_xyxy, detected)
 
+    def __add__(self, other: OfficialTally) -> OfficialTally:
+        """The tally of both sets of images."""
+        return OfficialTally(
+            boxes={cls: self.boxes[cls] + other.boxes[cls] for cls in CLASSES},
+            found={cls: self.found[cls] + other.found[cls] for cls in CLASSES},
+            detections={cls: self.detections[cls] + other.detections[cls] for cls in self.detections},
+            confusion=self.confusion + other.confusion,
+        )
+
     def _confuse(
         self, truth_xyxy: object, truth: IntArray, detected_xyxy: object, detected: IntArray
     ) -> None:
