@@ -223,6 +223,8 @@ def test_real_trainval_subset_meets_the_target() -> None:
     # Full trainval: see docs/deeppcb.md (benchmarks/eval_deeppcb.py).
     assert result.recall >= 0.95
     assert result.false_alarms_per_image <= 0.6  # 10 pairs: a loose bound on a noisy figure
+    # The official rule needs the class too: 0.93 on these 10 pairs, 0.953 on all 1,000.
+    assert result.official_f >= 0.85
 
 
 def _counts(boxes: int, found: int, detections: int, false_alarms: int) -> MatchCounts:
