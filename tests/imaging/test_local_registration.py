@@ -16,7 +16,7 @@ from rsi.datasets.synthetic import textured_surface
 from rsi.detection.detect import detect
 from rsi.errors import InputError
 from rsi.imaging.io import write_image
-from rsi.imaging.registration import Registration, register
+from rsi.imaging.registration import Registration, prepare_reference, register
 
 SIZE_PX = 384
 BORDER_PX = 24  # the field is judged inside this margin: the warp brings reflected content to the edge
@@ -220,3 +220,23 @@ def test_cli_register_and_inspect_with_the_local_model(tmp_path: Path) -> None:
     assert inspected.exit_code == 0, inspected.output
     flaws = json.loads(inspected.stdout.strip().splitlines()[-1])["flaws"]
     assert len(flaws) == len(FLAW_CENTRES_RC)
+
+
+def test_prepared_reference_mask_and_smaller_inspection() -> None:
+    reference, inspection, _ = warped_pair(2.0, seed=4)
+    cold = register(reference, inspection, model="local")
+    warm = register(prepare_reference(reference, model="affine"), inspection, model="local")
+    assert cold.local is not None and warm.local is not None
+    np.testing.assert_array_equal(cold.local.shift_xy, warm.local.shift_xy)
+    # Masked rows give their tiles no data: they fall back, the others keep their own estimates.
+    mask = np.ones(reference.shape, bool)
+    mask[:100] = False
+    masked = register(reference, inspection, model="local", mask=mask)
+    assert masked.local is not None
+    assert masked.local.fallback[masked.local.node_rows < 80].all()
+    assert not masked.local.fallback[masked.local.node_rows > 140].all()
+    # A smaller inspection: the warp and its validity come in the inspection's shape.
+    small = register(reference, inspection[:300, :320], model="local")
+    warped, valid = small.warp(reference, output_shape=(300, 320))
+    assert warped.shape == valid.shape == (300, 320)
+    assert valid.mean() > 0.95
