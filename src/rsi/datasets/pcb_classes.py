@@ -27,6 +27,9 @@ from numpy.typing import NDArray
 COPPER_BELOW_DN = 127.5  # DeepPCB's images are binarised: copper dark (0), board light (255)
 OPEN, SHORT, MOUSEBITE, SPUR, SPURIOUS_COPPER, PIN_HOLE = 1, 2, 3, 4, 5, 6
 _OPENING = np.ones((3, 3), np.uint8)
+# The confidence counts changed pixels that survive this erosion. Chosen on every 5th trainval pair among
+# the opened count (mAP 0.923), the raw count (0.917) and this core (0.946); the classes are unchanged.
+_CORE = np.ones((5, 5), np.uint8)
 # Smallest piece of copper or board counted; DeepPCB's smallest pin-holes are ~4 px across.
 _MIN_PIECE_PX = 12
 
@@ -57,7 +60,9 @@ def classify_window(template: NDArray[np.floating], test: NDArray[np.floating]) 
     class : int
         A key of :data:`rsi.datasets.deeppcb.DEFECT_TYPES`.
     changed_px : float
-        Pixels that changed copper state, after a 3 x 3 opening of each sign.
+        Pixels that changed copper state and survive a 5 x 5 erosion: the solid core of the change, which
+        the 1-2 px slivers of etching and resampling along edges never have (the detector's own
+        rationale, docs/deeppcb.md); it ranks detections for average precision.
     """
     before = (np.asarray(template) < COPPER_BELOW_DN).astype(np.uint8)
     after = (np.asarray(test) < COPPER_BELOW_DN).astype(np.uint8)
@@ -66,20 +71,25 @@ def classify_window(template: NDArray[np.floating], test: NDArray[np.floating]) 
     if added == removed == 0:
         # Nothing survives the opening: decide on the raw difference (a thin defect).
         added, removed = int((after & (1 - before)).sum()), int((before & (1 - after)).sum())
-    pieces_before, holes_before = _pieces(before)
-    pieces_after, holes_after = _pieces(after)
-    if added > removed:
+    core = float(cv2.erode(before ^ after, _CORE).sum())
+    return _name(added > removed, _pieces(before), _pieces(after)), core
+
+
+def _name(grown: bool, before: tuple[int, int], after: tuple[int, int]) -> int:
+    """The class from the sign of the change and the (pieces, holes) before and after it."""
+    (pieces_before, holes_before), (pieces_after, holes_after) = before, after
+    if grown:
         if pieces_after < pieces_before:
-            return SHORT, float(added)
+            return SHORT
         if pieces_after > pieces_before:
-            return SPURIOUS_COPPER, float(added)
-        return SPUR, float(added)
+            return SPURIOUS_COPPER
+        return SPUR
     # An open never encloses board; a pin-hole near the window's edge can cut copper in two there.
     if holes_after > holes_before:
-        return PIN_HOLE, float(removed)
+        return PIN_HOLE
     if pieces_after > pieces_before:
-        return OPEN, float(removed)
-    return MOUSEBITE, float(removed)
+        return OPEN
+    return MOUSEBITE
 
 
 def classify_defects(
