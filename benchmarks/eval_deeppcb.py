@@ -5,6 +5,13 @@ Run from the repository root (the data are read in place, never copied)::
     .venv/bin/python benchmarks/eval_deeppcb.py                      # full trainval, 1-3 min on 2 cores
     .venv/bin/python benchmarks/eval_deeppcb.py --every 10           # every 10th pair, quick look
     .venv/bin/python benchmarks/eval_deeppcb.py --misregistration-std-px 1,2,3   # sensitivity sweep
+    .venv/bin/python benchmarks/eval_deeppcb.py --logo                # leave-one-group-out
+
+``--logo`` scores every setting of ``--grid`` (registration model and mis-registration floor) on every
+board group, then, for each group in turn, picks the setting with the best F1 on the other six and scores
+it on that one: per group, pooled, and beside each setting's whole-trainval figure. The group named by
+``--final-group`` (default group50600) is also the final held-out check: its row is the setting chosen on
+the six others, looked at once, at the end.
 
 The baseline is what a user would write first: threshold |inspection - reference| at mid-grey (the images
 are binarised), open with a 5x5 square, report each connected component (no registration). Both detectors'
@@ -16,21 +23,31 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi.datasets.deeppcb import load_split
+from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.datasets.evaluate import (
     DeepPcbSettings,
     EvaluationResult,
+    MatchCounts,
     PcbDetections,
+    count_pairs,
     detect_defects,
     evaluate_pairs,
     group_defects,
+    group_of,
+    leave_one_group_out,
 )
+from rsi.datasets.official import OfficialTally
+from rsi.datasets.pcb_classes import classify_defects
+from rsi.detection.detect import detect
+from rsi.imaging.registration import register
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "deeppcb"
 MID_GREY_DN = 127.5
@@ -45,10 +62,134 @@ def baseline(reference: NDArray[np.float32], inspection: NDArray[np.float32]) ->
     return group_defects(opened.astype(bool), grow_px=PADDING_PX)
 
 
+COLUMNS = (
+    "recall",
+    "precision",
+    "f1",
+    "false_alarms_per_image",
+    "iou_recall",
+    "iou_precision",
+    "seconds_per_pair",
+    "official_precision",
+    "official_recall",
+    "official_f",
+    "map",
+)
+
+
 def _row(name: str, result: EvaluationResult) -> str:
     figures = result.to_dict()
-    cells = [f"{value:.3f}" for key, value in figures.items() if key not in ("pairs", "defects")]
+    cells = [f"{figures[key]:.3f}" for key in COLUMNS]
     return f"| {name} | {result.pairs} | {result.defects} | " + " | ".join(cells) + " |"
+
+
+def _class_table(result: EvaluationResult) -> None:
+    print("\n| class | boxes | detections | precision | recall | AP |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    for name, row in result.per_class.items():
+        print(
+            f"| {name} | {row['boxes']:.0f} | {row['detections']:.0f} | {row['precision']:.3f} "
+            f"| {row['recall']:.3f} | {row['ap']:.3f} |"
+        )
+    names = ["none", *result.per_class]
+    print("\nconfusion (rows: true class, columns: detected class; IoU > 0.33, class-agnostic pairing)\n")
+    print("| true \\ detected | " + " | ".join(names) + " |")
+    print("| --- |" + " ---: |" * len(names))
+    for name, row in zip(names, result.confusion, strict=True):
+        print(f"| {name} | " + " | ".join(str(value) for value in row) + " |")
+
+
+def _settings(spec: str) -> DeepPcbSettings:
+    """ "affine:3" -> DeepPcbSettings(registration_model="affine", misregistration_std_px=3)."""
+    model, floor = spec.split(":")
+    return dataclasses.replace(
+        DeepPcbSettings(), registration_model=model, misregistration_std_px=float(floor)
+    )
+
+
+def logo(pairs: Sequence[DeepPcbPair], grid: list[str], final_group: str) -> None:
+    """Leave-one-group-out over the board groups; see the module docstring."""
+    counts: dict[str, dict[str, MatchCounts]] = {}
+    tallies: dict[str, dict[str, OfficialTally]] = {}
+    groups = sorted({group_of(pair) for pair in pairs})
+    for spec in grid:
+        settings = _settings(spec)
+        counts[spec], tallies[spec] = {}, {}
+        for group in groups:
+            members = [pair for pair in pairs if group_of(pair) == group]
+            tallies[spec][group] = OfficialTally()
+            counts[spec][group] = sum(
+                count_pairs(
+                    members,
+                    lambda reference, inspection, s=settings: detect_defects(
+                        reference, inspection, settings=s
+                    ),
+                    tally=tallies[spec][group],
+                ),
+                MatchCounts(),
+            )
+        print(_row(f"whole set, {spec} (tuned on it)", _official(counts[spec], tallies[spec])), flush=True)
+    result = leave_one_group_out(counts)
+    chosen_tallies = {group: tallies[result.chosen[group]][group] for group in groups}
+    for group in groups:
+        label = "final held-out check" if group == final_group else "left out"
+        figures = _official({group: result.held_out[group]}, {group: chosen_tallies[group]})
+        print(_row(f"{group} ({label}; chosen on the others: {result.chosen[group]})", figures))
+    pooled = _official(result.held_out, chosen_tallies)
+    print(_row("**pooled, leave-one-group-out**", pooled), flush=True)
+    _class_table(pooled)
+
+
+def _official(counts: dict[str, MatchCounts], tallies: dict[str, OfficialTally]) -> EvaluationResult:
+    """Class-agnostic figures of the summed counts with the official ones of the summed tallies."""
+    total = sum(counts.values(), MatchCounts()).result()
+    return dataclasses.replace(total, **sum(tallies.values(), OfficialTally()).figures())
+
+
+def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
+    """CPU time of each stage of detect_defects per pair, one thread, reading the JPEGs included."""
+    cv2.setNumThreads(1)
+    stages: dict[str, list[float]] = {
+        name: [] for name in ("read", "register", "detect", "group", "classify", "total")
+    }
+    for pair in pairs:
+        clock = [time.thread_time()]
+
+        def lap(name: str, clock: list[float] = clock) -> None:
+            now = time.thread_time()
+            stages[name].append(now - clock[0])
+            clock[0] = now
+
+        start = clock[0]
+        reference, inspection = read_pair(pair)
+        lap("read")
+        fit = register(reference, inspection, model=settings.registration_model)
+        lap("register")
+        detection = detect(
+            reference,
+            inspection,
+            flaw_model=settings.flaw_model,
+            size=settings.size,
+            method=settings.method,
+            p_false_alarm=settings.p_false_alarm,
+            noise_sigma=settings.noise_sigma,
+            registration=fit,
+            misregistration_std_px=settings.misregistration_std_px,
+        )
+        lap("detect")
+        found = group_defects(
+            detection.mask, merge_gap_px=settings.merge_gap_px, grow_px=settings.box_padding_px + 1
+        )
+        lap("group")
+        template = np.where(detection.valid, inspection - detection.difference, inspection)
+        classify_defects(template, inspection, found.boxes_xyxy)
+        lap("classify")
+        stages["total"].append(time.thread_time() - start)
+    print(f"\nstage CPU ms per pair, one thread, {len(pairs)} pairs ({settings.registration_model})\n")
+    print("| stage | median ms | mean ms |")
+    print("| --- | ---: | ---: |")
+    for name, seconds in stages.items():
+        print(f"| {name} | {1e3 * float(np.median(seconds)):.1f} | {1e3 * float(np.mean(seconds)):.1f} |")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -64,6 +205,14 @@ def main(argv: list[str] | None = None) -> int:
         help="comma-separated values to sweep (default: DeepPcbSettings())",
     )
     parser.add_argument("--no-baseline", action="store_true")
+    parser.add_argument("--logo", action="store_true", help="leave-one-group-out over the board groups")
+    parser.add_argument(
+        "--grid", default="affine:2,affine:3,affine:4", help="settings for --logo: model:floor_px, ..."
+    )
+    parser.add_argument("--final-group", default="group50600", help="the final held-out check of --logo")
+    parser.add_argument(
+        "--profile", default=None, help="model:floor_px: CPU time of each stage, one thread (no scoring)"
+    )
     args = parser.parse_args(argv)
     if not (args.root / "PCBData").is_dir():
         print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
@@ -75,23 +224,33 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(
         "| detector | pairs | defects | recall | precision | F1 | FA/image | IoU recall | IoU precision "
-        "| s/pair |"
+        "| s/pair | official P | official R | official F | mAP |"
     )
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    print("| --- |" + " ---: |" * 13)
+    if args.logo:
+        logo(pairs, args.grid.split(","), args.final_group)
+        return 0
+    if args.profile:
+        profile(pairs, _settings(args.profile))
+        return 0
     default = DeepPcbSettings()
     stds = (
         [default.misregistration_std_px]
         if args.misregistration_std_px is None
         else [float(value) for value in args.misregistration_std_px.split(",")]
     )
+    last = None
     for std_px in stds:
         settings = dataclasses.replace(default, misregistration_std_px=std_px)
         result = evaluate_pairs(
             pairs, lambda reference, inspection, s=settings: detect_defects(reference, inspection, settings=s)
         )
         print(_row(f"rsi (sigma_s={std_px:g} px)", result), flush=True)
+        last = result
     if not args.no_baseline:
         print(_row("difference + 5x5 opening", evaluate_pairs(pairs, baseline)), flush=True)
+    if last is not None:
+        _class_table(last)
     return 0
 
 

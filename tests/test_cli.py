@@ -19,11 +19,12 @@ from typer.testing import CliRunner, Result
 
 from rsi import cli
 from rsi.cli import app
+from rsi.datasets.deeppcb import DEFECT_TYPES
 from rsi.datasets.synthetic import synthetic_pair
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.detection.pair import score_flaws
 from rsi.imaging.io import write_image
-from rsi.imaging.registration import MODELS
+from rsi.imaging.registration import REGISTRATION_MODELS
 from rsi.mission.proximity_records import DemoFigures, ProximityDemoResult
 
 runner = CliRunner()
@@ -230,10 +231,18 @@ def test_eval_deeppcb_json_is_the_last_stdout_line(defect_tree: Path) -> None:
         "iou_recall",
         "iou_precision",
         "seconds_per_pair",
+        "official_precision",
+        "official_recall",
+        "official_f",
+        "map",
+        "per_class",
+        "confusion",
     ]
     assert (figures["pairs"], figures["defects"], figures["recall"]) == (3, 6, 1.0)
+    assert sorted(figures["per_class"]) == sorted(DEFECT_TYPES.values())
     table = invoke("eval", "deeppcb", defect_tree, "--split", "trainval")
     assert table.exit_code == 0 and "recall" in table.stdout
+    assert "pin-hole" in table.stdout and "Confusion" in table.stdout
 
 
 @pytest.fixture
@@ -339,7 +348,7 @@ def test_help_documents_every_exit_code() -> None:
 
 
 def test_choices_match_the_library() -> None:
-    assert tuple(model.value for model in cli.RegistrationModel) == MODELS
+    assert tuple(model.value for model in cli.RegistrationModel) == REGISTRATION_MODELS
     assert {model.value for model in cli.FlawModel} <= set(FLAW_MODELS)
 
 

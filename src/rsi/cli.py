@@ -71,13 +71,14 @@ class Polarity(str, Enum):
 
 
 class RegistrationModel(str, Enum):
-    """Motion models of ``rsi.imaging.registration.MODELS`` (kept in step by a test)."""
+    """Motion models of ``rsi.imaging.registration.REGISTRATION_MODELS`` (kept in step by a test)."""
 
     translation = "translation"
     euclidean = "euclidean"
     similarity = "similarity"
     affine = "affine"
     homography = "homography"
+    local = "local"
 
 
 class Method(str, Enum):
@@ -553,7 +554,31 @@ def eval_deeppcb(
         if as_json:
             _print_json(record)
             return
+        per_class, confusion = record.pop("per_class"), record.pop("confusion")
         _print_record(record, title=f"DeepPCB {split.value}")
+        _print_classes(per_class, confusion)
+
+
+def _print_classes(per_class: Mapping[str, Mapping[str, float]], confusion: Sequence[Sequence[int]]) -> None:
+    """The official rule per class, and the confusion of paired boxes (rows true, columns detected)."""
+    from rich.table import Table
+
+    table = Table(title="Per class (IoU > 0.33, same class)")
+    for column in ("class", "boxes", "detections", "precision", "recall", "AP"):
+        table.add_column(column)
+    for name, row in per_class.items():
+        table.add_row(
+            name, *(_readable(row[key]) for key in ("boxes", "detections", "precision", "recall", "ap"))
+        )
+    _stdout().print(table)
+    names = ["none", *per_class]
+    matrix = Table(title="Confusion (rows: true class, columns: detected; none = missed / false alarm)")
+    matrix.add_column("true \\ detected")
+    for name in names:
+        matrix.add_column(name)
+    for name, counts in zip(names, confusion, strict=True):
+        matrix.add_row(name, *(str(value) for value in counts))
+    _stdout().print(matrix)
 
 
 sim_app = typer.Typer(

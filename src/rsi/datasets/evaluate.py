@@ -18,7 +18,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -26,9 +26,13 @@ from numpy.typing import NDArray
 
 from rsi._validate import as_image, choice, in_range, positive_int
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
+from rsi.datasets.pcb_classes import classify_defects
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
-from rsi.imaging.registration import MODELS
+from rsi.imaging.registration import REGISTRATION_MODELS
+
+if TYPE_CHECKING:
+    from rsi.datasets.official import OfficialTally
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -37,6 +41,12 @@ PathLike = str | os.PathLike[str]
 
 OFFICIAL_IOU = 0.33  # Tang et al. 2019: a detection is correct when IoU > 0.33 (and the class agrees)
 _BOX_COLUMNS = 4
+
+
+def _safe_ratio(numerator: float, denominator: float) -> float:
+    return numerator / denominator if denominator else 0.0
+
+
 _CENTRE_COLUMNS = 2
 
 
@@ -88,7 +98,7 @@ class DeepPcbSettings:
     box_padding_px: int = 10
 
     def __post_init__(self) -> None:
-        choice(self.registration_model, "registration_model", MODELS)
+        choice(self.registration_model, "registration_model", REGISTRATION_MODELS)
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
@@ -113,10 +123,17 @@ class PcbDetections:
         Centroid (x = column, y = row) of each defect's detected pixels.
     boxes_xyxy : ndarray of shape (D, 4), int64
         ``(x1, y1, x2, y2)``, corners inclusive, DeepPCB's convention.
+    classes : ndarray of shape (D,), int64, optional
+        Class of each defect, a key of :data:`rsi.datasets.deeppcb.DEFECT_TYPES`; None when unnamed
+        (then the official figures count every detection as unpaired).
+    confidences : ndarray of shape (D,), float64, optional
+        Ranking of the detections for average precision (higher first).
     """
 
     centres_xy: FloatArray
     boxes_xyxy: IntArray
+    classes: IntArray | None = None
+    confidences: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -146,8 +163,14 @@ class EvaluationResult:
     iou_recall: float
     iou_precision: float
     seconds_per_pair: float
+    official_precision: float = 0.0
+    official_recall: float = 0.0
+    official_f: float = 0.0
+    map: float = 0.0
+    per_class: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
+    confusion: list[list[int]] = dataclasses.field(default_factory=list)
 
-    def to_dict(self) -> dict[str, float | int]:
+    def to_dict(self) -> dict[str, Any]:
         """Return the figures as a plain dict (JSON-ready), keys in field order."""
         return dataclasses.asdict(self)
 
@@ -360,20 +383,118 @@ def detect_defects(
     _clear_border(mask, chosen.border_px)
     # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
     undo_erosion = chosen.size // 2 if chosen.method == "erosion" else 0
-    return group_defects(
+    found = group_defects(
         mask,
         merge_gap_px=chosen.merge_gap_px,
         min_area_px=chosen.min_area_px,
         grow_px=undo_erosion + chosen.box_padding_px,
     )
+    # The template as the detector predicted it in the test's frame: inspection less the difference.
+    template = np.where(detection.valid, inspection_image - detection.difference, inspection_image)
+    classes, confidences = classify_defects(template, inspection_image, found.boxes_xyxy)
+    return dataclasses.replace(found, classes=classes, confidences=confidences)
 
 
 Detector = Callable[[NDArray[np.float32], NDArray[np.float32]], PcbDetections]
 Progress = Callable[[str, int, int], None]
 
 
-def _safe_ratio(numerator: float, denominator: float) -> float:
-    return numerator / denominator if denominator else 0.0
+@dataclass(frozen=True)
+class MatchCounts:
+    """What one or more pairs contributed to the figures; counts add up across pairs and groups.
+
+    Attributes
+    ----------
+    pairs, boxes, found, detections, false_alarms, iou_found, iou_correct : int
+        Pairs; ground-truth boxes; boxes found (centre in box); detections; detections whose centre lies in
+        no box; boxes and detections paired by the class-agnostic IoU > 0.33 rule.
+    seconds : float
+        Wall time spent on them, reading the images included.
+    """
+
+    pairs: int = 0
+    boxes: int = 0
+    found: int = 0
+    detections: int = 0
+    false_alarms: int = 0
+    iou_found: int = 0
+    iou_correct: int = 0
+    seconds: float = 0.0
+
+    def __add__(self, other: MatchCounts) -> MatchCounts:
+        return MatchCounts(
+            *(getattr(self, field.name) + getattr(other, field.name) for field in dataclasses.fields(self))
+        )
+
+    @property
+    def f1(self) -> float:
+        """The centre-in-box F1 of these counts (0 when undefined)."""
+        return self.result().f1
+
+    def result(self) -> EvaluationResult:
+        """The figures of these counts."""
+        recall = _safe_ratio(self.found, self.boxes)
+        precision = _safe_ratio(self.detections - self.false_alarms, self.detections)
+        return EvaluationResult(
+            pairs=self.pairs,
+            defects=self.boxes,
+            recall=recall,
+            precision=precision,
+            f1=_safe_ratio(2.0 * recall * precision, recall + precision),
+            false_alarms_per_image=_safe_ratio(self.false_alarms, self.pairs),
+            iou_recall=_safe_ratio(self.iou_found, self.boxes),
+            iou_precision=_safe_ratio(self.iou_correct, self.detections),
+            seconds_per_pair=_safe_ratio(self.seconds, self.pairs),
+        )
+
+
+def match_counts(pair: DeepPcbPair, found: PcbDetections, seconds: float = 0.0) -> MatchCounts:
+    """Score one pair's detections against its ground truth by both matching rules."""
+    hit, false_alarm = centre_in_box(found.centres_xy, pair.boxes_xyxy)
+    iou_found, iou_correct = iou_match(found.boxes_xyxy, pair.boxes_xyxy)
+    return MatchCounts(
+        pairs=1,
+        boxes=int(hit.size),
+        found=int(hit.sum()),
+        detections=int(false_alarm.size),
+        false_alarms=int(false_alarm.sum()),
+        iou_found=int(iou_found.sum()),
+        iou_correct=int(iou_correct.sum()),
+        seconds=seconds,
+    )
+
+
+def count_pairs(
+    pairs: Sequence[DeepPcbPair],
+    detector: Detector,
+    *,
+    progress: Progress | None = None,
+    tally: OfficialTally | None = None,
+) -> list[MatchCounts]:
+    """Run a detector over pairs; one :class:`MatchCounts` per pair (times include reading the images).
+
+    With `tally` (:class:`rsi.datasets.official.OfficialTally`), each pair is also scored by the official
+    rule.
+    """
+    if len(pairs) == 0:
+        raise InputError("pairs is empty. Pass at least one DeepPcbPair (rsi.datasets.deeppcb.load_split).")
+    counts = []
+    for done, pair in enumerate(pairs, start=1):
+        start = time.perf_counter()
+        found = detector(*read_pair(pair))
+        counts.append(match_counts(pair, found, time.perf_counter() - start))
+        if tally is not None:
+            unnamed = np.zeros(len(found.boxes_xyxy), dtype=np.int64)
+            tally.add(
+                pair.boxes_xyxy,
+                pair.defect_types,
+                found.boxes_xyxy,
+                unnamed if found.classes is None else found.classes,
+                np.zeros(len(unnamed)) if found.confidences is None else found.confidences,
+            )
+        if progress is not None:
+            progress(pair.pair_id, done, len(pairs))
+    return counts
 
 
 def evaluate_pairs(
@@ -394,39 +515,70 @@ def evaluate_pairs(
     -------
     EvaluationResult
     """
-    if len(pairs) == 0:
-        raise InputError("pairs is empty. Pass at least one DeepPcbPair (rsi.datasets.deeppcb.load_split).")
-    counts = np.zeros(6)  # boxes, found, detections, false alarms, IoU-found, IoU-correct
-    start = time.perf_counter()
-    for done, pair in enumerate(pairs, start=1):
-        found = detector(*read_pair(pair))
-        hit, false_alarm = centre_in_box(found.centres_xy, pair.boxes_xyxy)
-        iou_found, iou_correct = iou_match(found.boxes_xyxy, pair.boxes_xyxy)
-        counts += (
-            hit.size,
-            hit.sum(),
-            false_alarm.size,
-            false_alarm.sum(),
-            iou_found.sum(),
-            iou_correct.sum(),
+    from rsi.datasets.official import OfficialTally  # it builds on this module's IoU
+
+    tally = OfficialTally()
+    counts = sum(count_pairs(pairs, detector, progress=progress, tally=tally), MatchCounts())
+    return dataclasses.replace(counts.result(), **tally.figures())
+
+
+def group_of(pair: DeepPcbPair) -> str:
+    """The board group of a pair, the first folder of its id (e.g. ``"group20085"``)."""
+    return pair.pair_id.split("/", 1)[0]
+
+
+@dataclass(frozen=True)
+class LeaveOneGroupOut:
+    """Leave-one-group-out figures: each group scored with the setting chosen on the others.
+
+    Attributes
+    ----------
+    chosen : dict of str to str
+        Per left-out group, the name of the setting that scored best (centre-in-box F1, then fewest false
+        alarms) on the other groups.
+    held_out : dict of str to MatchCounts
+        Per group, its counts under the setting chosen without it.
+    pooled : MatchCounts
+        The sum of ``held_out`` over the groups.
+    """
+
+    chosen: dict[str, str]
+    held_out: dict[str, MatchCounts]
+    pooled: MatchCounts
+
+
+def leave_one_group_out(counts: dict[str, dict[str, MatchCounts]]) -> LeaveOneGroupOut:
+    """Choose a setting on all groups but one, score that one; each group in turn.
+
+    Parameters
+    ----------
+    counts : dict of str to dict of str to MatchCounts
+        ``counts[setting][group]``: every setting scored on every group (the same groups for each).
+
+    Returns
+    -------
+    LeaveOneGroupOut
+        No setting is ever chosen per group on that group's own figures.
+    """
+    if not counts:
+        raise InputError("counts is empty. Pass counts[setting][group] for at least one setting.")
+    groups = sorted(next(iter(counts.values())))
+    if len(groups) < 2 or any(sorted(by_group) != groups for by_group in counts.values()):
+        raise InputError(
+            f"counts must hold the same groups (at least two) for every setting; got "
+            f"{ {name: sorted(by_group) for name, by_group in counts.items()} }."
         )
-        if progress is not None:
-            progress(pair.pair_id, done, len(pairs))
-    elapsed = time.perf_counter() - start
-    boxes, hits, detections, false_alarms, iou_hits, iou_correct_count = (float(value) for value in counts)
-    recall = _safe_ratio(hits, boxes)
-    precision = _safe_ratio(detections - false_alarms, detections)
-    return EvaluationResult(
-        pairs=len(pairs),
-        defects=int(boxes),
-        recall=recall,
-        precision=precision,
-        f1=_safe_ratio(2.0 * recall * precision, recall + precision),
-        false_alarms_per_image=false_alarms / len(pairs),
-        iou_recall=_safe_ratio(iou_hits, boxes),
-        iou_precision=_safe_ratio(iou_correct_count, detections),
-        seconds_per_pair=elapsed / len(pairs),
-    )
+    chosen, held_out = {}, {}
+    for group in groups:
+
+        def training(name: str, left_out: str = group) -> tuple[float, float]:
+            total = sum((c for g, c in counts[name].items() if g != left_out), MatchCounts())
+            return total.f1, -total.false_alarms / max(total.pairs, 1)
+
+        best = max(counts, key=training)
+        chosen[group] = best
+        held_out[group] = counts[best][group]
+    return LeaveOneGroupOut(chosen, held_out, sum(held_out.values(), MatchCounts()))
 
 
 def evaluate_deeppcb(

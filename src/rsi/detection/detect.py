@@ -36,7 +36,7 @@ from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
 from rsi.errors import InputError
 from rsi.imaging.compensation import Compensated
-from rsi.imaging.registration import MODELS, Registration, register
+from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
 
 Float32Array = NDArray[np.float32]
 BoolArray = NDArray[np.bool_]
@@ -253,11 +253,24 @@ def _prediction_errors(
     """Coherent one-sigma errors of the prediction: residual shift and resampling (seed §2.3-2.4)."""
     if registration is None and shift_floor == 0.0:
         return ()
+    if registration is not None and registration.local is not None:
+        return _local_prediction_errors(aligned, registration.local, shift_floor)
     # Unregistered images are not resampled: no sub-pixel phase, hence no resampling error.
     fraction = (0.0, 0.0) if registration is None else aligned.fraction_xy
     own = (0.0, 0.0) if registration is None else registration.shift_std_px
     shift_std = (max(own[0], shift_floor), max(own[1], shift_floor))
     return noise.systematic_errors(aligned.predicted, fraction, shift_std)
+
+
+def _local_prediction_errors(
+    aligned: _Aligned, local: LocalField, shift_floor: float
+) -> tuple[Float32Array, ...]:
+    """As _prediction_errors, with the local field's per-pixel shift std in place of one global value."""
+    shape = (int(aligned.predicted.shape[0]), int(aligned.predicted.shape[1]))
+    unit_x, unit_y, curvature = noise.systematic_errors(aligned.predicted, None, (1.0, 1.0))
+    std = local.std(shape)
+    floor = np.float32(shift_floor)
+    return unit_x * np.maximum(std[..., 0], floor), unit_y * np.maximum(std[..., 1], floor), curvature
 
 
 def _correlate(image: Float32Array, weights: NDArray[np.float64]) -> Float32Array:
@@ -397,7 +410,8 @@ def detect(
         ``"auto"`` registers with ``registration_model``; a Registration is used as given; None takes the
         images as aligned.
     registration_model : str
-        Model for ``registration="auto"``, one of :data:`rsi.imaging.registration.MODELS`.
+        Model for ``registration="auto"``, one of :data:`rsi.imaging.registration.REGISTRATION_MODELS`.
+        ``"local"`` follows local distortion with a smooth field and brings its per-pixel uncertainty.
     min_area_px : int
         Components of the mask smaller than this are not reported as flaws.
     misregistration_std_px : float
@@ -405,6 +419,8 @@ def detect(
         ``shift_std_px`` is the statistical precision of one global fit; local distortion (thermal
         expansion, flexible structures, etching of a printed board) moves edges further, and this floor
         turns it into noise at edges instead of false alarms. Also applies with ``registration=None``.
+        With a local registration (``model="local"``) the per-pixel std of its field is used instead of
+        the global ``shift_std_px``, and the floor applies to it.
 
     Returns
     -------
@@ -428,7 +444,7 @@ def detect(
         if noise_sigma is None
         else in_range(noise_sigma, "noise_sigma", low=0.0, high=MAX_INTENSITY, low_inclusive=False)
     )
-    choice(registration_model, "registration_model", MODELS)
+    choice(registration_model, "registration_model", REGISTRATION_MODELS)
     min_area = positive_int(min_area_px, "min_area_px")
     shift_floor = in_range(misregistration_std_px, "misregistration_std_px", low=0.0)
     weights = flaw_kernel(chosen_model, size=size, peak_ratio=peak_ratio, kernel=kernel)

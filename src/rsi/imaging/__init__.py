@@ -22,7 +22,14 @@ if TYPE_CHECKING:
         compensate_two_frames,
     )
     from rsi.imaging.io import read_image, write_image
-    from rsi.imaging.registration import MODELS, PreparedReference, Registration, prepare_reference, register
+    from rsi.imaging.registration import (
+        MODELS,
+        REGISTRATION_MODELS,
+        PreparedReference,
+        Registration,
+        prepare_reference,
+        register,
+    )
 
 # public names, loaded on first use so that importing the package stays cheap (PEP 562)
 _LAZY = {
@@ -38,6 +45,7 @@ _LAZY = {
     "read_image": "rsi.imaging.io",
     "write_image": "rsi.imaging.io",
     "MODELS": "rsi.imaging.registration",
+    "REGISTRATION_MODELS": "rsi.imaging.registration",
     "PreparedReference": "rsi.imaging.registration",
     "Registration": "rsi.imaging.registration",
     "prepare_reference": "rsi.imaging.registration",
@@ -51,6 +59,7 @@ __getattr__ = lazy_getattr(__name__, _LAZY)
 __all__ = [
     "DEFAULT_CAMERA",
     "MODELS",
+    "REGISTRATION_MODELS",
     "BadPixelMap",
     "CameraModel",
     "Compensated",

@@ -10,16 +10,20 @@ its references: :func:`prepare_reference` computes once what depends on the refe
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from rsi._validate import as_intensity_image, as_mask, choice, in_range, positive_int
 from rsi.errors import InputError
 from rsi.imaging._gauss_newton import Settings, Terms, reference_terms, solve_level
+from rsi.imaging._local import LocalField, estimate_field
 from rsi.imaging._pyramid import (
     Estimate,
     Level,
@@ -27,12 +31,28 @@ from rsi.imaging._pyramid import (
     inspection_pyramid,
     level_count,
     reference_pyramid,
+    smooth,
 )
 from rsi.imaging._warps import WARP_MODELS, Allocate, Image, Matrix, is_translation, owned, sample, scratch
 
-__all__ = ["MODELS", "PreparedReference", "Registration", "prepare_reference", "register"]
+__all__ = [
+    "MODELS",
+    "REGISTRATION_MODELS",
+    "LocalField",
+    "PreparedReference",
+    "Registration",
+    "prepare_reference",
+    "register",
+]
 
+# One global motion each (a 3x3 matrix).
 MODELS = ("translation", "euclidean", "similarity", "affine", "homography")
+# Everything register accepts: the global models and "local", an affine fit plus a smooth displacement field
+# (seed §2.3: small mis-registrations are locally translational).
+LOCAL_MODEL = "local"
+REGISTRATION_MODELS = (*MODELS, LOCAL_MODEL)
+_LOCAL_GLOBAL_MODEL = "affine"
+_DEFAULT_TILE_PX = 64
 
 # Preimages this close outside the reference still count as inside (round-off of the inverse warp).
 _EDGE_TOLERANCE_PX = 1e-6
@@ -50,10 +70,10 @@ class Registration:
     Attributes
     ----------
     model : str
-        One of :data:`MODELS`.
+        One of :data:`REGISTRATION_MODELS`.
     matrix : ndarray of shape (3, 3), float64, read-only
         Maps a reference pixel ``(x, y, 1)`` (x = column, y = row) to inspection pixel coordinates
-        (homogeneous: divide by the third component).
+        (homogeneous: divide by the third component). For ``model="local"``, the global affine fit.
     gain, bias : float
         Photometric fit, ``inspection ~= gain * reference + bias`` (1 and 0 when not fitted).
     converged : bool
@@ -71,6 +91,9 @@ class Registration:
         finest level reached; the residual mis-registration the detector turns into noise (seed §2.4).
     elapsed_s : float
         Wall time of :func:`register`.
+    local : LocalField or None
+        For ``model="local"``: the displacement field on top of `matrix`, its per-tile uncertainty and the
+        tiles that fell back to the global fit.
     """
 
     model: str
@@ -83,6 +106,7 @@ class Registration:
     residual_rms: float
     shift_std_px: tuple[float, float]
     elapsed_s: float
+    local: LocalField | None = None
 
     def __post_init__(self) -> None:
         matrix = np.array(self.matrix, dtype=np.float64)
@@ -122,8 +146,11 @@ class Registration:
         image = _as_float32(reference, "reference")
         shape = image.shape if output_shape is None else _output_shape(output_shape)
         inverse = np.asarray(np.linalg.inv(self.matrix), dtype=np.float64)
-        warped = sample(image, inverse, (0, shape[0], 0, shape[1]))
-        valid = _preimage_inside(inverse, shape, image.shape)
+        if self.local is None:
+            warped = sample(image, inverse, (0, shape[0], 0, shape[1]))
+            valid = _preimage_inside(inverse, shape, image.shape)
+        else:
+            warped, valid = _warp_local(image, self.matrix, self.local, (int(shape[0]), int(shape[1])))
         if photometric:
             warped = (warped * np.float32(self.gain) + np.float32(self.bias)).astype(np.float32)
         warped[~valid] = 0.0
@@ -290,6 +317,22 @@ def _shifted_inside(
     return valid
 
 
+def _warp_local(
+    image: Image, matrix: Matrix, local: LocalField, shape: tuple[int, int]
+) -> tuple[Image, NDArray[np.bool_]]:
+    """Resample `image` where each inspection pixel's preimage lies under the global fit and the field."""
+    map_x, map_y = local.source_maps(matrix, shape)
+    warped = cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    high_x, high_y = image.shape[1] - 1 + _EDGE_TOLERANCE_PX, image.shape[0] - 1 + _EDGE_TOLERANCE_PX
+    valid = (
+        (map_x >= -_EDGE_TOLERANCE_PX)
+        & (map_y >= -_EDGE_TOLERANCE_PX)
+        & (map_x <= high_x)
+        & (map_y <= high_y)
+    )
+    return np.asarray(warped, dtype=np.float32), np.asarray(valid, dtype=bool)
+
+
 def _output_shape(output_shape: object) -> tuple[int, int]:
     values = tuple(output_shape) if isinstance(output_shape, (tuple, list)) else ()
     if len(values) != 2 or not all(isinstance(v, (int, np.integer)) and v >= 1 for v in values):
@@ -359,6 +402,7 @@ def register(
     tolerance: float = 1e-3,
     deadline_s: float | None = None,
     initial: NDArray[np.floating] | Registration | None = None,
+    tile_px: int | None = None,
 ) -> Registration:
     """Register `reference` to `inspection` by coarse-to-fine inverse-compositional Gauss-Newton.
 
@@ -370,8 +414,9 @@ def register(
     inspection : ndarray of shape (P, Q)
         Inspection image; its shape may differ from the reference's.
     model : str, optional
-        Motion model, one of :data:`MODELS`; "translation" by default, or the prepared reference's model
-        (another one raises).
+        Motion model, one of :data:`REGISTRATION_MODELS`; "translation" by default, or the prepared
+        reference's model (another one raises). ``"local"``: the affine fit (or the prepared reference's
+        model), then a smooth displacement field from overlapping tiles (``Registration.local``).
     photometric : bool, optional
         Also fit ``inspection ~= gain * reference + bias``; True by default, or the prepared reference's
         choice (another one raises).
@@ -386,6 +431,9 @@ def register(
     initial : ndarray of shape (3, 3) or Registration, optional
         Start warp (reference pixel to inspection pixel); by default phase correlation at the coarsest level
         gives the start, so shifts up to about a quarter of the image side converge.
+    tile_px : int, optional
+        ``model="local"`` only: side of the overlapping tiles (default 64), at least 8 and at most the
+        image's shorter side. Smaller tiles follow faster-varying distortion with less texture each.
 
     Returns
     -------
@@ -420,6 +468,25 @@ def register(
     [3.7, -2.2]
     """
     started = time.perf_counter()
+    if model is not None and choice(model, "model", REGISTRATION_MODELS) == LOCAL_MODEL:
+        return _register_local(
+            reference,
+            inspection,
+            partial(
+                register,
+                photometric=photometric,
+                mask=mask,
+                max_iterations=max_iterations,
+                tolerance=tolerance,
+                deadline_s=deadline_s,
+                initial=initial,
+            ),
+            mask=mask,
+            tile_px=_DEFAULT_TILE_PX if tile_px is None else tile_px,
+            started=started,
+        )
+    if tile_px is not None:
+        raise InputError(f"tile_px applies to model='local' only; got model={model!r}. Omit tile_px.")
     inspection_image = _as_float32(inspection, "inspection")
     if isinstance(reference, PreparedReference):
         _check_prepared(reference, model, photometric, mask)
@@ -468,4 +535,38 @@ def register(
         residual_rms=estimate.residual_rms,
         shift_std_px=estimate.shift_std_px,
         elapsed_s=time.perf_counter() - started,
+    )
+
+
+def _register_local(
+    reference: NDArray[np.generic] | PreparedReference,
+    inspection: NDArray[np.generic],
+    register_global: Callable[..., Registration],
+    *,
+    mask: NDArray[np.generic] | None,
+    tile_px: int,
+    started: float,
+) -> Registration:
+    """The global fit, then the local field between the warped reference and the inspection (seed §2.3)."""
+    prepared = isinstance(reference, PreparedReference)
+    fit = register_global(reference, inspection, model=None if prepared else _LOCAL_GLOBAL_MODEL)
+    inspection_image = _as_float32(inspection, "inspection")
+    # The field is measured on the images the global fit used: lightly smoothed (5x5 Gaussian).
+    smoothed = (
+        reference.images[0]
+        if isinstance(reference, PreparedReference)
+        else smooth(_as_float32(reference, "reference"))
+    )
+    usable = _preimage_inside(fit.matrix, smoothed.shape, inspection_image.shape)
+    usable_mask = reference.masks[0] if isinstance(reference, PreparedReference) else mask
+    if usable_mask is not None:
+        usable &= as_mask(usable_mask, "mask", smoothed.shape)
+    predicted = smoothed * np.float32(fit.gain) + np.float32(fit.bias)
+    field = estimate_field(predicted, smooth(inspection_image), fit.matrix, usable, tile_px)
+    return dataclasses.replace(
+        fit,
+        model=LOCAL_MODEL,
+        iterations=fit.iterations + field.iterations,
+        elapsed_s=time.perf_counter() - started,
+        local=field,
     )

@@ -156,6 +156,20 @@ def registration_record(registration: Registration | None) -> dict[str, Any] | N
         "residual_rms": registration.residual_rms,
         "shift_std_px": tuple(registration.shift_std_px),
         "elapsed_s": registration.elapsed_s,
+        **_local_record(registration),
+    }
+
+
+def _local_record(registration: Registration) -> dict[str, Any]:
+    """A local registration's field in brief: its size, worst uncertainty and the tiles that fell back."""
+    local = registration.local
+    if local is None:
+        return {}
+    return {
+        "tile_px": local.tile_px,
+        "field_max_px": float(np.abs(local.shift_xy).max(initial=0.0)),
+        "field_std_max_px": float(local.shift_std_px.max(initial=0.0)),
+        "fallback_tiles": [[int(row), int(col)] for row, col in np.argwhere(local.fallback)],
     }
 
 

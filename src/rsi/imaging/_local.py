@@ -1,0 +1,648 @@
+"""Local registration: a smooth displacement field on top of the global fit (seed §2.3).
+
+Seed §2.3: small mis-registrations "may be locally approximated as a translational mis-registration". One
+global motion cannot follow a scan's local distortion, a thermally warped panel or a flexing arm, so after
+the global fit the globally warped reference ``W`` is compared with the inspection ``I`` tile by tile:
+
+1. **Tiles.** The frame is cut into cells of ``tile_px / 2``; a tile is 2 x 2 cells, so tiles overlap by
+   half and their centres (the nodes of the field) lie on the inner cell corners. Every per-tile sum is the
+   sum of four per-cell sums (one ``np.add.reduceat`` per axis over the whole frame).
+2. **Gauss-Newton per tile on precomputed terms.** Inverse-compositional translation: the Jacobian is the
+   gradient of ``W`` and each tile's 2 x 2 Hessian ``H_k`` is computed once ("terms involving the Jacobian
+   ... can be pre-computed", seed §2.3). An iteration resamples the inspection once at ``x + u(x)`` for the
+   current field ``u``, and each tile's update is ``H_k^-1 sum g r``.
+3. **Smooth field.** The tiles' own estimates ``t_k`` are combined by a regularised least-squares fit on the
+   node grid, ``sum_k (u_k - t_k)^T H_k (u_k - t_k) / h0 + lambda |grad u|^2 + mu |u|^2`` (a membrane;
+   ``mu`` pulls tiles without data of their own, and only those, towards the global fit), and the nodes
+   are interpolated bilinearly to every pixel.
+4. **Flaws do not pull their tile** (seed §2.4): once the field has converged, pixels whose residual lies
+   beyond 4 robust sigmas are dropped, the tiles' Hessians are recomputed without them, and the field is
+   refined again.
+5. **Uncertainty.** A tile's shift std is ``sigma_k^2 H_k^-1`` (its own residual variance after the fit)
+   combined with the misfit between its own estimate and the smooth field at its centre.
+6. **Fallback.** A tile with too few usable pixels, a singular or ill-conditioned Hessian (no texture, or
+   texture along one direction only) or a shift std above ``_MAX_STD_PX`` has no estimate of its own: the
+   field there is the smooth continuation of its neighbours', the global fit where none has one, and the
+   tile is reported in ``fallback``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+from scipy.sparse import linalg as sparse_linalg
+
+from rsi.errors import InputError
+
+FloatArray = NDArray[np.float64]
+Image = NDArray[np.float32]
+
+# Membrane weight relative to a typical node's data weight (the median diagonal of the normal matrix is 1).
+# Fitted on the synthetic warps of tests/imaging/test_local_registration.py and on DeepPCB trainval pairs
+# 20085000-20085050: 0.01-0.03 follow the 3 px test warps a little closer (0.03 px RMS at 0.1, 0.055 at 0.3)
+# but let the nodes of a binarised board that see a trace along its length drift by tens of pixels; 0.1
+# holds every node of those boards within 1-2 px.
+_SMOOTHNESS = 0.1
+# Pull of the global fit on every node (keeps the system definite when no tile has data).
+_GLOBAL_PULL = 1e-3
+# Levenberg-Marquardt damping of each step, relative to a typical node's data weight (1).
+_DAMPING = 0.1
+_TRIM_SIGMAS = 4.0
+_HUBER_SIGMAS = 4.0
+_SIGMA_STRIDE = 7
+_MAD_TO_SIGMA = 1.4826
+# A tile whose shift is known no better than this, in pixels, falls back (no texture of its own).
+_MAX_STD_PX = 0.5
+# ... or whose Hessian's eigenvalues differ by more than this (an edge in one direction only: aperture).
+_MAX_CONDITION = 1e4
+_MIN_USED_FRACTION = 0.25
+_MIN_TILE_PX = 8
+_MAX_ITERATIONS = 10
+_INVERSE_ROUNDS = 3
+# Largest change of the field in one Gauss-Newton step, pixels of the level: beyond it the linearisation
+# of lightly smoothed images (a binarised board's edges are ~2 px wide) no longer holds.
+_MAX_STEP_PX = 1.0
+_TOLERANCE_PX = 0.01
+
+
+@dataclass(frozen=True)
+class LocalField:
+    """A smooth displacement field on top of the global registration (seed §2.3).
+
+    The field lives on the reference grid: reference pixel ``x`` shows in the inspection at
+    ``G(x) + u(x)``, ``G`` the global fit's matrix; ``u`` is how far the inspection's content lies from
+    where the global fit puts it, in inspection pixels. Arrays are read-only.
+
+    Attributes
+    ----------
+    tile_px : int
+        Side of a tile; tiles overlap by half, their centres are the nodes (the outer ones on the frame's
+        edge, their tiles half as large).
+    node_rows, node_cols : ndarray of shape (R,) and (C,), float64
+        Reference-pixel row and column of the node grid.
+    shift_xy : ndarray of shape (R, C, 2), float64
+        The smooth field ``(ux, uy)`` at the nodes, pixels.
+    tile_shift_xy : ndarray of shape (R, C, 2), float64
+        Each tile's own estimate; NaN where it fell back.
+    shift_std_px : ndarray of shape (R, C, 2), float64
+        One-sigma uncertainty of the field at each node: the tile's statistical std ``sigma_k^2 H_k^-1``
+        combined with its estimate's misfit to the smooth field; ``_MAX_STD_PX`` where it fell back.
+    fallback : ndarray of shape (R, C), bool
+        Tiles without an estimate of their own (too few usable pixels, no texture, or texture along one
+        direction only): the field there continues the neighbours', or is the global fit if none has one.
+    iterations : int
+        Resamplings of the inspection.
+    trimmed_fraction : float
+        Fraction of the used pixels dropped as flaws.
+    """
+
+    tile_px: int
+    node_rows: FloatArray
+    node_cols: FloatArray
+    shift_xy: FloatArray
+    tile_shift_xy: FloatArray
+    shift_std_px: FloatArray
+    fallback: NDArray[np.bool_]
+    iterations: int
+    trimmed_fraction: float
+
+    def __post_init__(self) -> None:
+        for name in ("node_rows", "node_cols", "shift_xy", "tile_shift_xy", "shift_std_px", "fallback"):
+            value = np.array(getattr(self, name))
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    def displacement(self, shape: tuple[int, int]) -> Image:
+        """The field at every reference pixel, `shape` (rows, cols): array (rows, cols, 2), (ux, uy)."""
+        return _interpolate(self.shift_xy, self.node_rows, self.node_cols, shape)
+
+    def source_maps(self, matrix: FloatArray, shape: tuple[int, int]) -> tuple[Image, Image]:
+        """Reference coordinates (map_x, map_y) of every inspection pixel ``y`` of `shape`.
+
+        Solves ``G(x) + u(x) = y`` by the fixed-point iteration ``x <- G^-1(y - u(x))``, which contracts by
+        the field's gradient (|grad u| << 1 for a smooth field: 3 px over a 500 px board is ~0.04); three
+        rounds leave < 1e-4 px.
+        """
+        inverse = np.linalg.inv(matrix)
+        cols = np.arange(shape[1], dtype=np.float64)[None, :]
+        rows = np.arange(shape[0], dtype=np.float64)[:, None]
+        field = np.ascontiguousarray(self.shift_xy, dtype=np.float32)
+        col_index = np.arange(self.node_cols.size, dtype=np.float64)
+        row_index = np.arange(self.node_rows.size, dtype=np.float64)
+        shift = np.zeros((shape[0], shape[1], 2), dtype=np.float32)
+        map_x = map_y = np.zeros(shape, dtype=np.float32)
+        for _ in range(_INVERSE_ROUNDS + 1):
+            x, y = cols - shift[..., 0], rows - shift[..., 1]
+            denominator = inverse[2, 0] * x + inverse[2, 1] * y + inverse[2, 2]
+            map_x = np.asarray(
+                (inverse[0, 0] * x + inverse[0, 1] * y + inverse[0, 2]) / denominator, np.float32
+            )
+            map_y = np.asarray(
+                (inverse[1, 0] * x + inverse[1, 1] * y + inverse[1, 2]) / denominator, np.float32
+            )
+            node_x = np.interp(map_x, self.node_cols, col_index).astype(np.float32)
+            node_y = np.interp(map_y, self.node_rows, row_index).astype(np.float32)
+            moved = cv2.remap(field, node_x, node_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            shift = np.asarray(moved, dtype=np.float32).reshape(shape[0], shape[1], 2)
+        return map_x, map_y
+
+    def std(self, shape: tuple[int, int]) -> Image:
+        """The field's one-sigma uncertainty at every reference pixel: array (rows, cols, 2), (sx, sy), px.
+
+        The uncertainty varies over a tile's size; read in the inspection frame, the global fit's few pixels
+        of offset do not matter.
+        """
+        return _interpolate(self.shift_std_px, self.node_rows, self.node_cols, shape)
+
+
+def _node_positions(nodes: FloatArray, size: int) -> NDArray[np.float32]:
+    """Fractional node index of every pixel 0 .. size - 1, clamped to the outer nodes."""
+    return np.interp(
+        np.arange(size, dtype=np.float64), nodes, np.arange(nodes.size, dtype=np.float64)
+    ).astype(np.float32)
+
+
+def _interpolate(values: FloatArray, rows: FloatArray, cols: FloatArray, shape: tuple[int, int]) -> Image:
+    """Bilinear interpolation of node values (R, C, K) to every pixel, constant beyond the outer nodes."""
+    map_x = np.broadcast_to(_node_positions(cols, shape[1])[None, :], shape)
+    map_y = np.broadcast_to(_node_positions(rows, shape[0])[:, None], shape)
+    # A remap of the tiny node image: exact bilinear weights, no BLAS (whose threads stall on busy cores).
+    out = cv2.remap(
+        np.ascontiguousarray(values, dtype=np.float32),
+        np.ascontiguousarray(map_x),
+        np.ascontiguousarray(map_y),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
+    return np.asarray(out, dtype=np.float32).reshape(shape[0], shape[1], values.shape[2])
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """Cells of about tile_px / 2; a node on every cell corner, frame corners included.
+
+    Node j's tile is the two cells either side of it (one at the frame's edge), so tiles overlap by half
+    and the bilinear field is defined up to the frame's edge without extrapolation.
+    """
+
+    row_edges: NDArray[np.intp]
+    col_edges: NDArray[np.intp]
+
+    @property
+    def nodes(self) -> tuple[FloatArray, FloatArray]:
+        def place(edges: NDArray[np.intp]) -> FloatArray:
+            # Inner nodes between pixels edges[j] - 1 and edges[j]; outer ones on the first and last pixel.
+            positions = edges.astype(np.float64) - 0.5
+            positions[0], positions[-1] = 0.0, float(edges[-1] - 1)
+            return positions
+
+        return place(self.row_edges), place(self.col_edges)
+
+    @property
+    def tiles_shape(self) -> tuple[int, int]:
+        return self.row_edges.size, self.col_edges.size
+
+    def tile_sums(self, image: NDArray[np.floating]) -> FloatArray:
+        """Sum of `image` over each node's tile, shape tiles_shape."""
+        return self.tiles_from_cells(self.cell_sums(image))
+
+    def cell_sums(self, image: NDArray[np.floating]) -> FloatArray:
+        """Sum of `image` over each cell, shape (R - 1, C - 1)."""
+        rows = np.add.reduceat(image, self.row_edges[:-1], axis=0)
+        return np.asarray(np.add.reduceat(rows, self.col_edges[:-1], axis=1), dtype=np.float64)
+
+    @staticmethod
+    def tiles_from_cells(cells: FloatArray) -> FloatArray:
+        """Per-node tile sums (the up to four cells around each node) from per-cell sums."""
+        padded = np.pad(cells, 1)
+        return np.asarray(
+            padded[:-1, :-1] + padded[1:, :-1] + padded[:-1, 1:] + padded[1:, 1:], dtype=np.float64
+        )
+
+    def fractions(self) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+        """Each pixel's position between its cell's two nodes, 0 .. 1: (per row t, per column s)."""
+
+        def along(edges: NDArray[np.intp], nodes: FloatArray) -> NDArray[np.float32]:
+            pixels = np.arange(edges[-1], dtype=np.float64)
+            cell = np.searchsorted(edges, pixels, side="right") - 1
+            low, high = nodes[cell], nodes[cell + 1]
+            return np.clip((pixels - low) / (high - low), 0.0, 1.0).astype(np.float32)
+
+        node_rows, node_cols = self.nodes
+        return along(self.row_edges, node_rows), along(self.col_edges, node_cols)
+
+
+def _grid(shape: tuple[int, int], tile_px: int) -> _Grid:
+    if not isinstance(tile_px, (int, np.integer)) or isinstance(tile_px, bool) or tile_px < _MIN_TILE_PX:
+        raise InputError(f"tile_px must be an int >= {_MIN_TILE_PX}; got {tile_px!r}. Try 64.")
+    if tile_px > min(shape):
+        raise InputError(
+            f"tile_px={tile_px} is larger than the image ({shape[0]} x {shape[1]} px): the grid needs at "
+            f"least one whole tile. Pass tile_px <= {min(shape)}, e.g. {max(_MIN_TILE_PX, min(shape) // 4)}."
+        )
+    cell = tile_px / 2.0
+    edges = []
+    for size in shape:
+        count = max(2, round(size / cell))
+        edges.append(np.round(np.linspace(0, size, count + 1)).astype(np.intp))
+    return _Grid(edges[0], edges[1])
+
+
+@dataclass(frozen=True)
+class _Tiles:
+    """Per-tile (node) sums, in inspection pixels: Hessians ``hxx, hxy, hyy``, usable pixels ``used``,
+    and ``own``: enough usable pixels and a well-conditioned Hessian, so the tile has an estimate of its own.
+    """
+
+    hxx: FloatArray
+    hxy: FloatArray
+    hyy: FloatArray
+    used: FloatArray
+    own: NDArray[np.bool_]
+
+
+def _carry(
+    xx: FloatArray, xy: FloatArray, yy: FloatArray, inverse: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``K^T [[xx, xy], [xy, yy]] K`` for a 2 x 2 matrix K, element-wise."""
+    (a, b), (c, d) = inverse
+    return (
+        a * a * xx + 2 * a * c * xy + c * c * yy,
+        a * b * xx + (a * d + b * c) * xy + c * d * yy,
+        b * b * xx + 2 * b * d * xy + d * d * yy,
+    )
+
+
+def _tiles(xx: FloatArray, xy: FloatArray, yy: FloatArray, used: FloatArray, area: FloatArray) -> _Tiles:
+    trace = xx + yy
+    determinant = xx * yy - xy * xy
+    discriminant = np.sqrt(np.maximum(trace * trace / 4.0 - determinant, 0.0))
+    low, high = trace / 2.0 - discriminant, trace / 2.0 + discriminant
+    own = (used >= _MIN_USED_FRACTION * area) & (low > 0) & (high < _MAX_CONDITION * np.maximum(low, 1e-300))
+    return _Tiles(xx, xy, yy, used, own)
+
+
+def _membrane(rows: int, cols: int) -> sparse.csr_matrix:
+    def path(n: int) -> sparse.csr_matrix:
+        difference = sparse.diags([np.ones(n - 1), -np.ones(n - 1)], [0, 1], shape=(n - 1, n))
+        return (difference.T @ difference).tocsr()
+
+    return (sparse.kron(sparse.eye(rows), path(cols)) + sparse.kron(path(rows), sparse.eye(cols))).tocsr()
+
+
+# Along one axis a pixel at fraction s of its cell has hat weights (1 - s) for the cell's first node and
+# s for its second: the coefficients of 1, s (and s^2 for products of two) of each weight and product.
+_HAT = ((1.0, -1.0), (0.0, 1.0))
+_HAT_PRODUCT = {
+    (0, 0): (1.0, -2.0, 1.0),
+    (0, 1): (0.0, 1.0, -1.0),
+    (1, 0): (0.0, 1.0, -1.0),
+    (1, 1): (0.0, 0.0, 1.0),
+}
+_CORNERS = ((0, 0), (0, 1), (1, 0), (1, 1))
+
+
+class _Mesh:
+    """Gauss-Newton on the node field itself (an inverse-compositional mesh, seed §2.3).
+
+    The residual at a pixel depends on the four nodes of its cell through the bilinear weights phi, so the
+    normal matrix is ``N = sum_x w phi phi^T (J^-T g)(J^-T g)^T`` over node pairs. Because phi is a product
+    of a polynomial in the pixel's column fraction s and one in its row fraction t, N is assembled from
+    per-cell moments ``sum w g_a g_b s^p t^q`` (p, q <= 2) computed once per reference and weight; each
+    iteration needs only the moments ``sum w g_a r s^p t^q`` (p, q <= 1) of the residual. The step
+    minimises ``|r + g^T phi du|^2 + lambda (u + du)^T L (u + du) + mu |u + du|^2`` with N scaled so that
+    a typical node weighs 1 (the smoothness is then scale-free).
+    """
+
+    def __init__(self, grid: _Grid, gx: Image, gy: Image, weight: Image, inverse: FloatArray) -> None:
+        self.grid, self.inverse = grid, inverse
+        self.shape = grid.tiles_shape
+        self.t, self.s = grid.fractions()
+        moments = {
+            key: self._moments(weight * first * second, 3)
+            for key, (first, second) in {"xx": (gx, gx), "xy": (gx, gy), "yy": (gy, gy)}.items()
+        }
+        carried = _carry(moments["xx"], moments["xy"], moments["yy"], inverse)
+        used_cells = grid.cell_sums(weight)
+        row_sizes, col_sizes = np.pad(np.diff(grid.row_edges), 1), np.pad(np.diff(grid.col_edges), 1)
+        area = np.outer(row_sizes[:-1] + row_sizes[1:], col_sizes[:-1] + col_sizes[1:]).astype(np.float64)
+        xx, xy, yy = (grid.tiles_from_cells(term[0, 0]) for term in carried)
+        self.tiles = _tiles(xx, xy, yy, grid.tiles_from_cells(used_cells), area)
+        blocks = [self._assemble(term) for term in carried]
+        diagonal = blocks[0].diagonal() + blocks[2].diagonal()
+        textured = diagonal[diagonal > 0]
+        self.scale = float(np.median(textured)) / 2.0 if textured.size else 1.0
+        normal_xx, normal_xy, normal_yy = (block / self.scale for block in blocks)
+        self.normal = sparse.bmat([[normal_xx, normal_xy], [normal_xy.T, normal_yy]], format="csr")
+        nodes = self.shape[0] * self.shape[1]
+        laplacian = _SMOOTHNESS * _membrane(*self.shape) + _GLOBAL_PULL * sparse.eye(nodes)
+        self.prior = sparse.block_diag([laplacian, laplacian], format="csr")
+        # Levenberg-Marquardt damping: a node whose texture barely fixes it (a trace seen along its length,
+        # a flaw's residual with little gradient under it) moves slowly instead of leaping; at convergence
+        # the step is zero, so the damping does not bias the field.
+        damping = _DAMPING * sparse.eye(2 * nodes)
+        self.solve = sparse_linalg.factorized((self.normal + self.prior + damping).tocsc())
+
+    def _moments(self, image: Image, order: int) -> FloatArray:
+        """Per-cell ``sum image s^p t^q`` for p, q < order: array (order, order, R - 1, C - 1)."""
+        out = np.empty((order, order, self.shape[0] - 1, self.shape[1] - 1))
+        power = np.ones_like(self.s)
+        for p in range(order):
+            across = np.add.reduceat(image * power[None, :], self.grid.col_edges[:-1], axis=1)
+            row_power = np.ones_like(self.t)
+            for q in range(order):
+                out[p, q] = np.add.reduceat(across * row_power[:, None], self.grid.row_edges[:-1], axis=0)
+                row_power = row_power * self.t
+            power = power * self.s
+        return out
+
+    def _assemble(self, moments: FloatArray) -> sparse.csr_matrix:
+        """The (R C) x (R C) node matrix ``sum w phi_j phi_k G`` from one component's moments."""
+        rows, cols = self.shape
+        index = np.arange(rows * cols).reshape(rows, cols)
+        entries, row_index, col_index = [], [], []
+        for row_a, col_a in _CORNERS:
+            for row_b, col_b in _CORNERS:
+                across, down = _HAT_PRODUCT[(col_a, col_b)], _HAT_PRODUCT[(row_a, row_b)]
+                value = sum(across[p] * down[q] * moments[p, q] for p in range(3) for q in range(3))
+                entries.append(np.asarray(value).ravel())
+                row_index.append(index[row_a : row_a + rows - 1, col_a : col_a + cols - 1].ravel())
+                col_index.append(index[row_b : row_b + rows - 1, col_b : col_b + cols - 1].ravel())
+        size = rows * cols
+        return sparse.csr_matrix(
+            (np.concatenate(entries), (np.concatenate(row_index), np.concatenate(col_index))),
+            shape=(size, size),
+        )
+
+    def gradient(self, weighted_x: Image, weighted_y: Image) -> tuple[FloatArray, FloatArray]:
+        """``sum w phi J^-T g r`` per node (R, C, 2), and per tile (uniform weights, R, C, 2)."""
+        first, second = self._moments(weighted_x, 2), self._moments(weighted_y, 2)
+        (a, b), (c, d) = self.inverse
+        moments = (a * first + c * second, b * first + d * second)
+        rows, cols = self.shape
+        nodes = np.zeros((rows, cols, 2))
+        for axis, component in enumerate(moments):
+            for row_a, col_a in _CORNERS:
+                across, down = _HAT[col_a], _HAT[row_a]
+                value = sum(across[p] * down[q] * component[p, q] for p in range(2) for q in range(2))
+                nodes[row_a : row_a + rows - 1, col_a : col_a + cols - 1, axis] += value
+        tiles = np.stack([self.grid.tiles_from_cells(component[0, 0]) for component in moments], axis=-1)
+        return nodes, tiles
+
+    def step(self, field: FloatArray, gradient: FloatArray) -> FloatArray:
+        """The Gauss-Newton update of the field (R, C, 2) from the nodes' gradient (R, C, 2)."""
+        flat = np.concatenate([field[..., 0].ravel(), field[..., 1].ravel()])
+        pull = np.concatenate([gradient[..., 0].ravel(), gradient[..., 1].ravel()])
+        change = self.solve(-(pull / self.scale + self.prior @ flat))
+        solution = flat + change
+        size = self.shape[0] * self.shape[1]
+        return np.stack([solution[:size], solution[size:]], axis=-1).reshape(*self.shape, 2)
+
+
+def _gradients(image: Image) -> tuple[Image, Image]:
+    # Sobel / 8: a central difference smoothed across the edge, which keeps noise out of the Jacobian.
+    gx = np.asarray(cv2.Sobel(image, cv2.CV_32F, 1, 0, ksize=3, scale=0.125), dtype=np.float32)
+    gy = np.asarray(cv2.Sobel(image, cv2.CV_32F, 0, 1, ksize=3, scale=0.125), dtype=np.float32)
+    return gx, gy
+
+
+def _forward_maps(matrix: FloatArray, shape: tuple[int, int]) -> tuple[Image, Image]:
+    """Inspection coordinates ``matrix @ (x, y, 1)`` of every reference pixel: map_x, map_y (M, N)."""
+    cols = np.arange(shape[1], dtype=np.float64)[None, :]
+    rows = np.arange(shape[0], dtype=np.float64)[:, None]
+    denominator = matrix[2, 0] * cols + matrix[2, 1] * rows + matrix[2, 2]
+    map_x = (matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2]) / denominator
+    map_y = (matrix[1, 0] * cols + matrix[1, 1] * rows + matrix[1, 2]) / denominator
+    return np.asarray(map_x, dtype=np.float32), np.asarray(map_y, dtype=np.float32)
+
+
+class _Solver:
+    """Iterates Gauss-Newton steps of the node field on one pyramid level.
+
+    The field lives on the reference grid: reference pixel ``x`` shows in the inspection at
+    ``G(x) + u(x)`` (``G`` the global fit). Each iteration resamples the inspection there once; the
+    reference, its gradients and the mesh's normal matrix never change (seed §2.3, precomputed terms).
+    """
+
+    def __init__(
+        self,
+        reference: Image,
+        inspection: Image,
+        matrix: FloatArray,
+        weight: Image,
+        grid: _Grid,
+        *,
+        interpolation: int,
+    ) -> None:
+        self.reference, self.inspection, self.grid = reference, inspection, grid
+        self.interpolation = interpolation
+        self.gx, self.gy = _gradients(reference)
+        self.energy = self.gx * self.gx + self.gy * self.gy
+        shape = (int(reference.shape[0]), int(reference.shape[1]))
+        self.base_x, self.base_y = _forward_maps(matrix, shape)
+        # The inspection's gradient at the matched point is J^-T times the reference's (J: the global
+        # fit's Jacobian, exact for an affine fit; a homography's hardly varies over a board).
+        self.inverse = np.linalg.inv(np.asarray(matrix[:2, :2] / matrix[2, 2], dtype=np.float64))
+        self.nodes = grid.nodes
+        self.field = np.zeros((*grid.tiles_shape, 2))
+        self.iterations = 0
+        self.set_weight(weight)
+
+    def set_weight(self, weight: Image) -> None:
+        self.weight = weight
+        self.mesh = _Mesh(self.grid, self.gx, self.gy, weight, self.inverse)
+        self.tiles = self.mesh.tiles
+
+    def residual(self) -> Image:
+        shape = (int(self.reference.shape[0]), int(self.reference.shape[1]))
+        field = _interpolate(self.field, self.nodes[0], self.nodes[1], shape)
+        map_x = np.add(self.base_x, field[..., 0], dtype=np.float32)
+        map_y = np.add(self.base_y, field[..., 1], dtype=np.float32)
+        moved = cv2.remap(self.inspection, map_x, map_y, self.interpolation, borderMode=cv2.BORDER_REPLICATE)
+        self.iterations += 1
+        return np.asarray(moved, dtype=np.float32) - self.reference
+
+    def gradient(self, residual: Image) -> tuple[FloatArray, FloatArray]:
+        weighted = residual * self.weight
+        return self.mesh.gradient(weighted * self.gx, weighted * self.gy)
+
+    def robust_gradient(self, residual: Image) -> FloatArray:
+        """The nodes' gradient with each residual clipped at _HUBER_SIGMAS robust sigmas (Huber).
+
+        A flaw's residual then pulls no harder than a mis-registered edge's; as Huber's weight never
+        exceeds 1, the fixed normal matrix still bounds the curvature and every step still descends.
+        """
+        sigma = _textured_sigma(residual, self.weight, self.energy)
+        if sigma > 0.0:
+            limit = np.float32(_HUBER_SIGMAS * sigma)
+            residual = np.clip(residual, -limit, limit)
+        return self.gradient(residual)[0]
+
+    def own_estimates(self, residual: Image) -> FloatArray:
+        """Each tile's own estimate of the field's mean over it (mean less ``H^-1 b``); NaN without one."""
+        _, b = self.gradient(residual)
+        t = self.tiles
+        determinant = np.where(t.own, t.hxx * t.hyy - t.hxy * t.hxy, 1.0)
+        step = np.stack(
+            [
+                (t.hyy * b[..., 0] - t.hxy * b[..., 1]) / determinant,
+                (t.hxx * b[..., 1] - t.hxy * b[..., 0]) / determinant,
+            ],
+            axis=-1,
+        )
+        means = self.grid.tile_sums(np.ones(self.reference.shape, np.float32))
+        shape = (int(self.reference.shape[0]), int(self.reference.shape[1]))
+        field = _interpolate(self.field, self.nodes[0], self.nodes[1], shape)
+        mean = np.stack([self.grid.tile_sums(field[..., axis]) / means for axis in (0, 1)], axis=-1)
+        return np.where(t.own[..., None], mean - step, np.nan)
+
+    def run(self, max_iterations: int) -> Image:
+        """Gauss-Newton steps of the field to convergence; returns the last residual."""
+        residual = self.residual()
+        for _ in range(max_iterations):
+            proposed = self.mesh.step(self.field, self.robust_gradient(residual))
+            change = proposed - self.field
+            largest = float(np.abs(change).max(initial=0.0))
+            # A step beyond a pixel leaves the linear range of the lightly smoothed images: damp it.
+            if largest > _MAX_STEP_PX:
+                change *= _MAX_STEP_PX / largest
+            self.field = self.field + change
+            residual = self.residual()
+            if largest < _TOLERANCE_PX:
+                break
+        return residual
+
+
+def _uncertainty(
+    solver: _Solver, measured: FloatArray, residual: Image
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Per-tile std of the shift (inspection pixels), and which tiles fall back (no estimate of their own)."""
+    t = solver.tiles
+    weighted = residual * solver.weight
+    variance = solver.grid.tile_sums(weighted * residual) / np.maximum(t.used - 2.0, 1.0)
+    determinant = np.where(t.own, t.hxx * t.hyy - t.hxy * t.hxy, 1.0)
+    # sigma^2 H^-1 of the tile's own estimate, H already in inspection pixels.
+    statistical = np.maximum(
+        np.stack([variance * t.hyy / determinant, variance * t.hxx / determinant], -1), 0.0
+    )
+    own_fit = solver.own_estimates(np.zeros_like(residual))
+    misfit = np.nan_to_num(measured - own_fit)
+    std = np.sqrt(statistical + misfit * misfit)
+    fallback = ~t.own | (std.max(axis=-1) > _MAX_STD_PX)
+    std[fallback] = _MAX_STD_PX
+    return std, fallback
+
+
+def _textured_sigma(residual: Image, weight: Image, energy: Image) -> float:
+    """Robust sigma of the residual where the reference has texture (gradient energy above the median).
+
+    On a binarised board the flat copper and substrate have no residual at all, and their zeros would make
+    every edge an outlier. A sample of every _SIGMA_STRIDE-th pixel is enough for a scale.
+    """
+    used = (weight > 0).ravel()[::_SIGMA_STRIDE]
+    if not used.any():
+        return 0.0
+    sampled_energy = energy.ravel()[::_SIGMA_STRIDE][used]
+    sampled = residual.ravel()[::_SIGMA_STRIDE][used]
+    textured = sampled[sampled_energy >= np.median(sampled_energy)]
+    return _MAD_TO_SIGMA * float(np.median(np.abs(textured))) if textured.size else 0.0
+
+
+def _trim_weight(residual: Image, weight: Image, energy: Image, floor: float) -> Image:
+    """`weight` less the outliers: |residual| beyond _TRIM_SIGMAS robust sigmas of the textured pixels."""
+    sigma = max(_textured_sigma(residual, weight, energy), floor)
+    return np.asarray(weight * (np.abs(residual) <= _TRIM_SIGMAS * sigma), dtype=np.float32)
+
+
+def _inner_weight(valid: NDArray[np.bool_], tile_px: int) -> Image:
+    # No pixel within an eighth of a tile of the unusable area is used: the field moves the global fit's
+    # points by a few pixels, and the resampled inspection must not reach past the image's edge.
+    margin = max(2, tile_px // 8)
+    kernel = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
+    inside = cv2.erode(valid.astype(np.uint8), kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    return inside.astype(np.float32)
+
+
+def _coarse_start(
+    reference: Image,
+    inspection: Image,
+    matrix: FloatArray,
+    valid: NDArray[np.bool_],
+    *,
+    grid: _Grid,
+    tile_px: int,
+) -> FloatArray:
+    """The field found at half resolution (twice the capture range, a quarter of the cost), in full pixels."""
+    small_reference = np.asarray(cv2.pyrDown(reference), dtype=np.float32)
+    small_inspection = np.asarray(cv2.pyrDown(inspection), dtype=np.float32)
+    half = np.diag([0.5, 0.5, 1.0])
+    small_matrix = half @ matrix @ np.linalg.inv(half)
+    small_valid = cv2.resize(
+        valid.astype(np.uint8), small_reference.shape[::-1], interpolation=cv2.INTER_NEAREST
+    )
+    small_grid = _Grid(
+        np.minimum(grid.row_edges // 2, small_reference.shape[0]),
+        np.minimum(grid.col_edges // 2, small_reference.shape[1]),
+    )
+    weight = _inner_weight(small_valid.astype(bool), tile_px // 2)
+    solver = _Solver(
+        small_reference, small_inspection, small_matrix, weight, small_grid, interpolation=cv2.INTER_LINEAR
+    )
+    solver.run(_MAX_ITERATIONS)
+    return 2.0 * solver.field
+
+
+def estimate_field(
+    reference: Image, inspection: Image, matrix: FloatArray, valid: NDArray[np.bool_], tile_px: int
+) -> LocalField:
+    """The local field between the smoothed reference and the smoothed inspection, after a global fit.
+
+    Parameters
+    ----------
+    reference : ndarray of shape (M, N), float32
+        The reference, lightly smoothed, gain and bias applied (``gain * reference + bias``).
+    inspection : ndarray of shape (P, Q), float32
+        The inspection, smoothed alike.
+    matrix : ndarray of shape (3, 3)
+        The global fit, reference pixel to inspection pixel.
+    valid : ndarray of shape (M, N), bool
+        Reference pixels that may be used (they map inside the inspection, and lie in the mask).
+    tile_px : int
+        Tile side (tiles overlap by half).
+    """
+    shape = (int(reference.shape[0]), int(reference.shape[1]))
+    grid = _grid(shape, tile_px)
+    weight = _inner_weight(valid, tile_px)
+    # Bicubic resampling at full resolution: bilinear's bias follows the sub-pixel phase, which a smooth
+    # field keeps nearly constant over a tile (0.045 px instead of 0.010 px on the 1 px test warps).
+    solver = _Solver(reference, inspection, matrix, weight, grid, interpolation=cv2.INTER_CUBIC)
+    if tile_px >= 2 * _MIN_TILE_PX:
+        solver.field = _coarse_start(reference, inspection, matrix, valid, grid=grid, tile_px=tile_px)
+    residual = solver.run(_MAX_ITERATIONS)
+    # seed §2.4: a flaw is an outlier of the registration model; drop it and refine (a flaw must not pull
+    # its tile).
+    floor = 1e-3 * float(np.std(reference[valid])) if valid.any() else 0.0
+    trimmed_weight = _trim_weight(residual, weight, solver.energy, floor)
+    used = float(weight.sum())
+    trimmed_fraction = float((used - float(trimmed_weight.sum())) / used) if used else 0.0
+    if trimmed_fraction > 0.0:
+        solver.set_weight(trimmed_weight)
+        residual = solver.run(_MAX_ITERATIONS)
+    measured = solver.own_estimates(residual)
+    std, fallback = _uncertainty(solver, measured, residual)
+    node_rows, node_cols = grid.nodes
+    return LocalField(
+        tile_px=int(tile_px),
+        node_rows=node_rows.astype(np.float64),
+        node_cols=node_cols.astype(np.float64),
+        shift_xy=solver.field,
+        tile_shift_xy=np.where(fallback[..., None], np.nan, measured),
+        shift_std_px=std,
+        fallback=fallback,
+        iterations=solver.iterations,
+        trimmed_fraction=trimmed_fraction,
+    )
