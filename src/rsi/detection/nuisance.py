@@ -34,6 +34,19 @@ if TYPE_CHECKING:
 
 Float32Array = NDArray[np.float32]
 
+
+def _compensated(image: object, name: str) -> Compensated:
+    """`image` if it is a Compensated image, else an error naming the argument and the fix."""
+    from rsi.imaging.compensation import Compensated
+
+    if not isinstance(image, Compensated):
+        raise InputError(
+            f"{name} must be an rsi.imaging.compensation.Compensated image (compensate_interlaced or "
+            f"compensate_field_pair give one); got {type(image).__name__}."
+        )
+    return image
+
+
 _SOBEL_SCALE = 0.125  # 3x3 Sobel weights sum to 8: this scale gives DN per pixel
 _FAR_M = 10.0  # a depth beyond this is no surface (the renderer's and the stereo matcher's "no return")
 
@@ -60,6 +73,7 @@ def shared_interpolation(
     (Compensated, Compensated)
         Reference and inspection, each with ``variance = sensor variance + shared interpolation variance``.
     """
+    reference, inspection = _compensated(reference, "reference"), _compensated(inspection, "inspection")
     import cv2
 
     spread_px = v.positive_int(spread_px, "spread_px", minimum=0)
@@ -109,12 +123,18 @@ def shadow_edge_variance(
     -------
     Compensated
     """
+    image = _compensated(image, "image")
     import cv2
 
     v.choice(lit_field, "lit_field", ("odd", "even"))
     edge_dn_px = v.positive(edge_dn_px, "edge_dn_px")
     jag_px = v.in_range(jag_px, "jag_px", low=0.0)
-    raw = np.asarray(raw_frame, dtype=np.float32)
+    raw = v.as_image(raw_frame, "raw_frame").astype(np.float32)
+    if raw.shape != image.image.shape:
+        raise InputError(
+            f"raw_frame has shape {raw.shape} but the image is {image.image.shape}; give the frame the "
+            "full-resolution image was compensated from."
+        )
     unlit = raw[0::2] if lit_field == "odd" else raw[1::2]
     gx = cv2.Sobel(unlit, cv2.CV_32F, 1, 0, ksize=3, scale=_SOBEL_SCALE)
     gy = cv2.Sobel(unlit, cv2.CV_32F, 0, 1, ksize=3, scale=_SOBEL_SCALE / 2)  # field rows: two frame rows
@@ -132,6 +152,7 @@ def half_pixel_shifted(image: Compensated) -> Compensated:
     no interpolation predicts it; two flaw-free visits show that only where their phases happened to differ.
     Pixels whose bilinear footprint touched an invalid pixel become invalid.
     """
+    image = _compensated(image, "image")
     import cv2
 
     shape = (image.image.shape[1], image.image.shape[0])
@@ -199,6 +220,7 @@ def pair_excess(
     >>> bool(pair_excess(visit(1), visit(2)).min() >= 1.0)
     True
     """
+    first, second = _compensated(first, "first"), _compensated(second, "second")
     import cv2
 
     from rsi.detection.detect import detect
@@ -242,6 +264,7 @@ def nuisance_scale(
     shift of :func:`half_pixel_shifted` is the largest phase change a later visit can bring. Keywords as in
     :func:`pair_excess`; shape (M, N), float32, >= 1.
     """
+    first, second = _compensated(first, "first"), _compensated(second, "second")
     keywords = {
         "flaw_model": flaw_model,
         "size": size,
@@ -282,9 +305,10 @@ def parallax_scale(
     ndarray of shape (M, N), float32
         1 where the surface lies at the median depth (or nothing is seen), more elsewhere.
     """
+    reference = _compensated(reference, "reference")
     import cv2
 
-    depth = np.asarray(depth_m, dtype=np.float32)
+    depth = v.as_image(depth_m, "depth_m", allow_nan=True).astype(np.float32)
     if depth.shape != reference.image.shape:
         raise InputError(
             f"depth_m has shape {depth.shape} but the reference is {reference.image.shape}; "
