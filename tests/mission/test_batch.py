@@ -207,6 +207,18 @@ def test_bad_pairs_are_reported_and_skipped_and_the_rest_are_in_the_archive(
     assert len(pair_rows) == 1 + len(pairs.items)
     flaw_rows = (tmp_path / "out" / "flaws.csv").read_text().splitlines()
     assert len(flaw_rows) == 1 + result.flaw_count
+    # The columns are a contract (docs/batch.md); each row is its pair's flaw and that flaw's confidence.
+    assert flaw_rows[0] == "pair_id,number,row,col,row0,col0,row1,col1,area_px,score,polarity,confidence"
+    assert pair_rows[0] == "pair_id,status,flaws,stage,error,reference,inspection,read_s,inspect_s,worker"
+    expected = [
+        f"{record.pair_id},{number},{flaw.score},{confidence}"
+        for record in result.records
+        for number, (flaw, confidence) in enumerate(
+            zip(record.flaws, record.confidences, strict=True), start=1
+        )
+    ]
+    cells = [row.split(",") for row in flaw_rows[1:]]
+    assert [f"{c[0]},{c[1]},{c[9]},{c[11]}" for c in cells] == expected
 
 
 def test_batch_is_deterministic_and_equals_the_plain_loop(
