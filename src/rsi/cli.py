@@ -875,6 +875,7 @@ def batch(
         _out_folder(out)
         from rsi.archive import Archive
         from rsi.mission.batch import PairSettings, read_manifest, run_batch
+        from rsi.report.batch import write_batch_report
 
         settings = PairSettings(
             flaw_model=flaw_model.value,
@@ -887,10 +888,11 @@ def batch(
         items = read_manifest(manifest)
         with Archive.open(archive, images_dir=images_dir) as store, _progress_bar("batch") as update:
             result = run_batch(
-                items, archive=store, out_dir=out, scheduler=scheduler, workers=workers, settings=settings,
+                items, archive=store, scheduler=scheduler, workers=workers, settings=settings,
                 label=f"batch {manifest.name}", progress=update,
             )  # fmt: skip
-        record = {**result.summary(), "archive": archive, "files": result.files}
+        files = write_batch_report(out, result, items)
+        record = {**result.summary(), "archive": archive, "files": files}
         if as_json:
             _print_json(record)
             return

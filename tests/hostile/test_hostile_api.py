@@ -44,6 +44,8 @@ MODULES = (
     "rsi.datasets.demo",
     "rsi.mission.settings",
     "rsi.mission.batch",
+    "rsi.mission.batch_manifest",
+    "rsi.mission.batch_cluster",
     "rsi.archive.records",
     "rsi.archive.store",
     "rsi.sim.orbit",
@@ -119,7 +121,7 @@ def test_the_suite_generates_at_least_a_thousand_api_cases() -> None:
         "rsi.detection.detect.detect",
         "rsi.imaging.io.read_image",
         "rsi.detection.pair.inspect_pair",
-        "rsi.mission.batch.read_manifest",
+        "rsi.mission.batch_manifest.read_manifest",
         "rsi.archive.store.Archive",
     }
     assert front_doors <= set(SURFACE)

@@ -24,10 +24,12 @@ from rsi.mission.batch import (
     BatchItem,
     PairRecord,
     PairSettings,
+    flaw_confidence,
     inspect_sequentially,
     read_manifest,
     run_batch,
 )
+from rsi.report.batch import write_batch_report
 
 GOOD_PAIRS = 8
 BAD_PAIRS = ("missing", "corrupt")
@@ -167,9 +169,9 @@ def test_bad_pairs_are_reported_and_skipped_and_the_rest_are_in_the_archive(
     calls: list[tuple[str, int, int]] = []
     with open_archive(tmp_path) as archive:
         result = run_batch(  # the default: a local cluster of its own
-            pairs.items, archive=archive, out_dir=tmp_path / "out", workers=2,
-            progress=lambda *call: calls.append(call),
+            pairs.items, archive=archive, workers=2, progress=lambda *call: calls.append(call),
         )  # fmt: skip
+        write_batch_report(tmp_path / "out", result, pairs.items)
         run = archive.run(result.run_id)
         stored = archive.findings(result.run_id)
     assert [record.pair_id for record in result.records] == [item.pair_id for item in pairs.items]
@@ -205,6 +207,18 @@ def test_bad_pairs_are_reported_and_skipped_and_the_rest_are_in_the_archive(
     assert len(pair_rows) == 1 + len(pairs.items)
     flaw_rows = (tmp_path / "out" / "flaws.csv").read_text().splitlines()
     assert len(flaw_rows) == 1 + result.flaw_count
+    # The columns are a contract (docs/batch.md); each row is its pair's flaw and that flaw's confidence.
+    assert flaw_rows[0] == "pair_id,number,row,col,row0,col0,row1,col1,area_px,score,polarity,confidence"
+    assert pair_rows[0] == "pair_id,status,flaws,stage,error,reference,inspection,read_s,inspect_s,worker"
+    expected = [
+        f"{record.pair_id},{number},{flaw.score},{confidence}"
+        for record in result.records
+        for number, (flaw, confidence) in enumerate(
+            zip(record.flaws, record.confidences, strict=True), start=1
+        )
+    ]
+    cells = [row.split(",") for row in flaw_rows[1:]]
+    assert [f"{c[0]},{c[1]},{c[9]},{c[11]}" for c in cells] == expected
 
 
 def test_batch_is_deterministic_and_equals_the_plain_loop(
@@ -218,8 +232,9 @@ def test_batch_is_deterministic_and_equals_the_plain_loop(
         stored = [archive.findings(result.run_id) for result in (first, second)]
     assert first.records == second.records == expected
     assert first.scheduler == scheduler and first.workers == 2
-    for flaw in (flaw for record in first.records for flaw in record.flaws):
-        assert 1.0 - 1e-4 < flaw.confidence <= 1.0
+    for record in first.records:
+        assert len(record.confidences) == len(record.flaws)
+        assert all(1.0 - 1e-4 < confidence <= 1.0 for confidence in record.confidences)
 
     def content(findings: Any) -> list[tuple[Any, ...]]:
         # Stored in the order pairs finish, which varies; the content does not.
@@ -281,6 +296,18 @@ def test_inspect_item_never_raises(pairs: Pairs) -> None:
     record = batch_module.inspect_item(BatchItem("holes", pairs.items[0].reference, holes), PairSettings())
     assert record.status == "failed" and record.stage == "inspect"
     assert record.error is not None and record.error.startswith("InputError: ")
+
+
+def test_confidence_is_one_minus_the_null_tail_of_the_peak_score() -> None:
+    # seed §2.4: the statistic is a standard normal under the null; "both" doubles the one-sided tail.
+    assert flaw_confidence(0.0, "dark") == pytest.approx(0.5)
+    assert flaw_confidence(0.0, "both") == 0.0  # the two-sided tail at zero is the whole mass
+    assert flaw_confidence(1.959963984540054, "both") == pytest.approx(0.95)
+    assert flaw_confidence(1.6448536269514722, "bright") == pytest.approx(0.95)
+    with pytest.raises(InputError, match="score must be finite"):
+        flaw_confidence(float("nan"), "both")
+    with pytest.raises(InputError, match="polarity='up' is not known"):
+        flaw_confidence(3.0, "up")
 
 
 BAD_ARGUMENTS = {
