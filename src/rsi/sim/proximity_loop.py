@@ -8,7 +8,8 @@ One period of the loop (seed §3.1: the sensors were read through an A/D at 44 H
       ──► velocity along the sensor axis (+ the free motion across it) ──► Configuration Control (the arm)
 
 :class:`ProximityLoop` is the controller, stepped once per sensor sample with the operator's or the trajectory
-generator's velocity (the proximity demo's scenarios, the mission's transits, an operator's teleop);
+generator's velocity (the proximity demo's scenarios, the mission's transits, the console's teleop, which
+calls :meth:`ProximityLoop.sense` instead while the operator has let go);
 :func:`run_closed_loop` drives it for a fixed time from velocity schedules and returns a :class:`LoopTrace`.
 
 Sign convention (as in :mod:`rsi.control`): velocity along the sensor axis is positive toward the surface.
