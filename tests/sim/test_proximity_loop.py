@@ -73,6 +73,36 @@ def test_the_law_can_be_left_out_and_switched_between_steps() -> None:
     assert loop.step().proximity_m_s > 0.0  # computed (region E attracts), not applied
 
 
+def test_sense_reads_the_sensors_and_leaves_the_arm_where_it_is() -> None:
+    arm = _arm()
+    joints, tip = arm.joint_positions, arm.tool_pose()[0]
+    loop = ProximityLoop(arm, mode="servo", rng=5)
+    samples = [loop.sense() for _ in range(10)]
+    # not even a zero step: the joints are bit-identical (redundancy resolution would move the null space)
+    assert np.array_equal(arm.joint_positions, joints) and np.array_equal(arm.tool_pose()[0], tip)
+    assert loop.samples == 10 and samples[-1].time_s == pytest.approx(9 * loop.dt_s)  # the clock runs
+    for sample in samples:
+        assert sample.command_m_s == sample.joystick_m_s == sample.trajectory_m_s == 0.0
+        expected, _, _ = proximity_term(sample.reading_m, ARM_LAW, mode="servo")
+        assert sample.proximity_m_s == float(expected) > 0.0  # what the law would command, not sent
+        assert sample.true_m == pytest.approx([WALL_M + 0.11] * 2, abs=1e-9)
+    # the filtered readings of a still arm stay within the sensor's noise of the truth
+    np.testing.assert_allclose([sample.reading_m for sample in samples], WALL_M + 0.11, atol=0.02)
+
+
+def test_sense_and_step_read_the_same_sensors_with_the_same_noise() -> None:
+    sensed = ProximityLoop(_arm(), rng=8).sense()
+    stepped = ProximityLoop(_arm(), rng=8).step()
+    np.testing.assert_array_equal(sensed.reading_m, stepped.reading_m)
+    np.testing.assert_array_equal(sensed.origin_m, stepped.origin_m)
+
+
+def test_sense_with_nothing_in_range_reads_no_return() -> None:
+    sample = ProximityLoop(Arm([Wall(2.0)]), rng=0).sense()
+    assert np.isinf(sample.true_m).all() and sample.out_of_range.all()
+    assert sample.proximity_m_s == 0.0
+
+
 def test_same_seed_same_run() -> None:
     first, again, other = (run_closed_loop(_arm(), duration_s=0.2, rng=seed) for seed in (4, 4, 5))
     np.testing.assert_array_equal(first.reading_m, again.reading_m)

@@ -8,7 +8,8 @@ One period of the loop (seed §3.1: the sensors were read through an A/D at 44 H
       ──► velocity along the sensor axis (+ the free motion across it) ──► Configuration Control (the arm)
 
 :class:`ProximityLoop` is the controller, stepped once per sensor sample with the operator's or the trajectory
-generator's velocity (the proximity demo's scenarios, the mission's transits, an operator's teleop);
+generator's velocity (the proximity demo's scenarios, the mission's transits, the console's teleop, which
+calls :meth:`ProximityLoop.sense` instead while the operator has let go);
 :func:`run_closed_loop` drives it for a fixed time from velocity schedules and returns a :class:`LoopTrace`.
 
 Sign convention (as in :mod:`rsi.control`): velocity along the sensor axis is positive toward the surface.
@@ -208,22 +209,16 @@ class ProximityLoop:
             raise InputError(
                 f"velocity must be 3 (v, m/s) or 6 (v m/s, omega rad/s) finite numbers; got {velocity!r}."
             )
-        true = _true_distances_m(self.rig)
-        read = [channel.read(float(d)) for channel, d in zip(self._channels, true, strict=True)]
-        reading = np.array([value for value, _ in read])
+        sensed = self._read_sensors()
         axis = self.rig.tool_pose()[1][:, 2]
         along = float(free[2]) if where == "tool" else float(axis @ free[:3])
-        blended = blend_commands(joystick_m_s, along, reading, self._law, mode=self._mode)
+        blended = blend_commands(joystick_m_s, along, sensed[1], self._law, mode=self._mode)
         command = float(blended.velocity_m_s) if self.apply_proximity else joystick_m_s + along
-        sample = LoopSample(
-            time_s=self.samples * self.dt_s,
-            true_m=true,
-            reading_m=reading,
-            out_of_range=np.array([flag for _, flag in read]),
-            origin_m=np.array([self.rig.site_position_m(name) for name in RANGE_SITES]),
-            axis=axis,
-            joystick_m_s=float(joystick_m_s),
-            trajectory_m_s=along,
+        sample = self._sample(
+            sensed,
+            axis,
+            joystick_m_s=joystick_m_s,
+            along_m_s=along,
             proximity_m_s=float(blended.proximity_m_s),
             command_m_s=command,
         )
@@ -237,6 +232,63 @@ class ProximityLoop:
         self.rig.step_velocity(sent, self.dt_s, frame=where)
         self.samples += 1
         return sample
+
+    def sense(self) -> LoopSample:
+        """One period with nothing sent: read both sensors through their filters, leave the arm as it is.
+
+        For a loop whose operator let go (the console's hold-to-move): the filters and the sample clock keep
+        running at the sensors' rate, so the readings are settled when motion resumes, but the arm is not
+        stepped at all -- even a zero velocity step would let redundancy resolution move the joints in the
+        null space. Same sensors and noise streams as :meth:`step`.
+
+        Returns
+        -------
+        LoopSample
+            Joystick, trajectory and command zero; ``proximity_m_s`` is the law's term on these readings
+            (what it would command, shown to the operator), not sent.
+        """
+        sensed = self._read_sensors()
+        law_term = float(blend_commands(0.0, 0.0, sensed[1], self._law, mode=self._mode).proximity_m_s)
+        sample = self._sample(
+            sensed,
+            self.rig.tool_pose()[1][:, 2],
+            joystick_m_s=0.0,
+            along_m_s=0.0,
+            proximity_m_s=law_term,
+            command_m_s=0.0,
+        )
+        self.samples += 1
+        return sample
+
+    def _read_sensors(self) -> tuple[FloatArray, FloatArray, BoolArray]:
+        """Both sensors sampled once: true distances, filtered readings, out-of-range flags."""
+        true = _true_distances_m(self.rig)
+        read = [channel.read(float(d)) for channel, d in zip(self._channels, true, strict=True)]
+        return true, np.array([value for value, _ in read]), np.array([flag for _, flag in read])
+
+    def _sample(
+        self,
+        sensed: tuple[FloatArray, FloatArray, BoolArray],
+        axis: FloatArray,
+        *,
+        joystick_m_s: float,
+        along_m_s: float,
+        proximity_m_s: float,
+        command_m_s: float,
+    ) -> LoopSample:
+        true, reading, out_of_range = sensed
+        return LoopSample(
+            time_s=self.samples * self.dt_s,
+            true_m=true,
+            reading_m=reading,
+            out_of_range=out_of_range,
+            origin_m=np.array([self.rig.site_position_m(name) for name in RANGE_SITES]),
+            axis=axis,
+            joystick_m_s=float(joystick_m_s),
+            trajectory_m_s=along_m_s,
+            proximity_m_s=proximity_m_s,
+            command_m_s=command_m_s,
+        )
 
 
 @dataclass(frozen=True)

@@ -2,8 +2,9 @@
 
 Three threads share one :class:`rsi.sim.world.World` under one lock:
 
-- the **teleop loop** at 44 Hz (seed §3.1) runs :func:`rsi.web.teleop.teleop_step` and the server-side
-  watchdog: a held command whose heartbeat (20 Hz from the page) is older than
+- the **teleop loop** at 44 Hz (seed §3.1) runs :func:`rsi.web.teleop.teleop_step` on the console's
+  :class:`rsi.sim.proximity_loop.ProximityLoop` (the one §3.1 loop, as in the demo and the transits) and
+  the server-side watchdog: a held command whose heartbeat (20 Hz from the page) is older than
   :data:`HEARTBEAT_TIMEOUT_S` is dropped and the arm holds, so a frozen tab, a lost socket or a release
   the network ate stops the arm within ``HEARTBEAT_TIMEOUT_S + 1/44 s`` < 200 ms;
 - the **camera loop** sends the state to the camera process and publishes the frames it renders
@@ -32,7 +33,14 @@ from numpy.typing import NDArray
 from rsi.errors import InputError
 from rsi.sim.world import World, load
 from rsi.web.live import FrameHub, LiveState
-from rsi.web.teleop import STOPPED_SPEED_M_S, TELEOP_LAW, TELEOP_RATE_HZ, TeleopStep, teleop_step
+from rsi.web.teleop import (
+    STOPPED_SPEED_M_S,
+    TELEOP_LAW,
+    TELEOP_RATE_HZ,
+    TeleopStep,
+    teleop_loop,
+    teleop_step,
+)
 from rsi.web.worker import SHOT_KINDS, CameraProcess, Shot
 
 FloatArray = NDArray[np.float64]
@@ -100,6 +108,7 @@ class Console:
         self.seed = seed
         self.layout = layout
         self.world: World = load(layout, seed=seed, arm=True)
+        self.loop = teleop_loop(self.world.arm, seed=seed)
         self.lock = threading.RLock()
         self.clock = clock
         self.hub = FrameHub()
@@ -245,7 +254,7 @@ class Console:
                 self._release("watchdog: heartbeat lost", at_s=operator.heartbeat_at_s)
             held = operator is not None and operator.held and not self.estop_latched
             command = operator.command_m_s if operator is not None and held else np.zeros(3)
-            step = teleop_step(self.world.arm, command, held=held, dt_s=1.0 / TELEOP_RATE_HZ)
+            step = teleop_step(self.loop, command, held=held)
             self.last_step = step
             if step.tool_speed_m_s > STOPPED_SPEED_M_S:
                 self._state_version += 1

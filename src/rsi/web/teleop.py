@@ -1,51 +1,47 @@
-"""Teleoperation: one step of the seed §3.1 loop with the operator's joystick (Fig. 4), for the console.
+"""Teleoperation: one period of the seed §3.1 loop with the operator's joystick (Fig. 4), for the console.
 
-THE CONSOLE'S ONE STEP FUNCTION. ARCHITECTURE.md wants the §3.1 closed loop to exist once (proximity demo,
-mission transits, console teleop); until the sim layer's unified loop lands, the console's step lives here
-and only here, built from the same parts: :func:`rsi.control.blending.blend_commands` (Fig. 4's sum along
-the sensor axis), :func:`rsi.control.proximity_law.proximity_velocity` (the regions) and the arm's
-Cartesian velocity control (:meth:`rsi.sim.arm.Arm.step_velocity`). Switch :func:`teleop_step` to the
-unified loop's controller when it exists.
+A thin adapter over :class:`rsi.sim.proximity_loop.ProximityLoop`, the one §3.1 closed loop that also runs the
+proximity demo and the mission's transits (ARCHITECTURE.md, "The sensor boundary"): the rangefinders are
+read through the sensor model (response curve, noise, A/D, low-pass filter) and blended by Fig. 4 there;
+this module maps the operator's command onto the loop and reports what the page shows.
 
 The operator's command is a velocity in the tool frame: x and y across the view, z along the proximity
-sensors' axis (positive toward the surface, the law's sign). Only the axial part meets the law: Fig. 4
-blends joystick, trajectory and proximity velocities along the sensor axis, and region C's non-override
-(a full joystick push nets a velocity <= 0) holds because the law's avoidance speed exceeds the joystick's
-(``ProximityLaw`` refuses any other setting). Sideways motion passes through; a protrusion that comes into
-a beam from the side (region B) makes the axial term retreat.
+sensors' axis (positive toward the surface, the law's sign). x and y go to the loop as free sideways
+motion; z is Fig. 4's joystick term ``x_js``. Only the axial part meets the law, and region C's
+non-override (a full joystick push nets a velocity <= 0) holds because the law's avoidance speed exceeds the
+joystick's (``ProximityLaw`` refuses any other setting). A protrusion that comes into a beam from the side
+(region B) makes the axial term retreat.
 
 Hold-to-move: with ``held`` False the arm holds still, proximity term included. A deadman that lets the
-arm keep creeping under the proximity law after release would be motion the operator did not ask for.
+arm keep creeping under the proximity law after release would be motion the operator did not ask for. The
+loop then only senses (:meth:`ProximityLoop.sense`), so the filters stay settled for the next push.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi.control.blending import blend_commands
 from rsi.control.proximity_law import ProximityLaw, proximity_velocity
 from rsi.errors import InputError
+from rsi.sim.proximity_loop import ProximityLoop, Rig
 
 FloatArray = NDArray[np.float64]
 
-TELEOP_RATE_HZ = 44.0  # seed §3.1: the proximity sensors are read, and the law evaluated, at 44 Hz
 # seed §3.1 default law: 5 cm/s joystick, avoidance 8 cm/s (> joystick: region C cannot be overridden)
 TELEOP_LAW = ProximityLaw()
+TELEOP_RATE_HZ = TELEOP_LAW.sample_rate_hz  # seed §3.1: the sensors are read, and the law evaluated, at 44 Hz
 STOPPED_SPEED_M_S = 1e-3  # below a millimetre per second the tool counts as stopped
 
 
-class TeleopArm(Protocol):
-    """What the step needs of an arm (:class:`rsi.sim.arm.Arm` has it)."""
+def teleop_loop(arm: Rig, *, seed: int = 0) -> ProximityLoop:
+    """The console's loop on `arm`: :data:`TELEOP_LAW`, avoidance (the operator drives; no servo pull).
 
-    def rangefinder_distances_m(self) -> FloatArray: ...
-
-    def tool_pose(self) -> tuple[FloatArray, FloatArray]: ...
-
-    def step_velocity(self, twist_or_velocity: object, dt_s: float, *, frame: str = ...) -> object: ...
+    `seed` fixes the sensors' noise, so a console run with a fixed world seed repeats.
+    """
+    return ProximityLoop(arm, law=TELEOP_LAW, mode="avoidance", rng=seed)
 
 
 @dataclass(frozen=True)
@@ -61,7 +57,7 @@ class TeleopStep:
     commanded_m_s : ndarray of shape (3,)
         What was sent to the arm, tool frame: operator's x, y and the blended z (zero when not held).
     distances_m : ndarray of shape (2,)
-        The two rangefinders' readings, ``inf`` where there is no return.
+        The two proximity sensors' filtered readings (rsi.sensors), ``inf`` where there is no return.
     regions : tuple of str
         Each beam's region A-F of the law, ``"-"`` out of range.
     tool_position_m : ndarray of shape (3,)
@@ -82,14 +78,6 @@ class TeleopStep:
     held: bool
 
 
-def sensed_distances_m(raw_m: FloatArray) -> FloatArray:
-    """MuJoCo's rangefinder readings as the law takes them: no return (< 0) or the cutoff -> ``inf``."""
-    from rsi.sim.arm import RANGEFINDER_CUTOFF_M
-
-    readings = np.asarray(raw_m, dtype=np.float64)
-    return np.where((readings < 0) | (readings >= RANGEFINDER_CUTOFF_M), np.inf, readings)
-
-
 def clamp_operator(command_m_s: object, law: ProximityLaw = TELEOP_LAW) -> FloatArray:
     """The operator's tool-frame velocity, each axis clamped to the joystick's full deflection."""
     command = np.asarray(command_m_s, dtype=np.float64)
@@ -102,35 +90,35 @@ def clamp_operator(command_m_s: object, law: ProximityLaw = TELEOP_LAW) -> Float
     return clamped
 
 
-def teleop_step(
-    arm: TeleopArm,
-    operator_m_s: object,
-    *,
-    held: bool,
-    dt_s: float = 1.0 / TELEOP_RATE_HZ,
-    law: ProximityLaw = TELEOP_LAW,
-) -> TeleopStep:
-    """One loop period: read the beams, blend (seed Fig. 4), command the arm, report all three commands."""
-    operator = clamp_operator(operator_m_s, law)
-    distances = sensed_distances_m(arm.rangefinder_distances_m())
-    regions = tuple(str(r) for r in proximity_velocity(distances, law).region)
-    before = arm.tool_pose()[0]
-    blend = blend_commands(operator[2], 0.0, distances, law)
-    proximity = float(blend.proximity_m_s)
+def teleop_step(loop: ProximityLoop, operator_m_s: object, *, held: bool) -> TeleopStep:
+    """One loop period: the operator's command through the §3.1 loop (seed Fig. 4), or only sensing if let go.
+
+    Parameters
+    ----------
+    loop : ProximityLoop
+        The console's loop on its arm (:func:`teleop_loop`); its law clamps the joystick.
+    operator_m_s : array_like of shape (3,)
+        Tool-frame velocity, m/s: x, y sideways, z toward the surface.
+    held : bool
+        The deadman: False steps nothing (the loop only senses).
+    """
+    operator = clamp_operator(operator_m_s, loop.law)
+    before = loop.rig.tool_pose()[0]
     if held:
-        commanded = np.array([operator[0], operator[1], float(blend.velocity_m_s)])
-        arm.step_velocity(commanded, dt_s, frame="tool")
+        sample = loop.step([operator[0], operator[1], 0.0], joystick_m_s=float(operator[2]))
+        commanded = np.array([operator[0], operator[1], sample.command_m_s])
     else:  # not even a zero step: redundancy resolution would still move the joints in the null space
+        sample = loop.sense()
         commanded = np.zeros(3)
-    after = arm.tool_pose()[0]
+    after = loop.rig.tool_pose()[0]
     return TeleopStep(
         operator_m_s=operator,
-        proximity_m_s=proximity,
+        proximity_m_s=sample.proximity_m_s,
         commanded_m_s=commanded,
-        distances_m=distances,
-        regions=regions,
+        distances_m=sample.reading_m,
+        regions=tuple(str(r) for r in proximity_velocity(sample.reading_m, loop.law).region),
         tool_position_m=after,
-        tool_speed_m_s=float(np.linalg.norm(after - before) / dt_s),
+        tool_speed_m_s=float(np.linalg.norm(after - before) / loop.dt_s),
         held=bool(held),
     )
 
@@ -141,6 +129,6 @@ __all__ = [
     "TELEOP_RATE_HZ",
     "TeleopStep",
     "clamp_operator",
-    "sensed_distances_m",
+    "teleop_loop",
     "teleop_step",
 ]
