@@ -219,6 +219,28 @@ def instance_of(value: object, name: str, kind: type[T]) -> T:
     return value
 
 
+def vector3(value: object, name: str) -> tuple[float, float, float]:
+    """Return `value` as three finite floats (x, y, z) or raise naming it."""
+    array = as_float_array(value, name)
+    if array.shape != (3,) or not np.isfinite(array).all():
+        raise InputError(f"{name} must be three finite numbers (x, y, z); got {_shown(value)}.")
+    return (float(array[0]), float(array[1]), float(array[2]))
+
+
+def direction3(value: object, name: str) -> NDArray[np.float64]:
+    """Return `value` as a unit 3-vector (normalised here) or raise naming it when it is not a direction."""
+    vector = np.array(vector3(value, name))
+    norm = float(np.linalg.norm(vector))
+    if not 1e-12 < norm < math.inf:
+        raise InputError(f"{name} must be a non-zero finite direction; got {_shown(value)}.")
+    return vector / norm
+
+
+def instance_or_default(value: object, name: str, kind: type[T]) -> T:
+    """Return `kind()` (the documented defaults) for None, else `value` if it is a `kind`, else raise."""
+    return kind() if value is None else instance_of(value, name, kind)
+
+
 def increasing_pair(value: object, name: str, *, low: float = 0.0, unit: str = "") -> tuple[float, float]:
     """Return `value` as (first, second), finite floats with `low` < first < second, or raise naming it."""
     if isinstance(value, (str, bytes)) or not isinstance(value, (tuple, list, np.ndarray)) or len(value) != 2:

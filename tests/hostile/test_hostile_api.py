@@ -48,6 +48,17 @@ MODULES = (
     "rsi.archive.store",
     "rsi.sim.orbit",
     "rsi.sim.fields",
+    "rsi.sim.solar_simulator",
+    "rsi.sim.anomalies",
+    "rsi.sim.mockup",
+    "rsi.datasets.synthetic",
+    "rsi.datasets.deeppcb",
+    "rsi.datasets.evaluate",
+    "rsi.datasets.official",
+    "rsi.datasets.pcb_classes",
+    "rsi.datasets.rendered",
+    "rsi.mission.plan",
+    "rsi.mission.score",
 )
 # Covered elsewhere, not here: each runs a whole simulation or cluster for seconds per call.
 SLOW = {"rsi.datasets.demo.simulate_demo", "rsi.mission.batch.run_batch"}
