@@ -13,7 +13,7 @@ import importlib
 import inspect
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, is_typeddict
 
 import numpy as np
 import pytest
@@ -90,7 +90,9 @@ def _public(module_name: str) -> Iterator[tuple[str, Callable[..., Any]]]:
         obj = getattr(module, name)
         if getattr(obj, "__module__", None) != module_name or not callable(obj):
             continue
-        if inspect.isclass(obj) and (issubclass(obj, BaseException) or _is_record(obj) or _is_protocol(obj)):
+        if inspect.isclass(obj) and (
+            issubclass(obj, BaseException) or _is_record(obj) or _is_protocol(obj) or is_typeddict(obj)
+        ):
             continue
         if f"{module_name}.{name}" not in SLOW | RECORDS:
             yield f"{module_name}.{name}", obj
