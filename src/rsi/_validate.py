@@ -230,10 +230,11 @@ def vector3(value: object, name: str) -> tuple[float, float, float]:
 def direction3(value: object, name: str) -> NDArray[np.float64]:
     """Return `value` as a unit 3-vector (normalised here) or raise naming it when it is not a direction."""
     vector = np.array(vector3(value, name))
-    norm = float(np.linalg.norm(vector))
-    if not 1e-12 < norm < math.inf:
-        raise InputError(f"{name} must be a non-zero finite direction; got {_shown(value)}.")
-    return vector / norm
+    scale = float(np.max(np.abs(vector)))  # scaled first: the norm of (1e308, 1e308, 0) overflows
+    if scale < 1e-12:
+        raise InputError(f"{name} must be a non-zero direction; got {_shown(value)}.")
+    unit = vector / scale
+    return np.asarray(unit / np.linalg.norm(unit), dtype=np.float64)
 
 
 def instance_or_default(value: object, name: str, kind: type[T]) -> T:

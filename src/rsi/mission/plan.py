@@ -66,8 +66,8 @@ def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[
     """Add the plan's panel vistas to `world` (once) and return the plan (every component covered)."""
     from rsi.sim.world import World
 
-    v.instance_of(world, "world", World)
     settings = v.instance_or_default(settings, "settings", MissionSettings)
+    v.instance_of(world, "world", World)
     for point in panel_vistas(settings.panel_standoff_m):
         if point.name not in world.vistas:
             world.add_vista(point)
