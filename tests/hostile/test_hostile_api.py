@@ -59,6 +59,7 @@ MODULES = (
     "rsi.datasets.rendered",
     "rsi.mission.plan",
     "rsi.mission.score",
+    "rsi.units",
 )
 # Covered elsewhere, not here: each runs a whole simulation or cluster for seconds per call.
 SLOW = {"rsi.datasets.demo.simulate_demo", "rsi.mission.batch.run_batch"}
