@@ -41,6 +41,7 @@ MODULES = (
     "rsi.detection.roc",
     "rsi.detection.pair",
     "rsi.detection.nuisance",
+    "rsi.detection.noise",
     "rsi.datasets.demo",
     "rsi.mission.settings",
     "rsi.mission.batch",

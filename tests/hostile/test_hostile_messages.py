@@ -22,6 +22,13 @@ from rsi.datasets.evaluate import (
 from rsi.datasets.official import average_precision, pair_official
 from rsi.datasets.pcb_classes import classify_defects, classify_window
 from rsi.datasets.synthetic import synthetic_pair
+from rsi.detection.noise import (
+    affine_variance,
+    fit_sensor_variance,
+    interpolation_factor,
+    mean_interpolation_factor,
+    systematic_errors,
+)
 from rsi.errors import DatasetError, InputError
 from rsi.mission.score import run_roc
 from rsi.mission.settings import MissionSettings
@@ -166,3 +173,48 @@ def test_run_roc_checks_its_settings() -> None:
     assert run_roc((), MissionSettings()) == ()
     with pytest.raises(InputError, match="settings must be a MissionSettings"):
         run_roc((), {})  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------------------- rsi.detection.noise
+
+
+def test_the_sensor_variance_fit_checks_its_images_and_numbers() -> None:
+    rng = np.random.default_rng(0)
+    predicted = rng.uniform(10.0, 200.0, (64, 64)).astype(np.float32)
+    difference = rng.normal(0.0, 2.0, (64, 64)).astype(np.float32)
+    valid = np.ones((64, 64), dtype=bool)
+    a, b = fit_sensor_variance(difference, predicted, valid, gain=1.0, bias=0.0, factor=1.0)
+    assert a >= 0.0 and b >= 0.0
+    with pytest.raises(InputError, match="gain must be non-zero"):
+        fit_sensor_variance(difference, predicted, valid, gain=0.0, bias=0.0, factor=1.0)
+    with pytest.raises(InputError, match="bias must be finite"):
+        fit_sensor_variance(difference, predicted, valid, gain=1.0, bias=math.nan, factor=1.0)
+    with pytest.raises(InputError, match=r"factor must be in \[0.0, inf\]"):
+        fit_sensor_variance(difference, predicted, valid, gain=1.0, bias=0.0, factor=-1.0)
+    with pytest.raises(InputError, match="difference and predicted must have the same shape"):
+        fit_sensor_variance(difference[:8], predicted, valid, gain=1.0, bias=0.0, factor=1.0)
+    with pytest.raises(InputError, match=r"valid must have shape \(64, 64\)"):
+        fit_sensor_variance(difference, predicted, valid[:8], gain=1.0, bias=0.0, factor=1.0)
+
+
+def test_the_variance_model_and_error_maps_check_their_parameters() -> None:
+    assert affine_variance(np.array([1.0, -10.0]), (1.0, 0.5)).tolist() == [1.5, 0.0]
+    with pytest.raises(InputError, match="intensity must be an array of numbers; got dtype=complex128"):
+        affine_variance(np.ones(2, dtype=complex), (1.0, 0.5))
+    with pytest.raises(InputError, match=r"coefficients must be \(a, b\)"):
+        affine_variance(np.ones(2), (1.0, 1e300))
+    plane = np.zeros((8, 8), dtype=np.float32)
+    assert systematic_errors(plane, None, (math.inf, 0.0))[0].shape == (8, 8)  # an unknown shift is allowed
+    with pytest.raises(InputError, match=r"shift_std_px must be two numbers \(x, y\) in \[0, inf\]"):
+        systematic_errors(plane, None, (-1.0, 0.0))
+    with pytest.raises(InputError, match=r"fraction_xy must be two numbers \(x, y\) in \[0, 1\]"):
+        systematic_errors(plane, (0.5, 1.5), (0.1, 0.1))
+
+
+def test_the_interpolation_factor_needs_a_flaw_model_and_is_scale_free() -> None:
+    model = np.ones((3, 3))
+    assert interpolation_factor(model * 1e300, (0.5, 0.5)) == pytest.approx(
+        interpolation_factor(model, (0.5, 0.5))
+    )
+    with pytest.raises(InputError, match="weights must be a finite, non-zero 2-D flaw model"):
+        mean_interpolation_factor(np.zeros((3, 3)))
