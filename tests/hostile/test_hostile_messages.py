@@ -218,3 +218,10 @@ def test_the_interpolation_factor_needs_a_flaw_model_and_is_scale_free() -> None
     )
     with pytest.raises(InputError, match="weights must be a finite, non-zero 2-D flaw model"):
         mean_interpolation_factor(np.zeros((3, 3)))
+
+
+def test_mission_settings_refuse_an_integer_beyond_the_float_range() -> None:
+    with pytest.raises(
+        InputError, match="p_false_alarm must be a finite number; got an integer of 1329 bits"
+    ):
+        MissionSettings(p_false_alarm=10**400)
