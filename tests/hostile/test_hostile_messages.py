@@ -204,8 +204,8 @@ def test_the_variance_model_and_error_maps_check_their_parameters() -> None:
     with pytest.raises(InputError, match=r"coefficients must be \(a, b\)"):
         affine_variance(np.ones(2), (1.0, 1e300))
     plane = np.zeros((8, 8), dtype=np.float32)
-    assert systematic_errors(plane, None, (math.inf, 0.0))[0].shape == (8, 8)  # an unknown shift is allowed
-    with pytest.raises(InputError, match=r"shift_std_px must be two numbers \(x, y\) in \[0, inf\]"):
+    assert systematic_errors(plane, None, (math.inf, math.nan))[0].shape == (8, 8)  # unknown is allowed
+    with pytest.raises(InputError, match=r"shift_std_px must be two numbers \(x, y\) in \[0, inf\] or NaN"):
         systematic_errors(plane, None, (-1.0, 0.0))
     with pytest.raises(InputError, match=r"fraction_xy must be two numbers \(x, y\) in \[0, 1\]"):
         systematic_errors(plane, (0.5, 1.5), (0.1, 0.1))

@@ -28,11 +28,13 @@ _FIT_BINS = 16
 _FRACTION_GRID = 8  # fractions averaged for warps whose sub-pixel phase varies over the image
 
 
-def _pair(value: object, name: str, *, high: float) -> tuple[float, float]:
-    """Two numbers in [0, `high`] (an x and a y), or raise naming `name`."""
+def _pair(value: object, name: str, *, high: float, unknown: bool = False) -> tuple[float, float]:
+    """Two numbers in [0, `high`] (an x and a y; NaN where `unknown` allows it), or raise naming `name`."""
     pair = v.as_float_array(value, name)
-    if pair.shape != (2,) or np.isnan(pair).any() or not ((pair >= 0.0) & (pair <= high)).all():
-        raise InputError(f"{name} must be two numbers (x, y) in [0, {high:g}]; got {value!r:.60}.")
+    known = pair if not unknown else pair[~np.isnan(pair)]
+    if pair.shape != (2,) or np.isnan(known).any() or not ((known >= 0.0) & (known <= high)).all():
+        also = " or NaN (unknown)" if unknown else ""
+        raise InputError(f"{name} must be two numbers (x, y) in [0, {high:g}]{also}; got {value!r:.60}.")
     return float(pair[0]), float(pair[1])
 
 
@@ -231,7 +233,7 @@ def systematic_errors(
     ``sum_k w_k^2 e_k^2 / v_k^2``.
     """
     plane = _plane(predicted, "predicted")
-    sx, sy = _pair(shift_std_px, "shift_std_px", high=math.inf)
+    sx, sy = _pair(shift_std_px, "shift_std_px", high=math.inf, unknown=True)
     fractions = None if fraction_xy is None else _pair(fraction_xy, "fraction_xy", high=1.0)
     cx, cy = (1.0 / 6.0, 1.0 / 6.0) if fractions is None else (f * (1.0 - f) for f in fractions)
     # Sobel / 8 is a central difference smoothed across the edge, which keeps sensor noise out of g; the
