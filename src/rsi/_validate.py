@@ -209,11 +209,15 @@ def as_float_array(value: object, name: str) -> NDArray[np.float64]:
     raise InputError(f"{name} must be a number or an array of numbers (float64); got {_shown(value)}.")
 
 
-def instance_of(value: object, name: str, kind: type[T]) -> T:
-    """Return `value` if it is a `kind`, else raise naming the argument and how to build one."""
+def instance_of(value: object, name: str, kind: type[T], *, none_allowed: bool = True) -> T:
+    """Return `value` if it is a `kind`, else raise naming the argument and how to build one.
+
+    `none_allowed` says whether the message offers None (the caller's defaults) as a fix.
+    """
     if not isinstance(value, kind):
+        defaults = " (or None for the defaults)" if none_allowed else ""
         raise InputError(
-            f"{name} must be a {kind.__name__} (or None for the defaults); got {type(value).__name__}. "
+            f"{name} must be a {kind.__name__}{defaults}; got {type(value).__name__}. "
             f"Build one with {kind.__name__}(...)."
         )
     return value

@@ -101,7 +101,7 @@ def test_an_annotation_must_be_utf8_text_of_bounded_size(tmp_path: Path) -> None
 def test_match_counts_checks_the_detections_and_the_time(tmp_path: Path) -> None:
     found = PcbDetections(np.array([[2.0, 2.0]]), np.array([[1, 1, 4, 4]]))
     assert match_counts(_pair(tmp_path), found, 0.5).found == 1
-    with pytest.raises(InputError, match="found must be a PcbDetections"):
+    with pytest.raises(InputError, match="found must be a PcbDetections; got ndarray"):
         match_counts(_pair(tmp_path), np.zeros((1, 2)))
     with pytest.raises(InputError, match=r"seconds must be in \[0.0, inf\]; got -1.0"):
         match_counts(_pair(tmp_path), found, -1.0)

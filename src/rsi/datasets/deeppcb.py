@@ -223,6 +223,6 @@ def read_pair(pair: DeepPcbPair) -> tuple[NDArray[np.float32], NDArray[np.float3
     """
     from rsi.imaging.io import read_image
 
-    instance_of(pair, "pair", DeepPcbPair)
+    instance_of(pair, "pair", DeepPcbPair, none_allowed=False)
 
     return read_image(pair.reference_path), read_image(pair.inspection_path)

@@ -458,8 +458,8 @@ class MatchCounts:
 
 def match_counts(pair: DeepPcbPair, found: PcbDetections, seconds: float = 0.0) -> MatchCounts:
     """Score one pair's detections against its ground truth by both matching rules."""
-    instance_of(pair, "pair", DeepPcbPair)
-    instance_of(found, "found", PcbDetections)
+    instance_of(pair, "pair", DeepPcbPair, none_allowed=False)
+    instance_of(found, "found", PcbDetections, none_allowed=False)
     seconds = in_range(seconds, "seconds", low=0.0)
     hit, false_alarm = centre_in_box(found.centres_xy, pair.boxes_xyxy)
     iou_found, iou_correct = iou_match(found.boxes_xyxy, pair.boxes_xyxy)
@@ -483,7 +483,7 @@ def _check_pairs(pairs: object) -> None:
     if len(pairs) == 0:
         raise InputError("pairs is empty. Pass at least one DeepPcbPair (rsi.datasets.deeppcb.load_split).")
     for index, pair in enumerate(pairs):
-        instance_of(pair, f"pairs[{index}]", DeepPcbPair)
+        instance_of(pair, f"pairs[{index}]", DeepPcbPair, none_allowed=False)
 
 
 def _check_callable(value: object, name: str, shape: str) -> None:
@@ -557,7 +557,7 @@ def evaluate_pairs(
 
 def group_of(pair: DeepPcbPair) -> str:
     """The board group of a pair, the first folder of its id (e.g. ``"group20085"``)."""
-    instance_of(pair, "pair", DeepPcbPair)
+    instance_of(pair, "pair", DeepPcbPair, none_allowed=False)
     return pair.pair_id.split("/", 1)[0]
 
 
@@ -591,7 +591,7 @@ def _check_counts(counts: object) -> None:
                 f"counts[{setting!r:.40}] must be a dict of group -> MatchCounts; got {by_group!r:.60}."
             )
         for group, tally in by_group.items():
-            instance_of(tally, f"counts[{setting!r:.40}][{group!r:.40}]", MatchCounts)
+            instance_of(tally, f"counts[{setting!r:.40}][{group!r:.40}]", MatchCounts, none_allowed=False)
 
 
 def leave_one_group_out(counts: dict[str, dict[str, MatchCounts]]) -> LeaveOneGroupOut:

@@ -47,7 +47,7 @@ def panel_vistas(standoff_m: float) -> tuple[Vista, ...]:
 def plan_points(settings: MissionSettings) -> tuple[PlanPoint, ...]:
     """The plan's vista points in visiting order: the electrical ORU closed, open and its Kapton, the
     tank ORU, the five panel views, the tubing."""
-    settings = v.instance_of(settings, "settings", MissionSettings)
+    settings = v.instance_of(settings, "settings", MissionSettings, none_allowed=False)
     panel = [PlanPoint(name, name) for name in _PANEL_OFFSETS_M]
     return (
         PlanPoint("A_door", "A_door"),
@@ -67,7 +67,7 @@ def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[
     from rsi.sim.world import World
 
     settings = v.instance_or_default(settings, "settings", MissionSettings)
-    v.instance_of(world, "world", World)
+    v.instance_of(world, "world", World, none_allowed=False)
     for point in panel_vistas(settings.panel_standoff_m):
         if point.name not in world.vistas:
             world.add_vista(point)

@@ -205,7 +205,7 @@ def run_roc(visits: tuple[VisitRecord, ...], settings: MissionSettings) -> tuple
     from rsi.detection.roc import RocCurve, empirical_roc, theoretical_roc
 
     _check_visits(visits)
-    instance_of(settings, "settings", MissionSettings)
+    instance_of(settings, "settings", MissionSettings, none_allowed=False)
     images = [v.images for v in visits if v.images is not None and v.images.impact_truth.any()]
     if not images:
         return ()

@@ -479,7 +479,7 @@ def _checked_joint(value: object, argument: str, name: str) -> float:
 
 def lamp_pose(configuration: LampConfiguration, *, mount: LampMount | None = None) -> LampPose:
     """Lamp centre and head frame ``(n, o, n x o)`` in the world for a configuration."""
-    v.instance_of(configuration, "configuration", LampConfiguration)
+    v.instance_of(configuration, "configuration", LampConfiguration, none_allowed=False)
     mount = v.instance_or_default(mount, "mount", LampMount)
     rotation = rotation_world_from_rail(mount)
     theta, phi = configuration.theta_rad, configuration.phi_rad
