@@ -209,14 +209,41 @@ def as_float_array(value: object, name: str) -> NDArray[np.float64]:
     raise InputError(f"{name} must be a number or an array of numbers (float64); got {_shown(value)}.")
 
 
-def instance_of(value: object, name: str, kind: type[T]) -> T:
-    """Return `value` if it is a `kind`, else raise naming the argument and how to build one."""
+def instance_of(value: object, name: str, kind: type[T], *, none_allowed: bool = True) -> T:
+    """Return `value` if it is a `kind`, else raise naming the argument and how to build one.
+
+    `none_allowed` says whether the message offers None (the caller's defaults) as a fix.
+    """
     if not isinstance(value, kind):
+        defaults = " (or None for the defaults)" if none_allowed else ""
         raise InputError(
-            f"{name} must be a {kind.__name__} (or None for the defaults); got {type(value).__name__}. "
+            f"{name} must be a {kind.__name__}{defaults}; got {type(value).__name__}. "
             f"Build one with {kind.__name__}(...)."
         )
     return value
+
+
+def vector3(value: object, name: str) -> tuple[float, float, float]:
+    """Return `value` as three finite floats (x, y, z) or raise naming it."""
+    array = as_float_array(value, name)
+    if array.shape != (3,) or not np.isfinite(array).all():
+        raise InputError(f"{name} must be three finite numbers (x, y, z); got {_shown(value)}.")
+    return (float(array[0]), float(array[1]), float(array[2]))
+
+
+def direction3(value: object, name: str) -> NDArray[np.float64]:
+    """Return `value` as a unit 3-vector (normalised here) or raise naming it when it is not a direction."""
+    vector = np.array(vector3(value, name))
+    scale = float(np.max(np.abs(vector)))  # scaled first: the norm of (1e308, 1e308, 0) overflows
+    if scale < 1e-12:
+        raise InputError(f"{name} must be a non-zero direction; got {_shown(value)}.")
+    unit = vector / scale
+    return np.asarray(unit / np.linalg.norm(unit), dtype=np.float64)
+
+
+def instance_or_default(value: object, name: str, kind: type[T]) -> T:
+    """Return `kind()` (the documented defaults) for None, else `value` if it is a `kind`, else raise."""
+    return kind() if value is None else instance_of(value, name, kind)
 
 
 def increasing_pair(value: object, name: str, *, low: float = 0.0, unit: str = "") -> tuple[float, float]:

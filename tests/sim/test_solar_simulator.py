@@ -253,7 +253,7 @@ def test_inverse_kinematics_rejects_bad_arguments() -> None:
         ss.inverse_kinematics((math.nan, 0.0, 1.0), beam_angle_rad=0.3, rail_m=1.0)
     with pytest.raises(InputError, match=r"spot_world_m must have shape \(3,\)"):
         ss.inverse_kinematics((1.0, 0.0), beam_angle_rad=0.3, rail_m=1.0)
-    with pytest.raises(InputError, match="spot_world_m must be 3 numbers"):
+    with pytest.raises(InputError, match="spot_world_m must be a number or an array of numbers"):
         ss.inverse_kinematics(("a", 0.0, 1.0), beam_angle_rad=0.3, rail_m=1.0)
     with pytest.raises(InputError, match="rail_m must be finite"):
         ss.inverse_kinematics(spot, beam_angle_rad=0.3, rail_m=math.nan)

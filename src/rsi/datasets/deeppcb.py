@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi._validate import choice
-from rsi.errors import DatasetError
+from rsi._files import read_regular_file
+from rsi._validate import choice, instance_of
+from rsi.errors import DatasetError, InputError
 
 SPLITS = ("trainval", "test")
 # DeepPCB README: the six defect classes, by the integer in the last column of an annotation line.
@@ -38,6 +39,9 @@ _BOX_FIELDS = 5
 
 IntArray = NDArray[np.int64]
 PathLike = str | os.PathLike[str]
+_MAX_ANNOTATION_BYTES = 2**20
+"""DeepPCB's annotations hold a few boxes of about 20 characters each (at most a few hundred bytes); a
+megabyte is no annotation."""
 
 
 @dataclass(frozen=True)
@@ -118,14 +122,20 @@ def read_annotation(path: PathLike) -> tuple[IntArray, IntArray]:
     DatasetError
         If the file is missing or a line is malformed; the message names the file and the line number.
     """
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise InputError(f"path must be an annotation file path (str or os.PathLike); got {path!r:.60}.")
     file = Path(path)
+    # a regular file of bounded size: a device or a FIFO named .txt is refused, never read without end
+    data = read_regular_file(
+        file, max_bytes=_MAX_ANNOTATION_BYTES, error=DatasetError, too_big="not a DeepPCB annotation"
+    )
     try:
-        lines = file.read_text(encoding="utf-8").splitlines()
-    except OSError as error:
+        lines = data.decode("utf-8").splitlines()
+    except UnicodeDecodeError as error:
         raise DatasetError(
-            f"annotation {str(file)!r} cannot be read ({error.strerror or error}). "
+            f"annotation {str(file)!r} is not UTF-8 text ({error.reason} at byte {error.start}). "
             "Check that the dataset is complete."
-        ) from error
+        ) from None
     rows = [_parse_box(line, file, number) for number, line in enumerate(lines, start=1) if line.strip()]
     table = np.array(rows, dtype=np.int64).reshape(-1, _BOX_FIELDS)
     return table[:, :4].copy(), table[:, 4].copy()
@@ -212,5 +222,7 @@ def read_pair(pair: DeepPcbPair) -> tuple[NDArray[np.float32], NDArray[np.float3
         The template and the tested board.
     """
     from rsi.imaging.io import read_image
+
+    instance_of(pair, "pair", DeepPcbPair, none_allowed=False)
 
     return read_image(pair.reference_path), read_image(pair.inspection_path)

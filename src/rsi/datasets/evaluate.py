@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -24,7 +24,15 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi._validate import as_image, choice, in_range, positive_int
+from rsi._validate import (
+    as_float_array,
+    as_image,
+    choice,
+    in_range,
+    instance_of,
+    instance_or_default,
+    positive_int,
+)
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.datasets.pcb_classes import classify_defects
 from rsi.detection.flaw_models import FLAW_MODELS
@@ -176,7 +184,7 @@ class EvaluationResult:
 
 
 def _as_table(values: object, name: str, columns: int) -> FloatArray:
-    table = np.asarray(values, dtype=np.float64)
+    table = as_float_array(values, name)
     if table.size == 0:
         return table.reshape(0, columns)
     if table.ndim != 2 or table.shape[1] != columns or not np.isfinite(table).all():
@@ -361,7 +369,7 @@ def detect_defects(
     from rsi.detection.detect import detect
     from rsi.imaging.registration import register
 
-    chosen = DeepPcbSettings() if settings is None else settings
+    chosen = instance_or_default(settings, "settings", DeepPcbSettings)
     reference_image = as_image(reference, "reference")
     inspection_image = as_image(inspection, "inspection")
     fit = register(reference_image, inspection_image, model=chosen.registration_model)
@@ -450,6 +458,9 @@ class MatchCounts:
 
 def match_counts(pair: DeepPcbPair, found: PcbDetections, seconds: float = 0.0) -> MatchCounts:
     """Score one pair's detections against its ground truth by both matching rules."""
+    instance_of(pair, "pair", DeepPcbPair, none_allowed=False)
+    instance_of(found, "found", PcbDetections, none_allowed=False)
+    seconds = in_range(seconds, "seconds", low=0.0)
     hit, false_alarm = centre_in_box(found.centres_xy, pair.boxes_xyxy)
     iou_found, iou_correct = iou_match(found.boxes_xyxy, pair.boxes_xyxy)
     return MatchCounts(
@@ -464,6 +475,22 @@ def match_counts(pair: DeepPcbPair, found: PcbDetections, seconds: float = 0.0) 
     )
 
 
+def _check_pairs(pairs: object) -> None:
+    if not isinstance(pairs, Sequence) or isinstance(pairs, (str, bytes)):
+        raise InputError(
+            f"pairs must be a sequence of DeepPcbPair (rsi.datasets.deeppcb.load_split); got {pairs!r:.60}."
+        )
+    if len(pairs) == 0:
+        raise InputError("pairs is empty. Pass at least one DeepPcbPair (rsi.datasets.deeppcb.load_split).")
+    for index, pair in enumerate(pairs):
+        instance_of(pair, f"pairs[{index}]", DeepPcbPair, none_allowed=False)
+
+
+def _check_callable(value: object, name: str, shape: str) -> None:
+    if not callable(value):
+        raise InputError(f"{name} must be a function called as {shape}; got {value!r:.60}.")
+
+
 def count_pairs(
     pairs: Sequence[DeepPcbPair],
     detector: Detector,
@@ -476,8 +503,14 @@ def count_pairs(
     With `tally` (:class:`rsi.datasets.official.OfficialTally`), each pair is also scored by the official
     rule.
     """
-    if len(pairs) == 0:
-        raise InputError("pairs is empty. Pass at least one DeepPcbPair (rsi.datasets.deeppcb.load_split).")
+    from rsi.datasets.official import OfficialTally  # it builds on this module's IoU
+
+    _check_pairs(pairs)
+    _check_callable(detector, "detector", "detector(reference, inspection) -> PcbDetections")
+    if progress is not None:
+        _check_callable(progress, "progress", "progress(pair_id, done, total)")
+    if tally is not None:
+        instance_of(tally, "tally", OfficialTally)
     counts = []
     for done, pair in enumerate(pairs, start=1):
         start = time.perf_counter()
@@ -524,6 +557,7 @@ def evaluate_pairs(
 
 def group_of(pair: DeepPcbPair) -> str:
     """The board group of a pair, the first folder of its id (e.g. ``"group20085"``)."""
+    instance_of(pair, "pair", DeepPcbPair, none_allowed=False)
     return pair.pair_id.split("/", 1)[0]
 
 
@@ -547,6 +581,19 @@ class LeaveOneGroupOut:
     pooled: MatchCounts
 
 
+def _check_counts(counts: object) -> None:
+    """counts[setting][group] must be MatchCounts, keyed by names."""
+    if not isinstance(counts, Mapping):
+        raise InputError(f"counts must be a dict counts[setting][group] of MatchCounts; got {counts!r:.60}.")
+    for setting, by_group in counts.items():
+        if not isinstance(by_group, Mapping):
+            raise InputError(
+                f"counts[{setting!r:.40}] must be a dict of group -> MatchCounts; got {by_group!r:.60}."
+            )
+        for group, tally in by_group.items():
+            instance_of(tally, f"counts[{setting!r:.40}][{group!r:.40}]", MatchCounts, none_allowed=False)
+
+
 def leave_one_group_out(counts: dict[str, dict[str, MatchCounts]]) -> LeaveOneGroupOut:
     """Choose a setting on all groups but one, score that one; each group in turn.
 
@@ -560,6 +607,7 @@ def leave_one_group_out(counts: dict[str, dict[str, MatchCounts]]) -> LeaveOneGr
     LeaveOneGroupOut
         No setting is ever chosen per group on that group's own figures.
     """
+    _check_counts(counts)
     if not counts:
         raise InputError("counts is empty. Pass counts[setting][group] for at least one setting.")
     groups = sorted(next(iter(counts.values())))

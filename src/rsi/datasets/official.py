@@ -20,13 +20,23 @@ from typing import TypedDict
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi._validate import as_float_array, positive_int
 from rsi.datasets.deeppcb import DEFECT_TYPES
 from rsi.datasets.evaluate import OFFICIAL_IOU, box_iou
+from rsi.errors import InputError
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 CLASSES = tuple(DEFECT_TYPES)
 NONE = 0  # the confusion matrix's row of unpaired detections and column of missed boxes
+
+
+def _classes(value: object, name: str, count: int) -> IntArray:
+    """One whole-number class per box, `count` of them."""
+    classes = as_float_array(value, name).reshape(-1)
+    if classes.size != count or not np.all(np.isfinite(classes) & (classes == np.round(classes))):
+        raise InputError(f"{name} must hold {count} whole-number classes (one per box); got {value!r:.80}.")
+    return classes.astype(np.int64)
 
 
 def pair_official(
@@ -42,8 +52,8 @@ def pair_official(
         Whether each detection was paired.
     """
     iou = box_iou(truth_xyxy, detected_xyxy)
-    truth = np.asarray(truth_classes, dtype=np.int64).reshape(-1)
-    detected = np.asarray(detected_classes, dtype=np.int64).reshape(-1)
+    truth = _classes(truth_classes, "truth_classes", iou.shape[0])
+    detected = _classes(detected_classes, "detected_classes", iou.shape[1])
     found = np.zeros(iou.shape[0], dtype=bool)
     correct = np.zeros(iou.shape[1], dtype=bool)
     for box in range(iou.shape[0]):
@@ -60,12 +70,20 @@ def pair_official(
 
 def average_precision(confidences: object, correct: object, boxes: int) -> float:
     """The ICDAR script's ``compute_ap``: precision at each paired detection, by confidence, over boxes."""
-    scores = np.asarray(confidences, dtype=np.float64).reshape(-1)
-    paired = np.asarray(correct, dtype=bool).reshape(-1)[np.argsort(-scores, kind="stable")]
-    if boxes <= 0 or paired.size == 0:
+    scores = as_float_array(confidences, "confidences").reshape(-1)
+    flags = as_float_array(correct, "correct").reshape(-1)
+    if flags.size != scores.size or not np.all((flags == 0) | (flags == 1)):
+        raise InputError(
+            f"correct must hold {scores.size} booleans (one per confidence); got {correct!r:.80}."
+        )
+    if np.isnan(scores).any():
+        raise InputError("confidences contain NaN; pass a number per detection (inf ranks first or last).")
+    count = positive_int(boxes, "boxes", minimum=0)
+    paired = flags.astype(bool)[np.argsort(-scores, kind="stable")]
+    if count == 0 or paired.size == 0:
         return 0.0
     ranks = np.arange(1, paired.size + 1)
-    return float(np.sum((np.cumsum(paired) / ranks)[paired]) / boxes)
+    return float(np.sum((np.cumsum(paired) / ranks)[paired]) / count)
 
 
 class OfficialFigures(TypedDict):

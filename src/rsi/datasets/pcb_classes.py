@@ -24,6 +24,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi._validate import as_float_array, as_image, same_shape
+from rsi.errors import InputError
+
 COPPER_BELOW_DN = 127.5  # DeepPCB's images are binarised: copper dark (0), board light (255)
 OPEN, SHORT, MOUSEBITE, SPUR, SPURIOUS_COPPER, PIN_HOLE = 1, 2, 3, 4, 5, 6
 _OPENING = np.ones((3, 3), np.uint8)
@@ -52,6 +55,36 @@ def _pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
     return pieces, holes
 
 
+def _window(value: object, name: str) -> NDArray[np.float64]:
+    """A non-empty 2-D window of grey values (one pixel wide is allowed: a box may be that thin)."""
+    window = as_float_array(value, name)
+    if window.ndim != 2 or window.size == 0:
+        raise InputError(f"{name} must be a non-empty 2-D grey window; got shape {window.shape}.")
+    return window
+
+
+def _boxes_inside(boxes_xyxy: object, shape: tuple[int, ...]) -> NDArray[np.int64]:
+    """Corners-inclusive boxes (D, 4) of whole pixels, each inside an image of `shape`, x1 <= x2, y1 <= y2."""
+    boxes = as_float_array(boxes_xyxy, "boxes_xyxy")
+    if boxes.size == 0:
+        return np.empty((0, 4), dtype=np.int64)
+    rows, cols = shape
+    inside = (
+        boxes.ndim == 2
+        and boxes.shape[1] == 4
+        and bool(np.all(boxes == np.round(boxes)))
+        and bool(np.all((boxes[:, 0] >= 0) & (boxes[:, 0] <= boxes[:, 2]) & (boxes[:, 2] < cols)))
+        and bool(np.all((boxes[:, 1] >= 0) & (boxes[:, 1] <= boxes[:, 3]) & (boxes[:, 3] < rows)))
+    )
+    if not inside:
+        raise InputError(
+            "boxes_xyxy must be whole-pixel boxes (x1, y1, x2, y2) of shape (D, 4) with "
+            f"0 <= x1 <= x2 < {cols} and 0 <= y1 <= y2 < {rows}; got {boxes_xyxy!r:.80}. "
+            "Clip the boxes to the image."
+        )
+    return boxes.astype(np.int64)
+
+
 def classify_window(template: NDArray[np.floating], test: NDArray[np.floating]) -> tuple[int, float]:
     """The class of the change between two aligned grey windows, and the changed pixels (a confidence).
 
@@ -64,8 +97,9 @@ def classify_window(template: NDArray[np.floating], test: NDArray[np.floating]) 
         the 1-2 px slivers of etching and resampling along edges never have (the detector's own
         rationale, docs/deeppcb.md); it ranks detections for average precision.
     """
-    before = (np.asarray(template) < COPPER_BELOW_DN).astype(np.uint8)
-    after = (np.asarray(test) < COPPER_BELOW_DN).astype(np.uint8)
+    before = (_window(template, "template") < COPPER_BELOW_DN).astype(np.uint8)
+    after = (_window(test, "test") < COPPER_BELOW_DN).astype(np.uint8)
+    same_shape(before, after, ("template", "test"))
     added = int(cv2.morphologyEx(after & (1 - before), cv2.MORPH_OPEN, _OPENING).sum())
     removed = int(cv2.morphologyEx(before & (1 - after), cv2.MORPH_OPEN, _OPENING).sum())
     if added == removed == 0:
@@ -112,9 +146,13 @@ def classify_defects(
     confidences : ndarray of shape (D,), float64
         Changed pixels in the box: bigger changes first when ranking for average precision.
     """
-    classes = np.zeros(len(boxes_xyxy), dtype=np.int64)
-    confidences = np.zeros(len(boxes_xyxy), dtype=np.float64)
-    for index, (x1, y1, x2, y2) in enumerate(np.asarray(boxes_xyxy, dtype=np.int64)):
+    template_image = as_image(template, "template")
+    test_image = as_image(test, "test")
+    same_shape(template_image, test_image, ("template", "test"))
+    boxes = _boxes_inside(boxes_xyxy, test_image.shape)
+    classes = np.zeros(len(boxes), dtype=np.int64)
+    confidences = np.zeros(len(boxes), dtype=np.float64)
+    for index, (x1, y1, x2, y2) in enumerate(boxes):
         window = (slice(int(y1), int(y2) + 1), slice(int(x1), int(x2) + 1))
-        classes[index], confidences[index] = classify_window(template[window], test[window])
+        classes[index], confidences[index] = classify_window(template_image[window], test_image[window])
     return classes, confidences

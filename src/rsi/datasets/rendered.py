@@ -52,7 +52,9 @@ def render_vista_to_folder(
     """
     from rsi._files import atomic_write_bytes
     from rsi.imaging.io import write_image
+    from rsi.sim.world import World
 
+    v.instance_of(world, "world", World, none_allowed=False)
     world.vista(vista)
     v.choice(state, "state", STATES)
     folder, created = writable_folder(out_dir, "out_dir")

@@ -87,6 +87,20 @@ def _shape(shape: object) -> tuple[int, int]:
     return positive_int(shape[0], "shape[0]", minimum=2), positive_int(shape[1], "shape[1]", minimum=2)
 
 
+def _shift(shift_xy: object, size: tuple[int, int]) -> tuple[float, float]:
+    """A (dx, dy) shift that leaves the two images overlapping (a larger one pads the canvas without end)."""
+    if not isinstance(shift_xy, (tuple, list)) or len(shift_xy) != 2:
+        raise InputError(f"shift_xy must be a (dx, dy) pair in pixels; got {shift_xy!r:.60}.")
+    dx = finite_number(shift_xy[0], "shift_xy[0]")
+    dy = finite_number(shift_xy[1], "shift_xy[1]")
+    if abs(dx) >= size[1] or abs(dy) >= size[0]:
+        raise InputError(
+            f"shift_xy={shift_xy!r:.60} moves the image off itself (shape {size}); pass a shift smaller than "
+            "the image so that the pair overlaps."
+        )
+    return dx, dy
+
+
 def _edges(shape: tuple[int, int], rng: np.random.Generator) -> FloatArray:
     """Sum of random straight steps: half-planes through random points with random normals and heights."""
     rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float64)
@@ -239,8 +253,7 @@ def synthetic_pair(
     SyntheticPair
     """
     size = _shape(shape)
-    dx = finite_number(shift_xy[0], "shift_xy[0]")
-    dy = finite_number(shift_xy[1], "shift_xy[1]")
+    dx, dy = _shift(shift_xy, size)
     gain_value = finite_number(gain, "gain")
     bias_value = finite_number(bias, "bias")
     sigma = in_range(noise_sigma, "noise_sigma", low=0.0)

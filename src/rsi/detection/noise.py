@@ -7,12 +7,16 @@ ambient-light interpolation (seed §2.2). This module holds those pieces; ``docs
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, signal
+
+from rsi import _validate as v
+from rsi.errors import InputError
 
 FloatArray = NDArray[np.float64]
 Float32Array = NDArray[np.float32]
@@ -24,6 +28,32 @@ _FIT_BINS = 16
 _FRACTION_GRID = 8  # fractions averaged for warps whose sub-pixel phase varies over the image
 
 
+def _pair(value: object, name: str, *, high: float, unknown: bool = False) -> tuple[float, float]:
+    """Two numbers in [0, `high`] (an x and a y; NaN where `unknown` allows it), or raise naming `name`."""
+    pair = v.as_float_array(value, name)
+    known = pair if not unknown else pair[~np.isnan(pair)]
+    if pair.shape != (2,) or np.isnan(known).any() or not ((known >= 0.0) & (known <= high)).all():
+        also = " or NaN (unknown)" if unknown else ""
+        raise InputError(f"{name} must be two numbers (x, y) in [0, {high:g}]{also}; got {value!r:.60}.")
+    return float(pair[0]), float(pair[1])
+
+
+def _weights(weights: object) -> FloatArray:
+    """A non-zero, finite 2-D filter scaled to a largest magnitude of 1 (the factors are scale-free)."""
+    kernel = v.as_float_array(weights, "weights")
+    if kernel.ndim != 2 or kernel.size == 0 or not np.isfinite(kernel).all() or not kernel.any():
+        raise InputError(
+            f"weights must be a finite, non-zero 2-D flaw model; got shape {kernel.shape}. "
+            "Pass rsi.detection.flaw_models.flaw_model(...)."
+        )
+    return np.asarray(kernel / np.abs(kernel).max(), dtype=np.float64)
+
+
+def _plane(image: object, name: str) -> NDArray[np.floating[Any]]:
+    """A 2-D image (NaN allowed where invalid), float kept without a copy."""
+    return v.as_image(image, name, allow_nan=True)
+
+
 def bilinear_weights(fraction_xy: tuple[float, float]) -> FloatArray:
     """Return the 2x2 bilinear interpolation kernel ``h`` for sub-pixel fractions ``(fx, fy)``.
 
@@ -32,7 +62,7 @@ def bilinear_weights(fraction_xy: tuple[float, float]) -> FloatArray:
     ndarray of shape (2, 2)
         ``[[(1-fx)(1-fy), fx(1-fy)], [(1-fx)fy, fx fy]]`` (rows = y).
     """
-    fx, fy = fraction_xy
+    fx, fy = _pair(fraction_xy, "fraction_xy", high=1.0)
     return np.outer([1.0 - fy, fy], [1.0 - fx, fx])
 
 
@@ -53,8 +83,9 @@ def interpolation_factor(weights: FloatArray, fraction_xy: tuple[float, float]) 
         resampling, noise whose ``w``-filtered variance equals that of white noise of variance ``v`` times
         this factor. For one pixel it is ``((1-fx)^2 + fx^2)((1-fy)^2 + fy^2)``.
     """
-    smeared = signal.convolve2d(weights, bilinear_weights(fraction_xy), mode="full")
-    return float(np.sum(smeared**2) / np.sum(weights**2))
+    kernel = _weights(weights)
+    smeared = signal.convolve2d(kernel, bilinear_weights(fraction_xy), mode="full")
+    return float(np.sum(smeared**2) / np.sum(kernel**2))
 
 
 def mean_interpolation_factor(weights: FloatArray) -> float:
@@ -63,7 +94,8 @@ def mean_interpolation_factor(weights: FloatArray) -> float:
     Used for warps other than a translation, whose fractions sweep [0, 1) across the image.
     """
     fractions = (np.arange(_FRACTION_GRID) + 0.5) / _FRACTION_GRID
-    return float(np.mean([interpolation_factor(weights, (fx, fy)) for fx in fractions for fy in fractions]))
+    kernel = _weights(weights)
+    return float(np.mean([interpolation_factor(kernel, (fx, fy)) for fx in fractions for fy in fractions]))
 
 
 def _median(values: NDArray[Any]) -> float:
@@ -83,7 +115,8 @@ def robust_scale(values: NDArray[Any], valid: NDArray[np.bool_]) -> float:
 
     Returns 0 when fewer than two valid pixels are sampled.
     """
-    sample = _subsample(values, valid, _ROBUST_SAMPLES)
+    plane = _plane(values, "values")
+    sample = _subsample(plane, v.as_mask(valid, "valid", plane.shape), _ROBUST_SAMPLES)
     if sample.size < 2:
         return 0.0
     return MAD_TO_SIGMA * _median(np.abs(sample - _median(sample)))
@@ -123,8 +156,16 @@ def fit_sensor_variance(
     the robust variance ``(1.4826 MAD)^2`` of ``d`` (insensitive to flaws and edges) is regressed by
     non-negative least squares on ``a (1 + gain^2 F) + b (I_insp + gain^2 F I_ref)``.
     """
-    order_key = _subsample(predicted, valid, _FIT_SAMPLES)
-    values = _subsample(difference, valid, _FIT_SAMPLES)
+    difference_plane, predicted_plane = _plane(difference, "difference"), _plane(predicted, "predicted")
+    v.same_shape(difference_plane, predicted_plane, ("difference", "predicted"))
+    mask = v.as_mask(valid, "valid", difference_plane.shape)
+    gain = v.finite_number(gain, "gain")
+    if gain == 0.0:
+        raise InputError("gain must be non-zero (inspection ~ gain * reference + bias); got 0.")
+    bias = v.finite_number(bias, "bias")
+    factor = v.in_range(factor, "factor", low=0.0)
+    order_key = _subsample(predicted_plane, mask, _FIT_SAMPLES)
+    values = _subsample(difference_plane, mask, _FIT_SAMPLES)
     order = np.argsort(order_key)
     rows = []
     targets = []
@@ -142,10 +183,22 @@ def fit_sensor_variance(
     return float(coefficients[0]), float(coefficients[1])
 
 
+def _coefficients(value: object) -> tuple[float, float]:
+    pair = v.as_float_array(value, "coefficients")
+    if pair.shape != (2,) or not np.isfinite(pair).all() or (np.abs(pair) > np.finfo(np.float32).max).any():
+        raise InputError(
+            f"coefficients must be (a, b) of v(I) = a + b I, two finite float32 numbers; got {value!r:.60}."
+        )
+    return float(pair[0]), float(pair[1])
+
+
 def affine_variance(intensity: Float32Array, coefficients: tuple[float, float]) -> Float32Array:
     """Evaluate ``v(I) = a + b I`` (floored at 0 for intensities below zero)."""
-    a, b = coefficients
-    result: Float32Array = np.maximum(np.float32(a) + np.float32(b) * intensity, np.float32(0.0))
+    a, b = _coefficients(coefficients)
+    levels = intensity if isinstance(intensity, np.ndarray) else v.as_float_array(intensity, "intensity")
+    if levels.dtype.kind not in "biuf":
+        raise InputError(f"intensity must be an array of numbers; got dtype={levels.dtype}.")
+    result: Float32Array = np.maximum(np.float32(a) + np.float32(b) * levels, np.float32(0.0))
     return result
 
 
@@ -179,13 +232,15 @@ def systematic_errors(
     sum sees them coherently: the detector adds ``(sum_k w_k e_k / v_k)^2`` to its variance, not
     ``sum_k w_k^2 e_k^2 / v_k^2``.
     """
-    sx, sy = shift_std_px
-    cx, cy = (1.0 / 6.0, 1.0 / 6.0) if fraction_xy is None else (f * (1.0 - f) for f in fraction_xy)
+    plane = _plane(predicted, "predicted")
+    sx, sy = _pair(shift_std_px, "shift_std_px", high=math.inf, unknown=True)
+    fractions = None if fraction_xy is None else _pair(fraction_xy, "fraction_xy", high=1.0)
+    cx, cy = (1.0 / 6.0, 1.0 / 6.0) if fractions is None else (f * (1.0 - f) for f in fractions)
     # Sobel / 8 is a central difference smoothed across the edge, which keeps sensor noise out of g; the
     # second-derivative Sobel is [1, -2, 1] smoothed by [1, 2, 1] (hence / 4).
 
     def sobel(dx: int, dy: int, scale: float) -> Float32Array:
-        return np.asarray(cv2.Sobel(predicted, cv2.CV_32F, dx, dy, ksize=3, scale=scale), dtype=np.float32)
+        return np.asarray(cv2.Sobel(plane, cv2.CV_32F, dx, dy, ksize=3, scale=scale), dtype=np.float32)
 
     curvature = sobel(2, 0, 0.125 * cx) + sobel(0, 2, 0.125 * cy)
     return sobel(1, 0, 0.125 * sx), sobel(0, 1, 0.125 * sy), curvature

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from rsi import _validate as v
 from rsi.mission.records import PlanPoint
 from rsi.mission.settings import MissionSettings
 
@@ -46,6 +47,7 @@ def panel_vistas(standoff_m: float) -> tuple[Vista, ...]:
 def plan_points(settings: MissionSettings) -> tuple[PlanPoint, ...]:
     """The plan's vista points in visiting order: the electrical ORU closed, open and its Kapton, the
     tank ORU, the five panel views, the tubing."""
+    settings = v.instance_of(settings, "settings", MissionSettings, none_allowed=False)
     panel = [PlanPoint(name, name) for name in _PANEL_OFFSETS_M]
     return (
         PlanPoint("A_door", "A_door"),
@@ -62,7 +64,10 @@ PLAN: tuple[PlanPoint, ...] = plan_points(MissionSettings())
 
 def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[PlanPoint, ...]:
     """Add the plan's panel vistas to `world` (once) and return the plan (every component covered)."""
-    settings = MissionSettings() if settings is None else settings
+    from rsi.sim.world import World
+
+    settings = v.instance_or_default(settings, "settings", MissionSettings)
+    v.instance_of(world, "world", World, none_allowed=False)
     for point in panel_vistas(settings.panel_standoff_m):
         if point.name not in world.vistas:
             world.add_vista(point)

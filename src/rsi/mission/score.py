@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rsi._validate import instance_of
 from rsi.errors import InputError
 from rsi.mission.records import (
     SCORED_TYPES,
@@ -187,6 +188,13 @@ def _near(finding: MissionFinding, anomaly: Anomaly, radius_m: float) -> bool:
     return bool(distance <= radius_m)
 
 
+def _check_visits(visits: object) -> None:
+    if not isinstance(visits, (tuple, list)) or not all(isinstance(item, VisitRecord) for item in visits):
+        raise InputError(
+            f"visits must be a tuple of VisitRecord (a MissionResult's visits); got {type(visits).__name__}."
+        )
+
+
 def run_roc(visits: tuple[VisitRecord, ...], settings: MissionSettings) -> tuple[RocCurve, ...]:
     """The run's empirical ROC over every inspection visit, and the theory for the impacts it saw.
 
@@ -196,6 +204,8 @@ def run_roc(visits: tuple[VisitRecord, ...], settings: MissionSettings) -> tuple
     """
     from rsi.detection.roc import RocCurve, empirical_roc, theoretical_roc
 
+    _check_visits(visits)
+    instance_of(settings, "settings", MissionSettings, none_allowed=False)
     images = [v.images for v in visits if v.images is not None and v.images.impact_truth.any()]
     if not images:
         return ()

@@ -150,8 +150,8 @@ class MissionSettings:
                 raise InputError(
                     f"{item.name} must be an integer; got {value!r}. The default is {item.default}."
                 )
-            elif isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise InputError(f"{item.name} must be a finite number; got {value!r}.")
+            elif not _finite(value):  # an int beyond the float range included
+                raise InputError(f"{item.name} must be a finite number; got {_shown(value)}.")
             elif value <= 0 and item.name != "impact_darkening_min":
                 raise InputError(f"{item.name} must be > 0; got {value!r}. The default is {item.default!r}.")
         for name in ("p_false_alarm", "p_preliminary"):
@@ -162,6 +162,18 @@ class MissionSettings:
                 f"p_preliminary={self.p_preliminary!r} must be >= p_false_alarm={self.p_false_alarm!r}: "
                 "the preliminary threshold of a second look lies below the confirming one (seed §2.5)."
             )
+
+
+def _finite(value: object) -> bool:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    if isinstance(value, int):
+        return abs(value) < 2**1000  # math.isfinite would raise OverflowError beyond the float range
+    return math.isfinite(value)
+
+
+def _shown(value: object) -> str:
+    return f"an integer of {value.bit_length()} bits" if isinstance(value, int) else repr(value)[:80]
 
 
 def _check_flaw_model(value: object) -> None:

@@ -22,7 +22,7 @@ metres and the kind's own data). The temperature and gas fields these anomalies 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any, ClassVar
 
@@ -56,7 +56,7 @@ _TRUTH_SCHEMA = "rsi.sim.anomalies/1"
 
 def _vector3(value: object, name: str) -> Vector3:
     """Return `value` as a finite 3-vector (a tuple, so records compare and hash by value)."""
-    array = np.asarray(value, dtype=np.float64) if not isinstance(value, str) else np.empty(0)
+    array = v.as_float_array(value, name)
     if array.shape != (3,):
         raise InputError(f"{name} must be a 3-vector (x, y, z); got {value!r}. Pass three numbers.")
     if not np.isfinite(array).all():
@@ -598,6 +598,11 @@ class AnomalySet:
     anomalies: tuple[Anomaly, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
+        if isinstance(self.anomalies, (str, bytes, Anomaly)) or not isinstance(self.anomalies, Iterable):
+            raise InputError(
+                f"anomalies must be a tuple of Anomaly records; got {type(self.anomalies).__name__}. "
+                "Wrap a single record as (record,)."
+            )
         items = tuple(self.anomalies)
         for item in items:
             if not isinstance(item, Anomaly):

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rsi import _validate as v
+from rsi.errors import InputError
 from rsi.sim.anomalies import Candidates, Patch, Site
 
 Vector3 = tuple[float, float, float]
@@ -128,7 +130,7 @@ class Mockup:
 
 def vector3(x: float, y: float, z: float) -> Vector3:
     """A 3-vector of Python floats."""
-    return (float(x), float(y), float(z))
+    return (v.finite_number(x, "x"), v.finite_number(y, "y"), v.finite_number(z, "z"))
 
 
 def _unit(vector: np.ndarray) -> Vector3:
@@ -138,13 +140,20 @@ def _unit(vector: np.ndarray) -> Vector3:
 
 def vista(name: str, target_m: Vector3, normal: Vector3, up: Vector3, standoff_m: float) -> Vista:
     """A viewpoint `standoff_m` out along `normal` from `target_m`, looking back at it, `up` on top."""
-    forward = -np.asarray(normal, dtype=np.float64)
-    forward /= np.linalg.norm(forward)
-    up_vector = np.asarray(up, dtype=np.float64)
+    if not isinstance(name, str) or not name:
+        raise InputError(f"name must be a non-empty string; got {name!r}.")
+    target = np.array(v.vector3(target_m, "target_m"))
+    forward = -v.direction3(normal, "normal")
+    up_vector = v.direction3(up, "up")
     up_vector = up_vector - (up_vector @ forward) * forward
-    position = np.asarray(target_m) - standoff_m * forward
+    if np.linalg.norm(up_vector) < 1e-9:
+        raise InputError(
+            f"up={up!r} is parallel to normal={normal!r}: pass an up direction across the normal."
+        )
+    standoff = v.positive(standoff_m, "standoff_m")
+    position = target - standoff * forward
     return Vista(
-        name, vector3(*target_m), vector3(*position), vector3(*forward), _unit(up_vector), float(standoff_m)
+        name, vector3(*target), v.vector3(position, "position"), vector3(*forward), _unit(up_vector), standoff
     )
 
 

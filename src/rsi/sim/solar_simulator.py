@@ -115,10 +115,7 @@ def _on_limit(name: str, value: float, context: str, fix: str) -> float:
 
 
 def _vector3(value: object, name: str) -> Vector3:
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be 3 numbers (x, y, z) in metres; got {value!r}.") from None
+    array = v.as_float_array(value, name)
     if array.shape != (_VECTOR_SIZE,):
         raise InputError(f"{name} must have shape (3,) = (x, y, z); got shape {array.shape}.")
     if not np.isfinite(array).all():
@@ -316,7 +313,7 @@ class RateLimits:
 
 def rotation_world_from_rail(mount: LampMount | None = None) -> FloatArray:
     """Columns ``(x_R, y_R, z_R)`` of the rail (and lamp) frame in world coordinates, shape (3, 3)."""
-    mount = LampMount() if mount is None else mount
+    mount = v.instance_or_default(mount, "mount", LampMount)
     x_axis = np.asarray(mount.rail_direction_world)
     up = np.array([0.0, 0.0, 1.0])
     z_axis = up - (up @ x_axis) * x_axis
@@ -393,7 +390,7 @@ def beam_half_angle_rad(gamma_m: float, *, optics: LampOptics | None = None) -> 
     float
         ``s = s_spot + (s_flood - s_spot) gamma / 0.076 m``, radians.
     """
-    optics = LampOptics() if optics is None else optics
+    optics = v.instance_or_default(optics, "optics", LampOptics)
     gamma = _checked_joint(gamma_m, "gamma_m", "gamma")
     return float(_half_angle(gamma, optics))
 
@@ -406,7 +403,7 @@ def focus_for_beam_angle_m(beam_angle_rad: float, *, optics: LampOptics | None =
     InputError
         If ``beam_angle_rad`` needs a focus outside ``gamma``'s [0, 0.076] m.
     """
-    optics = LampOptics() if optics is None else optics
+    optics = v.instance_or_default(optics, "optics", LampOptics)
     angle = v.finite_number(beam_angle_rad, "beam_angle_rad")
     gamma = float(_focus_for_half_angle(angle, optics))
     return _on_limit(
@@ -430,7 +427,7 @@ def spot_intensity_lux(rho_m: float, beam_angle_rad: float, *, optics: LampOptic
     optics : LampOptics, optional
         The optics model.
     """
-    optics = LampOptics() if optics is None else optics
+    optics = v.instance_or_default(optics, "optics", LampOptics)
     rho = _checked_joint(rho_m, "rho_m", "rho")
     angle = v.in_range(
         beam_angle_rad, "beam_angle_rad", low=0.0, high=math.pi / 2, low_inclusive=False, high_inclusive=False
@@ -447,7 +444,7 @@ def focus_for_intensity_m(rho_m: float, intensity_lux: float, *, optics: LampOpt
         If no focus in [0, 0.076] m gives that intensity at that distance; the message gives the intensities
         the lamp can reach there.
     """
-    optics = LampOptics() if optics is None else optics
+    optics = v.instance_or_default(optics, "optics", LampOptics)
     rho = _checked_joint(rho_m, "rho_m", "rho")
     intensity = v.in_range(intensity_lux, "intensity_lux", low=0.0, low_inclusive=False)
     return _focus_holding(rho, intensity, optics)
@@ -482,7 +479,8 @@ def _checked_joint(value: object, argument: str, name: str) -> float:
 
 def lamp_pose(configuration: LampConfiguration, *, mount: LampMount | None = None) -> LampPose:
     """Lamp centre and head frame ``(n, o, n x o)`` in the world for a configuration."""
-    mount = LampMount() if mount is None else mount
+    v.instance_of(configuration, "configuration", LampConfiguration, none_allowed=False)
+    mount = v.instance_or_default(mount, "mount", LampMount)
     rotation = rotation_world_from_rail(mount)
     theta, phi = configuration.theta_rad, configuration.phi_rad
     beam = _beam_axis(np.array(theta), np.array(phi))
@@ -516,7 +514,7 @@ def forward_kinematics(
     """
     if not isinstance(configuration, LampConfiguration):
         raise InputError(f"configuration must be a LampConfiguration; got {type(configuration).__name__}.")
-    optics = LampOptics() if optics is None else optics
+    optics = v.instance_or_default(optics, "optics", LampOptics)
     pose = lamp_pose(configuration, mount=mount)
     spot = np.asarray(pose.position_world_m) + configuration.rho_m * pose.beam_axis_world
     half_angle = float(_half_angle(configuration.gamma_m, optics))
@@ -675,8 +673,8 @@ def inverse_kinematics(
         a beam angle or intensity that needs a focus outside [0, 0.076] m, a direction the rail cannot give,
         both or neither of each pair of options, NaN.
     """
-    mount = LampMount() if mount is None else mount
-    optics = LampOptics() if optics is None else optics
+    mount = v.instance_or_default(mount, "mount", LampMount)
+    optics = v.instance_or_default(optics, "optics", LampOptics)
     spot = _vector3(spot_world_m, "spot_world_m")
     spot_r = _spot_in_rail(np.asarray(spot), mount)
     if (rail_m is None) == (light_from is None):
@@ -753,7 +751,7 @@ class Trajectory:
     gamma_m: FloatArray
 
     def __post_init__(self) -> None:
-        time = np.array(self.time_s, dtype=np.float64)
+        time = np.array(v.as_float_array(self.time_s, "time_s"))
         if time.ndim != 1 or time.size == 0:
             raise InputError(f"time_s must be a non-empty 1-D array; got shape {time.shape}.")
         if not np.isfinite(time).all() or (np.diff(time) <= 0).any():
@@ -761,7 +759,7 @@ class Trajectory:
         time.setflags(write=False)
         object.__setattr__(self, "time_s", time)
         for field in fields(self)[1:]:
-            values = np.array(getattr(self, field.name), dtype=np.float64)
+            values = np.array(v.as_float_array(getattr(self, field.name), field.name))
             if values.shape != time.shape:
                 raise InputError(f"{field.name} must have shape {time.shape} (time_s's); got {values.shape}.")
             name = field.name.split("_")[0]
@@ -827,8 +825,13 @@ def plan_trajectory(
     -------
     Trajectory
     """
-    rates = RateLimits() if rates is None else rates
+    rates = v.instance_or_default(rates, "rates", RateLimits)
     start = v.in_range(start_time_s, "start_time_s", low=0.0)
+    if isinstance(waypoints, LampConfiguration) or not isinstance(waypoints, Sequence):
+        raise InputError(
+            "waypoints must be a sequence (list or tuple) of LampConfiguration; "
+            f"got {type(waypoints).__name__}."
+        )
     points = list(waypoints)
     if not points:
         raise InputError("waypoints must hold at least one LampConfiguration; got none.")
