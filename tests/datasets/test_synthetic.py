@@ -99,3 +99,10 @@ def test_pure_noise_pairs_reject_bad_settings(kwargs: dict[str, object], argumen
     settings.update(kwargs)
     with pytest.raises(InputError, match=argument):
         pure_noise_pairs(**settings)  # type: ignore[arg-type]
+
+
+def test_a_synthetic_image_is_bounded_in_pixels() -> None:
+    from rsi.datasets.synthetic import MAX_SYNTHETIC_PIXELS, textured_surface
+
+    with pytest.raises(InputError, match="over the"):
+        textured_surface((MAX_SYNTHETIC_PIXELS // 2, 4))

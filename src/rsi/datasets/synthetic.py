@@ -81,10 +81,21 @@ class SyntheticPair:
     noise_sigma: float
 
 
+# The largest synthetic image: the pixel limit of the image reader (rsi.imaging.io), 2**26 pixels, a
+# 64 M-pixel float64 image is 512 MiB and every generator holds a few of them at once.
+MAX_SYNTHETIC_PIXELS = 2**26
+
+
 def _shape(shape: object) -> tuple[int, int]:
     if not isinstance(shape, tuple) or len(shape) != 2:
         raise InputError(f"shape must be a (rows, cols) tuple; got {shape!r}.")
-    return positive_int(shape[0], "shape[0]", minimum=2), positive_int(shape[1], "shape[1]", minimum=2)
+    rows, cols = positive_int(shape[0], "shape[0]", minimum=2), positive_int(shape[1], "shape[1]", minimum=2)
+    if rows * cols > MAX_SYNTHETIC_PIXELS:
+        raise InputError(
+            f"shape={shape!r} asks for {rows * cols} pixels, over the {MAX_SYNTHETIC_PIXELS} a synthetic "
+            "image may have; ask for a smaller (rows, cols)."
+        )
+    return rows, cols
 
 
 def _shift(shift_xy: object, size: tuple[int, int]) -> tuple[float, float]:
