@@ -149,7 +149,11 @@ def test_a_public_callable_lets_only_named_errors_escape(
     qualified_name: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.chdir(tmp_path)  # whatever a call writes (an archive, an image) lands here
-    function = SURFACE[qualified_name]
+    _fuzz(SURFACE[qualified_name], qualified_name)
+
+
+def _fuzz(function: Any, label: str) -> None:
+    """EXAMPLES_PER_CALLABLE generated calls of `function`, each keeping the rule (only named errors)."""
 
     @settings(
         max_examples=EXAMPLES_PER_CALLABLE,
@@ -160,7 +164,7 @@ def test_a_public_callable_lets_only_named_errors_escape(
     @given(_arguments(function))
     def check(arguments: dict[str, Any]) -> None:
         problem = call_keeps_the_rule(function, arguments, limit_s=TIME_LIMIT_S)
-        assert not problem, f"{qualified_name}({', '.join(arguments)}): {problem}"
+        assert not problem, f"{label}({', '.join(arguments)}): {problem}"
 
     check()
 
@@ -202,17 +206,4 @@ def test_an_archive_method_lets_only_named_errors_escape(
     archive: Archive, method: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.chdir(tmp_path)
-    function = getattr(archive, method)
-
-    @settings(
-        max_examples=EXAMPLES_PER_CALLABLE,
-        deadline=None,
-        database=None,
-        suppress_health_check=list(HealthCheck),
-    )
-    @given(_arguments(function))
-    def check(arguments: dict[str, Any]) -> None:
-        problem = call_keeps_the_rule(function, arguments, limit_s=TIME_LIMIT_S)
-        assert not problem, f"Archive.{method}({', '.join(arguments)}): {problem}"
-
-    check()
+    _fuzz(getattr(archive, method), f"Archive.{method}")

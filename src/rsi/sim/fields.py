@@ -56,10 +56,7 @@ _PLANE_TOLERANCE_M = 1e-9
 
 def _as_points(points_m: object, name: str = "points_m") -> FloatArray:
     """Return `points_m` as a finite float64 array of shape (K, 3) or raise naming it."""
-    try:
-        points = np.asarray(points_m, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise InputError(f"{name} must be an array of shape (K, 3) of numbers; got {points_m!r}.") from error
+    points = v.as_float_array(points_m, name)  # refuses text, ragged lists and ints beyond the float range
     if points.ndim != 2 or points.shape[1] != 3:
         raise InputError(
             f"{name} must have shape (K, 3) (one x, y, z row per point, metres); got shape {points.shape}. "
