@@ -150,6 +150,7 @@ def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> N
         ({"seed": 0, "settings": {"p_false_alarm": 1e-6}}, "settings"),
         ({"seed": 0, "arm": 1}, "arm"),
         ({"seed": 0, "orbit": None}, "orbit"),
+        ({"seed": 0, "anomalies": {"impact_count": 3}}, "anomalies"),
     ],
 )
 def test_bad_input_names_the_argument(kwargs: dict[str, object], message: str) -> None:

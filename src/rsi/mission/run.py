@@ -33,6 +33,7 @@ from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, Mis
 from rsi.mission.surveys import gas_pass, pyrometer_pass
 from rsi.mission.views import seen_components, seen_screws, stereo_depth, strobe_image
 from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit
+from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.orbit import orbital_period_s
 
 if TYPE_CHECKING:
@@ -60,6 +61,7 @@ def run_mission(
     arm: bool = True,
     orbit: bool = True,
     orbit_start_s: tuple[float, float] = ORBIT_START_S,
+    anomalies: AnomalySettings | None = None,
 ) -> MissionResult:
     """Reference pass, inspection pass and sensor passes over the seeded mock-up (seed §2-§4).
 
@@ -93,6 +95,9 @@ def run_mission(
     orbit_start_s : (float, float)
         Orbit time (s after orbit noon) at which the reference and the inspection pass begin, each >= 0;
         by default 400 s and one orbit (5553.6 s) later, so both passes see about the same sun.
+    anomalies : AnomalySettings, optional
+        How the world's anomalies are drawn (counts and parameter ranges, :class:`rsi.sim.AnomalySettings`);
+        the simulator's default draw when None.
 
     Returns
     -------
@@ -103,18 +108,23 @@ def run_mission(
     InputError
         Naming the argument: a negative or non-integer seed, settings that are not MissionSettings, an
         unknown repeatability, a non-bool `active`, `arm` or `orbit`, a non-callable `progress`, a bad
-        `size`, something that is not an Archive, or `orbit_start_s` not two times >= 0 s.
+        `size`, something that is not an Archive, `orbit_start_s` not two times >= 0 s, or `anomalies` not an
+        AnomalySettings.
     """
     from rsi.mission.sun import pass_starts
     from rsi.mission.tour import Tour
     from rsi.sim.world import load
 
     settings = _checked(seed, settings, archive, repeatability, progress, active=active, arm=arm, orbit=orbit)
+    if anomalies is not None and not isinstance(anomalies, AnomalySettings):
+        raise InputError(
+            f"anomalies must be None or an rsi.sim.AnomalySettings; got {type(anomalies).__name__}."
+        )
     seed = int(seed)
     shape, starts = _size(size), pass_starts(orbit_start_s)
     clock = _Clock()
     streams = _Streams.spawned(seed)
-    world = load("truss", seed=streams.world, repeatability=repeatability, arm=arm)
+    world = load("truss", seed=streams.world, repeatability=repeatability, arm=arm, settings=anomalies)
     plan = plan_vistas(world, settings)
     tour = Tour(world, seed=streams.tour, size=shape, arm=arm, orbit=orbit)
     report = _progress_reporter(progress, total=2 * len(plan) + 2)
