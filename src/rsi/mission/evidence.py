@@ -17,6 +17,7 @@ from scipy import special
 from rsi.mission.records import MissionFinding
 from rsi.mission.settings import MissionSettings
 from rsi.mission.views import (
+    Sensed,
     disc,
     field_to_world,
     pixel_size_m,
@@ -31,7 +32,7 @@ if TYPE_CHECKING:
     from rsi.detection.detect import Flaw
     from rsi.detection.pair import PairResult
     from rsi.sim.anomalies import Site
-    from rsi.sim.world import View, World
+    from rsi.sim.world import World
 
 FloatArray = NDArray[np.float64]
 
@@ -75,7 +76,7 @@ def darkening(pair: PairResult, bbox: tuple[int, int, int, int]) -> float:
     return float(fraction.max()) if fraction.size else 0.0
 
 
-def blobs(pair: PairResult, view: View) -> list[Look]:
+def blobs(pair: PairResult, view: Sensed) -> list[Look]:
     """Each dark blob of the comparison as a look at its peak: the preliminary threshold grows a millimetre
     spot's blob into the noise around it, and its centroid can leave the 5x5 window in which the other
     reference's comparison and the second look are read (:func:`second_look_score`)."""
@@ -95,7 +96,7 @@ def blobs(pair: PairResult, view: View) -> list[Look]:
     return looks
 
 
-def screw_relief_m(depth_m: NDArray[np.float32], view: View, site: Site) -> float:
+def screw_relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:
     """Height of the screw head above the plate around it in the stereo range map (seed §3, §4 screws).
 
     A head stands SCREW_HEIGHT_M proud; a removed one leaves the plate and a flat hole. The image alone
@@ -103,23 +104,23 @@ def screw_relief_m(depth_m: NDArray[np.float32], view: View, site: Site) -> floa
     head's pattern correlates with the hole's at 0.43 against 0.42 for a present head, seeds 0-19);
     the relief's median over ~45 head pixels has a noise of ~0.1 mm. NaN when the view holds too few.
     """
-    distance = surface_distance_m(depth_m.shape, view, site.position_m)
+    distance = surface_distance_m(range_m.shape, view, site.position_m)
     radius = 0.5 * site.size_m
-    usable = np.isfinite(depth_m) & (depth_m < 10.0)
+    usable = np.isfinite(range_m) & (range_m < 10.0)
     head = (distance <= 0.6 * radius) & usable
     plate = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & usable
     if head.sum() < 5 or plate.sum() < 10:
         return math.nan
-    return float(np.median(depth_m[plate]) - np.median(depth_m[head]))
+    return float(np.median(range_m[plate]) - np.median(range_m[head]))
 
 
 def screw_checks(
     world: World,
-    view: View,
+    view: Sensed,
     source: str,
     *,
     settings: MissionSettings,
-    depth_m: NDArray[np.float32],
+    range_m: NDArray[np.float32],
     reliefs: Mapping[str, float],
     done: frozenset[str],
 ) -> tuple[list[MissionFinding], frozenset[str]]:
@@ -134,7 +135,7 @@ def screw_checks(
     checked = [site for site, in_view in zip(screws, seen, strict=True) if in_view]
     for site in checked:
         before = reliefs.get(site.name, math.nan)
-        lost = (before if math.isfinite(before) else SCREW_HEIGHT_M) - screw_relief_m(depth_m, view, site)
+        lost = (before if math.isfinite(before) else SCREW_HEIGHT_M) - screw_relief_m(range_m, view, site)
         if lost > settings.screw_relief_lost_m:
             findings.append(
                 MissionFinding(
@@ -149,18 +150,18 @@ def screw_checks(
     return findings, frozenset(site.name for site in checked)
 
 
-def relief_m(depth_m: NDArray[np.float32], view: View, site: Site) -> float:
+def relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:
     """Depth of the site's centre below its surroundings: central 3 cm disc against a 4.5-7 cm ring."""
-    distance = surface_distance_m(depth_m.shape, view, site.position_m)
+    distance = surface_distance_m(range_m.shape, view, site.position_m)
     inner, ring = distance <= 0.03, (distance >= 0.045) & (distance <= 0.07)
-    usable = np.isfinite(depth_m) & (depth_m < 10.0)
+    usable = np.isfinite(range_m) & (range_m < 10.0)
     inner, ring = inner & usable, ring & usable
     if inner.sum() < 20 or ring.sum() < 20:
         return 0.0
-    return float(np.median(depth_m[inner]) - np.median(depth_m[ring]))
+    return float(np.median(range_m[inner]) - np.median(range_m[ring]))
 
 
-def component_change(pair: PairResult, view: View, site: Site, settings: MissionSettings) -> float:
+def component_change(pair: PairResult, view: Sensed, site: Site, settings: MissionSettings) -> float:
     """Fraction of the component's central disc whose difference exceeds 3 noise sigmas (seed §4 swaps).
 
     A discoloured replacement darkens the whole component (measured 0.16-0.63 over seeds 0-5 where one
@@ -175,7 +176,7 @@ def component_change(pair: PairResult, view: View, site: Site, settings: Mission
     return float(np.mean(z > 3.0))
 
 
-def component_dimming(pair: PairResult, view: View, site: Site, settings: MissionSettings) -> float:
+def component_dimming(pair: PairResult, view: Sensed, site: Site, settings: MissionSettings) -> float:
     """Relative change of the component's brightness in its central disc, before photometric matching.
 
     Seed §2.3 registration fits a gain and a bias, and where one component fills the frame (the solar
@@ -206,7 +207,7 @@ class Explanation:
 
 def unexplained(
     looks: list[Look],
-    view: View,
+    view: Sensed,
     explanations: list[Explanation],
     screw_positions: FloatArray,
     settings: MissionSettings,
@@ -223,7 +224,7 @@ def unexplained(
     return kept
 
 
-def explained_by(look: Look, view: View, explanation: Explanation, settings: MissionSettings) -> bool:
+def explained_by(look: Look, view: Sensed, explanation: Explanation, settings: MissionSettings) -> bool:
     distance = float(np.linalg.norm(np.subtract(look.position_m, explanation.centre_m)))
     if distance > explanation.radius_m:
         return False
@@ -231,7 +232,7 @@ def explained_by(look: Look, view: View, explanation: Explanation, settings: Mis
         # a dent's crater changes the image over centimetres: a millimetre spot much darker than the
         # reference there is an impact on the dented face (seed §4 plants both independently)
         return look.area_m2 > settings.spot_area_max_m2 or look.darkening < settings.dent_spot_darkening_min
-    mask = view.component_masks.get(explanation.component)
+    mask = view.capture.cad.components.get(explanation.component)
     if mask is None:
         return False
     # the blob's own pixels may be a decal (an impact spot is not the component): its surround decides
@@ -243,11 +244,11 @@ def explained_by(look: Look, view: View, explanation: Explanation, settings: Mis
 
 def component_checks(
     pair: PairResult,
-    view: View,
+    view: Sensed,
     source: str,
     *,
     reliefs: Mapping[str, float],
-    depth_m: NDArray[np.float32],
+    range_m: NDArray[np.float32],
     world: World,
     settings: MissionSettings,
 ) -> list[tuple[MissionFinding, Explanation]]:
@@ -262,7 +263,7 @@ def component_checks(
     found = []
     for site in seen_components(world, view):
         change = component_change(pair, view, site, settings)
-        sunk = relief_m(depth_m, view, site) - reliefs.get(site.name, math.nan)
+        sunk = relief_m(range_m, view, site) - reliefs.get(site.name, math.nan)
         if abs(sunk) > settings.dent_relief_min_m:  # a dent: its disc changed, the rest of the skin did not
             score, margin = sunk, (abs(sunk) - settings.dent_relief_min_m) / 2e-4
             size = min(site.size_m, 2 * settings.component_disc_m)
@@ -288,7 +289,7 @@ def component_checks(
 
 
 def discoloured_pixels(
-    view: View, explanations: list[Explanation], settings: MissionSettings
+    view: Sensed, explanations: list[Explanation], settings: MissionSettings
 ) -> NDArray[np.bool_] | None:
     """Pixels of the discoloured components found in the view, a margin wider (None when there are none).
 
@@ -300,9 +301,9 @@ def discoloured_pixels(
     import cv2
 
     masks = [
-        view.component_masks[e.component]
+        view.capture.cad.components[e.component]
         for e in explanations
-        if e.component is not None and e.component in view.component_masks
+        if e.component is not None and e.component in view.capture.cad.components
     ]
     if not masks:
         return None
@@ -311,7 +312,7 @@ def discoloured_pixels(
     return np.asarray(changed, dtype=bool)
 
 
-def second_look_score(pair: PairResult, view: View, position: tuple[float, float, float]) -> float:
+def second_look_score(pair: PairResult, view: Sensed, position: tuple[float, float, float]) -> float:
     """Peak score of the second look within 2 px of where the first look's blob is (seed §2.5)."""
     row, col, _ = to_field(view, np.asarray([position]))
     score = pair.detection.score

@@ -1,5 +1,8 @@
-"""Exposure of each visit, metered from the pre-flash (seed §2.1-2.2): the shutter that holds sunlight down,
-the strobe energy that lifts dark surfaces, and the frame taken again with them.
+"""Exposure of each visit, metered from the pre-flash's pixels (seed §2.1-2.2): the shutter that holds
+sunlight down, the strobe energy that lifts dark surfaces, and the frame taken again with them.
+
+The meter reads the camera's digital numbers, as a camera's does: the unlit field of the interlaced
+pre-flash is the ambient alone, and the lit field less that ambient (seed §2.2 compensation) is the strobe.
 """
 
 from __future__ import annotations
@@ -11,34 +14,70 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi.mission.settings import MissionSettings
-from rsi.mission.views import inspection_region
+from rsi.mission.views import Sensed, inspection_region
 
 if TYPE_CHECKING:
-    from rsi.sim.world import View, World
+    from rsi.imaging.camera import Frame
+    from rsi.mission.tour import Tour
+    from rsi.sim.world import World
+
+# a percentile within this many DN of the sensor's top may be clipped: the reading is a lower bound
+_CLIPPED_DN = 3.0
+# pre-flashes the meter may take before it settles (a clipped ambient shrinks the shutter each time)
+_METER_TRIES = 3
 
 
-def ambient_dn(
-    world: World, view: View, settings: MissionSettings, region: NDArray[np.bool_] | None = None
-) -> float:
-    """The pre-flash's ambient in DN at the meter percentile over the inspection region (0: none)."""
-    camera = world.camera
-    region = inspection_region(view, settings) if region is None else region
-    if not region.any():
+def _unlit_rows(frame: Frame) -> NDArray[np.bool_]:
+    rows = np.arange(frame.raw.shape[0])[:, None] % 2
+    return np.broadcast_to((rows == 0) if frame.lit_field == "odd" else (rows == 1), frame.raw.shape)
+
+
+def ambient_dn(sensed: Sensed, settings: MissionSettings, region: NDArray[np.bool_] | None = None) -> float:
+    """The pre-flash's ambient in DN above black at the meter percentile over the inspection region (0: none).
+
+    Read on the unlit field's rows (seed §2.2: they hold the ambient alone).
+    """
+    frame = sensed.capture.frames[0]
+    region = inspection_region(sensed, settings) if region is None else region
+    pixels = region & _unlit_rows(frame)
+    if not pixels.any():
         return 0.0
-    lux = float(np.percentile(view.ambient_lux[region], settings.meter_percentile))
-    return lux * view.frame.exposure_s * camera.electrons_per_lux_s / camera.gain_e_per_dn
+    level = float(np.percentile(frame.raw[pixels], settings.meter_percentile))
+    return max(level - frame.camera.black_level_dn, 0.0)
 
 
-def metered_shutter(world: World, view: View, settings: MissionSettings) -> float:
-    """Shutter (fraction of the pre-flash's) that holds the sunlit surface's ambient to the target DN.
+def strobe_dn(sensed: Sensed, settings: MissionSettings, region: NDArray[np.bool_] | None = None) -> float:
+    """The pre-flash's strobe alone in DN at the meter percentile: the lit rows less their ambient."""
+    from rsi.imaging.compensation import compensate_interlaced
 
-    Seed §2.2 subtracts the ambient, so sunlight is only noise and compensation error to the strobe image:
-    at the seed's shutter a sunlit aluminium face reads ~170 DN of ambient alone, and strobe plus ambient
-    saturate where an impact may be. The ~20 us flash fits in any shutter down to MIN_SHUTTER.
+    frame = sensed.capture.frames[0]
+    region = inspection_region(sensed, settings) if region is None else region
+    field = compensate_interlaced(frame)
+    start = 1 if frame.lit_field == "odd" else 0
+    pixels = region[start::2][: field.image.shape[0]] & field.valid
+    if not pixels.any():
+        return 0.0
+    return float(np.percentile(field.image[pixels], settings.meter_percentile))
+
+
+def clipped(sensed: Sensed, settings: MissionSettings) -> bool:
+    """Whether the ambient reading sits at the sensor's top (the true ambient may be far brighter)."""
+    camera = sensed.capture.frames[0].camera
+    top = 2**camera.bits - 1 - camera.black_level_dn
+    return bool(ambient_dn(sensed, settings) >= top - _CLIPPED_DN)
+
+
+def metered_shutter(sensed: Sensed, settings: MissionSettings, taken_at: float = 1.0) -> float:
+    """Shutter (fraction of the seed's) that holds the sunlit surface's ambient to the target DN.
+
+    `taken_at` is the shutter the pre-flash was taken with. Seed §2.2 subtracts the ambient, so sunlight is
+    only noise and compensation error to the strobe image: at the seed's shutter a sunlit aluminium face reads
+    ~170 DN of ambient alone, and strobe plus ambient saturate where an impact may be. The ~20 us flash fits
+    in any shutter down to MIN_SHUTTER.
     """
     from rsi.sim.world import MIN_SHUTTER
 
-    ambient = ambient_dn(world, view, settings)
+    ambient = ambient_dn(sensed, settings) / taken_at
     if ambient <= settings.ambient_target_dn:
         return 1.0
     return float(np.clip(settings.ambient_target_dn / ambient, MIN_SHUTTER, 1.0))
@@ -51,39 +90,50 @@ def settle(world: World, *, door_angle_rad: float) -> None:
     world.set_shutter(1.0)
 
 
-def metered_energy(world: World, view: View, settings: MissionSettings, shutter: float = 1.0) -> float:
+def metered_energy(
+    sensed: Sensed, settings: MissionSettings, shutter: float = 1.0, taken_at: float = 1.0
+) -> float:
     """Strobe energy that lifts the surface's brightest strobe pixels to the target DN (seed §2.1).
 
-    The view is the pre-flash at the seed's 1.3 lm s. Dark solar cells and Kapton then read a few tens of DN,
-    where read noise and 8-bit quantisation swamp a millimetre impact; more flash raises the contrast in
-    proportion and the shot noise only as its square root. Never less than the seed's energy.
+    The view is the pre-flash at the seed's 1.3 lm s, its shutter `taken_at`; `shutter` the one the frame
+    will be taken with. Dark solar cells and Kapton then read a
+    few tens of DN, where read noise and 8-bit quantisation swamp a millimetre impact; more flash raises the
+    contrast in proportion and the shot noise only as its square root. Never less than the seed's energy.
     """
     from rsi.sim.world import MAX_STROBE_ENERGY
 
-    camera = world.camera
-    dn_per_lux_s = camera.electrons_per_lux_s / camera.gain_e_per_dn
-    region = inspection_region(view, settings)
+    region = inspection_region(sensed, settings)
     if not region.any():
         return 1.0
-    strobe = float(np.percentile(view.strobe_lux_s[region], settings.meter_percentile)) * dn_per_lux_s
+    strobe = strobe_dn(sensed, settings, region)
+    camera = sensed.capture.frames[0].camera
     headroom = (
         settings.strobe_target_dn
         - camera.black_level_dn
-        - ambient_dn(world, view, settings, region) * shutter
+        - ambient_dn(sensed, settings, region) * shutter / taken_at
     )
     if strobe <= 0.0:
         return MAX_STROBE_ENERGY
     return float(np.clip(headroom / strobe, settings.min_strobe_energy, MAX_STROBE_ENERGY))
 
 
-def reflashed(world: World, view: View, energy: float, shutter: float) -> View:
-    """The visit's frame taken again from the same pose, the strobe at `energy` times the pre-flash and the
-    shutter at `shutter` times its own."""
-    if energy == 1.0 and shutter == 1.0:
-        return view
-    flashed = replace(
-        view,
-        strobe_lux_s=(view.strobe_lux_s * np.float32(energy)).astype(np.float32),
-        frame=replace(view.frame, exposure_s=view.frame.exposure_s * shutter),
-    )
-    return replace(flashed, frame=world.next_frame(flashed, lit_field=view.frame.lit_field))
+def metered(tour: Tour, sensed: Sensed, settings: MissionSettings) -> tuple[Sensed, float, float]:
+    """The visit taken again at its metered shutter and strobe energy: (visit, shutter, energy).
+
+    A clipped ambient is only a lower bound, so the meter shortens the shutter and looks again, up to
+    ``_METER_TRIES`` pre-flashes; the strobe energy is then metered from the last one.
+    """
+    from rsi.sim.world import MIN_SHUTTER
+
+    taken_at = 1.0
+    shutter = metered_shutter(sensed, settings, taken_at)
+    for _ in range(_METER_TRIES - 1):
+        if not clipped(sensed, settings) or taken_at <= MIN_SHUTTER:
+            break
+        sensed = replace(sensed, capture=tour.reflash(strobe_energy=1.0, shutter=shutter))
+        taken_at = shutter
+        shutter = min(metered_shutter(sensed, settings, taken_at), taken_at)
+    energy = metered_energy(sensed, settings, shutter, taken_at)
+    if energy != 1.0 or shutter != taken_at:
+        sensed = replace(sensed, capture=tour.reflash(strobe_energy=energy, shutter=shutter))
+    return sensed, shutter, energy

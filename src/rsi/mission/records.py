@@ -160,7 +160,7 @@ class VisitRecord:
     second_looks: int
     confirmed: int
     rejected: int
-    visible: tuple[int, ...]
+    visible: tuple[int, ...] = ()
     images: VisitImages | None = field(default=None, repr=False, compare=False)
 
 

@@ -25,13 +25,14 @@ import numpy as np
 from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.mission.evidence import relief_m, screw_relief_m
-from rsi.mission.exposure import metered_energy, metered_shutter, reflashed, settle
+from rsi.mission.exposure import metered, settle
 from rsi.mission.plan import plan_vistas
 from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
 from rsi.mission.score import run_roc
 from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, MissionSettings
 from rsi.mission.surveys import gas_pass, pyrometer_pass
-from rsi.mission.views import seen_components, seen_screws, stereo_depth, strobe_image
+from rsi.mission.truth import with_truth
+from rsi.mission.views import Sensed, seen_components, seen_screws, sense, strobe_image
 from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit
 from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.orbit import orbital_period_s
@@ -40,7 +41,7 @@ if TYPE_CHECKING:
     from rsi.archive import Archive
     from rsi.imaging.compensation import Compensated
     from rsi.mission.tour import Tour
-    from rsi.sim.world import View, World
+    from rsi.sim.world import World
 
 ProgressFn = Callable[[str, int, int], None]
 
@@ -128,15 +129,13 @@ def run_mission(
     plan = plan_vistas(world, settings)
     tour = Tour(world, seed=streams.tour, size=shape, arm=arm, orbit=orbit)
     report = _progress_reporter(progress, total=2 * len(plan) + 2)
-    stereo_rng, sensor_rng = (np.random.default_rng(stream) for stream in (streams.stereo, streams.sensors))
+    sensor_rng = np.random.default_rng(streams.sensors)
     try:
         tour.start_pass("reference", starts[0])
-        stored = _reference_pass(world, plan, tour, report, stereo_rng=stereo_rng, settings=settings)
+        stored = _reference_pass(world, plan, tour, report, settings=settings)
         clock.lap("reference")
         tour.start_pass("inspection", starts[1])
-        visual, visits = _inspection_pass(
-            world, plan, stored, tour, report, stereo_rng=stereo_rng, active=active, settings=settings
-        )
+        visual, visits = _inspection_pass(world, plan, stored, tour, report, active=active, settings=settings)
         clock.lap("inspection")
         thermal, readings = pyrometer_pass(world, sensor_rng, settings)
         report("pyrometer")
@@ -178,7 +177,6 @@ def _reference_pass(
     tour: Tour,
     report: Callable[[str], None],
     *,
-    stereo_rng: np.random.Generator,
     settings: MissionSettings,
 ) -> dict[str, StoredView]:
     """Two pristine visits per plan point: the reference and a second reference (the nuisance map and the
@@ -189,20 +187,18 @@ def _reference_pass(
     stored: dict[str, StoredView] = {}
     for point in plan:
         settle(world, door_angle_rad=point.door_angle_rad)
-        view = tour.visit(point.name, point.vista, state="reference")
-        shutter = metered_shutter(world, view, settings)
-        energy = metered_energy(world, view, settings, shutter)
+        pre_flash = sense(tour.visit(point.name, point.vista, state="reference", truth=False))
+        view, shutter, energy = metered(tour, pre_flash, settings)
         # kept for this point's later visits, inspection pass included
         world.set_shutter(shutter)
         world.set_strobe_energy(energy)
-        view = reflashed(world, view, energy, shutter)
-        reference = _with_shadow_edges(strobe_image(world, view), view, settings)
-        depth = stereo_depth(view, stereo_rng, settings)
+        reference = _with_shadow_edges(strobe_image(view), view, settings)
+        depth = view.range_m
         reliefs = {site.name: relief_m(depth, view, site) for site in seen_components(world, view)} | {
             site.name: screw_relief_m(depth, view, site) for site in seen_screws(world, view)
         }
-        again = tour.visit(point.name, point.vista, state="reference", truth=False)
-        second = _with_shadow_edges(strobe_image(world, again), again, settings)
+        again = sense(tour.visit(point.name, point.vista, state="reference", truth=False))
+        second = _with_shadow_edges(strobe_image(again), again, settings)
         scale = nuisance_scale(
             reference,
             second,
@@ -217,14 +213,15 @@ def _reference_pass(
     return stored
 
 
-def _with_shadow_edges(image: Compensated, view: View, settings: MissionSettings) -> Compensated:
+def _with_shadow_edges(image: Compensated, view: Sensed, settings: MissionSettings) -> Compensated:
     """The image with the compensation error of its frame's sharp ambient edges at another visit added."""
     from rsi.detection.nuisance import shadow_edge_variance
 
+    frame = view.capture.frames[0]
     return shadow_edge_variance(
         image,
-        view.frame.raw,
-        lit_field=view.frame.lit_field,
+        frame.raw,
+        lit_field=frame.lit_field,
         edge_dn_px=settings.shadow_edge_dn_px,
         jag_px=settings.shadow_jag_px,
     )
@@ -237,7 +234,6 @@ def _inspection_pass(
     tour: Tour,
     report: Callable[[str], None],
     *,
-    stereo_rng: np.random.Generator,
     active: bool,
     settings: MissionSettings,
 ) -> tuple[list[MissionFinding], tuple[VisitRecord, ...]]:
@@ -249,6 +245,7 @@ def _inspection_pass(
         world.set_door(point.door_angle_rad)
         world.set_strobe_energy(stored[point.name].strobe_energy)
         world.set_shutter(stored[point.name].shutter)
+        first = len(tour.views)
         visit: Visit = inspect_visit(
             world,
             point,
@@ -256,11 +253,11 @@ def _inspection_pass(
             screws_checked=checked,
             active=active,
             settings=settings,
-            stereo_rng=stereo_rng,
             tour=tour,
         )
         findings += visit.findings
-        records.append(visit.record)
+        # the simulator's record of this visit: what its view showed, for scoring only
+        records.append(with_truth(visit.record, visit.pair, tour.views[first][1], world.anomalies))
         checked = visit.screws_checked
         report(f"inspection {point.name}")
     settle(world, door_angle_rad=0.0)
@@ -298,17 +295,16 @@ def _archived(  # noqa: PLR0917 - the run's parts, each needed once
 @dataclass(frozen=True)
 class _Streams:
     """The mission's random streams, spawned once from its seed and handed down: the world (anomalies,
-    viewpoint errors, camera noise), the tour (the arm's misses, the rangefinders' noise), the stereo
-    matching noise and the pyrometer and gas sensors' noise."""
+    viewpoint errors, camera and encoder noise), the tour (the arm's misses, the rangefinders' noise) and
+    the pyrometer and gas sensors' noise. Stereo has no stream of its own: its errors are the matcher's."""
 
     world: np.random.SeedSequence
     tour: np.random.SeedSequence
-    stereo: np.random.SeedSequence
     sensors: np.random.SeedSequence
 
     @classmethod
     def spawned(cls, seed: int) -> _Streams:
-        return cls(*np.random.SeedSequence(seed).spawn(4))
+        return cls(*np.random.SeedSequence(seed).spawn(3))
 
 
 class _Clock:

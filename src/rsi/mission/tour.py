@@ -20,8 +20,10 @@ from rsi.errors import InputError
 from rsi.mission.sun import SunSetting, lamp_move_s, light_by_sun, sun_setting
 from rsi.mission.transit import Transit, transit
 from rsi.mission.viewing import focal_px, look_rotation, world_arm, world_vista
+from rsi.sim.capture import capture
 
 if TYPE_CHECKING:
+    from rsi.sim.capture import Capture
     from rsi.sim.world import View, World
 
 FloatArray = NDArray[np.float64]
@@ -69,14 +71,41 @@ class Tour:
         self.stage = ""
         self.transits: list[Transit] = []
         self.suns: list[SunSetting] = []
+        self.views: list[tuple[str, View]] = []
+        self._last: Capture | None = None
+        self._pre_flash: View | None = None
 
     def start_pass(self, stage: str, start_s: float) -> None:
         """Set the mission clock to a pass's start (seed §2.2: the passes may see different suns)."""
         self.stage = v.choice(stage, "stage", STAGES)
         self.clock_s = v.in_range(start_s, "start_s", low=0.0)
 
-    def visit(self, label: str, vista: str, *, state: str, truth: bool = True) -> View:
-        """Go to `vista` (plan point `label`), light it, take the frame; the clock advances."""
+    def visit(self, label: str, vista: str, *, state: str, truth: bool = True) -> Capture:
+        """Go to `vista` (plan point `label`), light it, take the frames; the clock advances.
+
+        Returns what the ISEE gives (:class:`rsi.sim.capture.Capture`: frames, stereo pair, believed pose,
+        CAD expectation). The simulator's record of the visit, its truth, goes to :attr:`views` for scoring
+        (`truth` False: the frames only, no rendered truth).
+        """
+        view = self._view(label, vista, state=state, truth=truth)
+        self.views.append((label, view))
+        self._pre_flash = view
+        self._last = capture(self.world, view)
+        return self._last
+
+    def reflash(self, *, strobe_energy: float, shutter: float) -> Capture:
+        """The last visit's frames taken again from the same pose, the strobe at `strobe_energy` times the
+        seed's and the shutter at `shutter` times its (seed §2.1 metering); the stereo pair is kept."""
+        if self._last is None or self._pre_flash is None:
+            raise InputError("reflash needs a visit first: call Tour.visit.")
+        label, _ = self.views[-1]
+        # always from the visit as taken: the world's strobe and shutter settings are the ones it had
+        again = self.world.reflash(self._pre_flash, strobe_energy=strobe_energy, shutter=shutter)
+        self.views[-1] = (label, again)
+        self._last = capture(self.world, again, cad=self._last.cad)
+        return self._last
+
+    def _view(self, label: str, vista: str, *, state: str, truth: bool) -> View:
         from rsi.sim.world import REPEATABILITY_PX
 
         world_vista(self.world, vista)
@@ -84,10 +113,11 @@ class Tour:
             self.clock_s += NOMINAL_TRANSIT_S if self.orbit else 0.0
             self._light(label, vista)
             self.clock_s += FRAME_S
-            return self.world.render(vista, size=self.size, state=state, truth=truth)
+            return self.world.render(vista, size=self.size, state=state, truth=truth, stereo=True)
         low, high = REPEATABILITY_PX[self.world.repeatability]
         magnitude, angle = self._draws.uniform(low, high), self._draws.uniform(0.0, 2 * math.pi)
-        # seed §2.3: the arm misses the vista by its repeatability; World.render's draw, as a goal offset
+        # seed §2.3: the arm misses the vista by its repeatability (flexure, thermal growth: not in the
+        # encoders); World.render's draw, as a goal offset
         offset_px = magnitude * np.array([math.cos(angle), math.sin(angle)])
         offset_m = offset_px * self.world.vista(vista).standoff_m / focal_px(self.size[0])
         moved = transit(
@@ -104,8 +134,14 @@ class Tour:
         self._light(label, vista)
         self.clock_s += FRAME_S
         if not moved.reached:  # documented fallback: the free camera, as without the arm
-            return self.world.render(vista, size=self.size, state=state, truth=truth)
-        view = self.world.render_from_tool(size=self.size, state=state, truth=truth)
+            return self.world.render(vista, size=self.size, state=state, truth=truth, stereo=True)
+        view = self.world.render_from_tool(
+            size=self.size,
+            state=state,
+            truth=truth,
+            stereo=True,
+            unsensed_offset_m=(float(offset_m[0]), float(offset_m[1])),
+        )
         return replace(view, vista=vista, pose_error_px=self._pose_error_px(vista, moved.camera_m))
 
     def _pose_error_px(self, vista: str, camera_m: FloatArray) -> tuple[float, float]:

@@ -1,10 +1,15 @@
-"""Geometry of one visit's view: pixels to world points and back, what the frame sees, the region it
-inspects, and the images the robot's camera and stereo pair give (seed §2.1-2.3, §3 D).
+"""Geometry of one visit's view as the robot knows it: pixels to world points and back, what the frame
+sees, the region it inspects, and the strobe image (seed §2.1-2.3, §3 D).
+
+Everything here reads a :class:`Sensed` visit: the ISEE's frames and stereo pair, the pose the robot
+*believes* (seed §2.3: not the true one), the stereo range map, and the robot's CAD model projected from the
+believed pose. Nothing reads the simulator's truth (rendered depth, true pose, anomaly masks).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -15,21 +20,67 @@ from rsi.mission.settings import MissionSettings
 if TYPE_CHECKING:
     from rsi.imaging.compensation import Compensated
     from rsi.sim.anomalies import Site
-    from rsi.sim.world import View, World
+    from rsi.sim.capture import Capture
+    from rsi.sim.render import CameraPose
+    from rsi.sim.world import World
 
 FloatArray = NDArray[np.float64]
+F32 = NDArray[np.float32]
+FAR_M = 10.0  # a range at or beyond this is no surface: the renderer's far plane, the matcher's "no answer"
+# the stereo search spans the CAD model's nearest range less 30 % to its farthest plus 50 %: the pose
+# error and a dent move surfaces by centimetres, not by tens of percent
+_NEAR_MARGIN, _FAR_MARGIN = 0.7, 1.5
 
 
-def field_to_world(view: View, row: float, col: float) -> tuple[float, float, float] | None:
-    """World point seen at field pixel (row, col) from the frame's depth and camera pose (None: sky)."""
-    depth = view.depth_m
-    assert depth is not None
+@dataclass(frozen=True)
+class Sensed:
+    """One visit as the mission uses it: the ISEE's capture and the range map matched from its stereo pair.
+
+    Attributes
+    ----------
+    capture : Capture
+        Frames, stereo pair, believed pose and CAD expectation (:mod:`rsi.sim.capture`).
+    range_m : ndarray of shape (M, N), float32
+        Stereo range along the view axis (seed §3 D), NaN where the matcher gave no answer.
+    surface_m : ndarray of shape (M, N), float32
+        `range_m`, and the CAD model's expected depth in its holes: the best range the robot has.
+    """
+
+    capture: Capture
+    range_m: F32
+    surface_m: F32
+
+    @property
+    def believed_pose(self) -> CameraPose:
+        return self.capture.believed_pose
+
+
+def sense(capture: Capture) -> Sensed:
+    """The stereo range map of a capture (seed §3 D: the ISEE's calibrated pair), searched over the depths
+    the CAD model expects in view, and that map with the model's depth in its holes."""
+    from rsi.imaging.stereo import range_map
+
+    expected = capture.cad.expected_depth_m
+    surface = expected < FAR_M
+    near, far = (
+        (float(expected[surface].min()), float(expected[surface].max())) if surface.any() else (0.2, 2.0)
+    )
+    ranges = range_map(
+        *capture.stereo, capture.rig, depth_limits_m=(_NEAR_MARGIN * near, min(_FAR_MARGIN * far, FAR_M))
+    )
+    filled = np.where(np.isfinite(ranges), ranges, expected).astype(np.float32)
+    return Sensed(capture, ranges, filled)
+
+
+def field_to_world(sensed: Sensed, row: float, col: float) -> tuple[float, float, float] | None:
+    """World point seen at field pixel (row, col) from the range there and the believed pose (None: sky)."""
+    depth = sensed.surface_m
     frame_row = min(max(round(row), 0), depth.shape[0] - 1)
     column = min(max(round(col), 0), depth.shape[1] - 1)
     distance = float(depth[frame_row, column])
-    pose = view.pose
+    pose = sensed.believed_pose
     rows, cols = pose.shape
-    if not math.isfinite(distance) or distance > 10.0:
+    if not math.isfinite(distance) or distance >= FAR_M:
         return None
     local = np.array(
         [
@@ -42,23 +93,26 @@ def field_to_world(view: View, row: float, col: float) -> tuple[float, float, fl
     return (float(point[0]), float(point[1]), float(point[2]))
 
 
-def pixel_size_m(view: View, position: tuple[float, float, float]) -> float:
+def pixel_size_m(sensed: Sensed, position: tuple[float, float, float]) -> float:
     """Size of one frame pixel on the surface at `position`, metres."""
-    _, along = view.pose.project(np.asarray([position]))
-    return float(along[0]) / view.pose.focal_px
+    _, along = sensed.believed_pose.project(np.asarray([position]))
+    return float(along[0]) / sensed.believed_pose.focal_px
 
 
-def to_field(view: View, points_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def to_field(sensed: Sensed, points_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Field row, column and depth of world points in this view."""
-    xy, along = view.pose.project(points_m)
+    xy, along = sensed.believed_pose.project(points_m)
     return xy[:, 1], xy[:, 0], along
 
 
-def visible(view: View, points_m: FloatArray, tolerance_m: float = 0.006) -> NDArray[np.bool_]:
-    """Which points the frame sees (inside, not hidden: the depth there agrees with the point's)."""
-    depth = view.depth_m
-    assert depth is not None
-    xy, along = view.pose.project(points_m)
+def visible(sensed: Sensed, points_m: FloatArray, tolerance_m: float = 0.006) -> NDArray[np.bool_]:
+    """Which points the frame should see: inside, and not hidden in the CAD model from the believed pose.
+
+    Where a site is, and what hides it (a door, a tank), is the robot's model; the range map measures
+    what is there, and would call a removed screw or a dent "hidden".
+    """
+    depth = sensed.capture.cad.expected_depth_m
+    xy, along = sensed.believed_pose.project(points_m)
     rows, cols = depth.shape
     seen = np.zeros(len(points_m), dtype=bool)
     for k, ((x, y), distance) in enumerate(zip(xy, along, strict=True)):
@@ -68,69 +122,55 @@ def visible(view: View, points_m: FloatArray, tolerance_m: float = 0.006) -> NDA
     return seen
 
 
-def surface_distance_m(shape: tuple[int, ...], view: View, position_m: tuple[float, float, float]) -> Any:
+def surface_distance_m(shape: tuple[int, ...], sensed: Sensed, position_m: tuple[float, float, float]) -> Any:
     """Each pixel's distance (on the surface, metres) from a world point's projection."""
-    row, col, _ = to_field(view, np.asarray([position_m]))
+    row, col, _ = to_field(sensed, np.asarray([position_m]))
     rows, cols = np.indices(shape[:2])
-    return np.hypot(rows - row[0], cols - col[0]) * pixel_size_m(view, position_m)
+    return np.hypot(rows - row[0], cols - col[0]) * pixel_size_m(sensed, position_m)
 
 
-def disc(shape: tuple[int, ...], view: View, position_m: tuple[float, float, float], radius_m: float) -> Any:
+def disc(
+    shape: tuple[int, ...], sensed: Sensed, position_m: tuple[float, float, float], radius_m: float
+) -> Any:
     """Pixels within `radius_m` (on the surface) of a world point's projection."""
-    return surface_distance_m(shape, view, position_m) <= radius_m
+    return surface_distance_m(shape, sensed, position_m) <= radius_m
 
 
-def seen_screws(world: World, view: View) -> list[Site]:
+def seen_screws(world: World, sensed: Sensed) -> list[Site]:
     sites = world.mockup.candidates.screw_sites
-    seen = visible(view, np.asarray([site.position_m for site in sites]))
+    seen = visible(sensed, np.asarray([site.position_m for site in sites]))
     return [site for site, visible in zip(sites, seen, strict=True) if visible]
 
 
-def seen_components(world: World, view: View) -> list[Site]:
+def seen_components(world: World, sensed: Sensed) -> list[Site]:
     """Component sites whose centre the view sees (depth within 2 cm: a tank's front, a panel's face)."""
     sites = world.mockup.candidates.component_sites
-    seen = visible(view, np.asarray([site.position_m for site in sites]), tolerance_m=0.02)
+    seen = visible(sensed, np.asarray([site.position_m for site in sites]), tolerance_m=0.02)
     return [site for site, visible in zip(sites, seen, strict=True) if visible]
 
 
-def inspection_region(view: View, settings: MissionSettings) -> NDArray[np.bool_]:
-    """Pixels of the view's component surfaces, away from the truss frame and from depth jumps.
+def inspection_region(sensed: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
+    """Pixels of the view's component surfaces, away from the truss frame and from range jumps.
 
     Seed §2.3: one registration per frame cannot align surfaces at different depths after a viewpoint
     error (parallax), and the truss struts behind a plate or a tank's silhouette then differ by whole edges.
-    The robot knows its CAD model and the pose (the stereo pair gives depth, seed §3): the region is the
-    components' surfaces, less a guard band (``settings.inspection_guard_px``) around the truss and around
-    every depth jump of more than ``settings.depth_jump_m``.
+    The robot knows its CAD model and believes its pose; the stereo pair measures the range (seed §3): the
+    region is the components' surfaces, less a guard band (``settings.inspection_guard_px``) around the
+    model's truss and around every jump of more than ``settings.depth_jump_m`` in the measured range.
     """
     import cv2
 
-    depth, truss = view.depth_m, view.truss_mask
-    assert depth is not None and truss is not None
+    depth, truss = sensed.surface_m, sensed.capture.cad.truss
     side = 2 * settings.inspection_guard_px + 1
     band = np.ones((side, side), np.uint8)
-    near = np.minimum(depth, np.float32(10.0))
+    near = np.minimum(depth, np.float32(FAR_M))
     jump = cv2.dilate(near, band) - cv2.erode(near, band) > settings.depth_jump_m
-    off = cv2.dilate(truss.astype(np.uint8), band).astype(bool) | jump | (depth >= 10.0)
+    off = cv2.dilate(truss.astype(np.uint8), band).astype(bool) | jump | (depth >= FAR_M)
     return ~off
 
 
-def stereo_depth(view: View, rng: np.random.Generator, settings: MissionSettings) -> NDArray[np.float32]:
-    """The ISEE stereo pair's range map (seed §3): the view's depth with the disparity noise of matching.
-
-    sigma_Z = Z^2 sigma_d / (f B) with sigma_d = settings.stereo_disparity_noise_px, baseline B of the pair.
-    """
-    from rsi.sim.scene import STEREO_BASELINE_M
-
-    depth = view.depth_m
-    assert depth is not None
-    focal_baseline = view.pose.focal_px * STEREO_BASELINE_M
-    sigma = depth * depth * np.float32(settings.stereo_disparity_noise_px / focal_baseline)
-    noisy = depth + sigma * rng.standard_normal(depth.shape).astype(np.float32)
-    return np.asarray(np.where(depth < 10.0, noisy, depth), dtype=np.float32)
-
-
-def strobe_image(world: World, view: View) -> Compensated:
-    """The visit's full-resolution strobe image: its frame and the next, strobes in opposite fields.
+def strobe_image(sensed: Sensed) -> Compensated:
+    """The visit's full-resolution strobe image: its two frames, strobes in opposite fields.
 
     Seed §2.2 intra-frame compensation keeps one field: every other row, 1.3 mm apart at the standoff, so a
     ~1 mm impact may fall between the lit rows. Two frames with the strobe on the odd and then the even
@@ -138,4 +178,4 @@ def strobe_image(world: World, view: View) -> Compensated:
     """
     from rsi.imaging.compensation import compensate_field_pair
 
-    return compensate_field_pair(view.frame, world.next_frame(view, lit_field="even"))
+    return compensate_field_pair(*sensed.capture.frames)

@@ -32,19 +32,18 @@ from rsi.mission.evidence import (
     second_look_score,
     unexplained,
 )
-from rsi.mission.records import MissionFinding, PlanPoint, VisitImages, VisitRecord, counts_towards_recall
+from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
 from rsi.mission.settings import MissionSettings
-from rsi.mission.views import inspection_region, stereo_depth, strobe_image
+from rsi.mission.views import Sensed, inspection_region, sense, strobe_image
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
-    from rsi.detection.detect import Detection
     from rsi.detection.pair import PairResult
     from rsi.imaging.compensation import Compensated
     from rsi.mission.tour import Tour
-    from rsi.sim.anomalies import AnomalySet, Site
-    from rsi.sim.world import View, World
+    from rsi.sim.anomalies import Site
+    from rsi.sim.world import World
 
 
 @dataclass(frozen=True)
@@ -81,11 +80,16 @@ class Thresholds:
 
 @dataclass(frozen=True)
 class Visit:
-    """One visit's findings and record, and the screws checked so far (each screw is checked once)."""
+    """One visit's findings and record, and the screws checked so far (each screw is checked once).
+
+    The record holds what the robot measured; the truth of what its view showed is attached by the caller
+    from the simulator's record (:func:`rsi.mission.truth.with_truth`), with `pair`, the comparison.
+    """
 
     findings: tuple[MissionFinding, ...]
     record: VisitRecord
     screws_checked: frozenset[str]
+    pair: PairResult
 
 
 @dataclass
@@ -144,25 +148,29 @@ def inspect_visit(
     screws_checked: frozenset[str],
     active: bool,
     settings: MissionSettings,
-    stereo_rng: np.random.Generator,
     tour: Tour,
 ) -> Visit:
     """One visit: compare with the references, read the evidence, take second looks (seed §2.3-2.5)."""
-    view = tour.visit(point.name, point.vista, state="inspection")
-    inspection = _restricted(strobe_image(world, view), inspection_region(view, settings))
+    view = sense(tour.visit(point.name, point.vista, state="inspection"))
+    inspection = _restricted(strobe_image(view), inspection_region(view, settings))
     p_first = settings.p_preliminary if active else settings.p_false_alarm
     comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
 
-    depth = stereo_depth(view, stereo_rng, settings)
     screws, checked = screw_checks(
-        world, view, point.name, settings=settings, depth_m=depth, reliefs=stored.reliefs, done=screws_checked
+        world,
+        view,
+        point.name,
+        settings=settings,
+        range_m=view.range_m,
+        reliefs=stored.reliefs,
+        done=screws_checked,
     )
     checks = component_checks(
         comparison.pair,
         view,
         point.name,
         reliefs=stored.reliefs,
-        depth_m=depth,
+        range_m=view.range_m,
         world=world,
         settings=settings,
     )
@@ -189,10 +197,8 @@ def inspect_visit(
         second_looks=counts[0],
         confirmed=counts[1],
         rejected=counts[2],
-        visible=tuple(sorted(view.flaw_masks)),
-        images=visit_images(comparison.pair, view, world.anomalies),
     )
-    return Visit(tuple(findings), record, screws_checked | checked)
+    return Visit(tuple(findings), record, screws_checked | checked, comparison.pair)
 
 
 def _restricted(image: Compensated, region: NDArray[np.bool_]) -> Compensated:
@@ -200,7 +206,7 @@ def _restricted(image: Compensated, region: NDArray[np.bool_]) -> Compensated:
 
 
 def _with_parallax(
-    stored: StoredView, inspection: Compensated, view: View, p_false_alarm: float, settings: MissionSettings
+    stored: StoredView, inspection: Compensated, view: Sensed, p_false_alarm: float, settings: MissionSettings
 ) -> tuple[_Comparison, tuple[float, float]]:
     """The comparison with the reference, tested again once the registered shift's parallax is counted.
 
@@ -212,10 +218,8 @@ def _with_parallax(
     pair = compare(stored.reference, inspection, p_false_alarm, settings, stored.scale)
     registration = pair.detection.registration
     translation = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
-    depth = view.depth_m
-    assert depth is not None
     parallax = parallax_scale(
-        stored.reference, depth, math.hypot(*translation), spread_px=settings.nuisance_spread_px
+        stored.reference, view.surface_m, math.hypot(*translation), spread_px=settings.nuisance_spread_px
     )
     scale = stored.scale * parallax
     pair = compare(stored.reference, inspection, p_false_alarm, settings, scale)
@@ -225,7 +229,7 @@ def _with_parallax(
 
 def _without_discoloured(
     comparison: _Comparison,
-    view: View,
+    view: Sensed,
     explanations: list[Explanation],
     p_false_alarm: float,
     settings: MissionSettings,
@@ -244,7 +248,7 @@ def _without_discoloured(
 
 def _new_dark_blobs(
     comparison: _Comparison,
-    view: View,
+    view: Sensed,
     world: World,
     explanations: list[Explanation],
     *,
@@ -290,8 +294,8 @@ def _second_looks(
     doubtful = [look for look in looks if look.score <= limits.confirm]
     if not doubtful:
         return (0, 0, 0)
-    second = tour.visit(point.name, point.vista, state="inspection")
-    image = _restricted(strobe_image(world, second), inspection_region(second, settings))
+    second = sense(tour.visit(point.name, point.vista, state="inspection", truth=False))
+    image = _restricted(strobe_image(second), inspection_region(second, settings))
     # against both pristine visits again: an artefact of one reference's sampling would confirm itself
     pairs = [
         compare(reference, image, settings.p_preliminary, settings, comparison.scale)
@@ -323,42 +327,6 @@ def _visual_finding(look: Look, source: str, limits: Thresholds, settings: Missi
         second_look=look.second_look,
         flaw=look.flaw,
     )
-
-
-def visit_images(pair: PairResult, view: View, truth: AnomalySet) -> VisitImages:
-    """The comparison's images for the report, and the truth of the impacts that count (for the ROC)."""
-    detection = pair.detection
-    impacts = np.zeros_like(detection.valid)
-    for index, mask in view.flaw_masks.items():
-        anomaly = truth.anomalies[index]
-        if anomaly.kind == "impact" and counts_towards_recall(anomaly):
-            impacts |= mask
-    inspection = np.asarray(pair.inspection, dtype=np.float32)
-    return VisitImages(
-        reference=(inspection - detection.difference).astype(np.float32),
-        inspection=inspection,
-        difference=detection.difference,
-        score=detection.score,
-        valid=detection.valid,
-        impact_truth=impacts,
-        impact_strengths=impact_strengths(detection, impacts),
-    )
-
-
-def impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[float, ...]:
-    """Each truth impact's strength: the difference at its darkest pixel over that pixel's noise sigma."""
-    import cv2
-
-    count, labels = cv2.connectedComponents(truth.astype(np.uint8), connectivity=8)
-    strengths = []
-    for label in range(1, count):
-        inside = (labels == label) & detection.valid
-        if not inside.any():
-            continue
-        darkest = int(np.argmin(np.where(inside, detection.difference, np.inf)))
-        sigma = float(detection.sigma.flat[darkest])
-        strengths.append(max(-float(detection.difference.flat[darkest]), 0.0) / max(sigma, 1e-6))
-    return tuple(strengths)
 
 
 def fuse_findings(

@@ -458,7 +458,6 @@ def _document(
     halogens = "".join(
         _spot(f"halogen_{k}", (x, -0.03, 0.0), HALOGEN_LEVEL, 35.0) for k, x in enumerate((-0.05, 0.05))
     )
-    half = STEREO_BASELINE_M / 2
     room, sun = f"{ROOM_FRACTION * SUN_LEVEL:.6g}", f"{SUN_LEVEL} {SUN_LEVEL} {SUN_LEVEL}"
     return f"""<mujoco model="rsi_truss_mockup">
   <compiler angle="radian"/>
@@ -484,8 +483,8 @@ def _document(
     </body>
     <body name="isee" mocap="true" pos="0.3 -1 1.2">
       <camera name="isee" pos="0 0 0" fovy="{CAMERA_FOVY_DEG}"/>
-      <camera name="isee_left" pos="{-half} 0 0" fovy="{CAMERA_FOVY_DEG}"/>
-      <camera name="isee_right" pos="{half} 0 0" fovy="{CAMERA_FOVY_DEG}"/>
+      <camera name="isee_left" pos="0 0 0" fovy="{CAMERA_FOVY_DEG}"/>
+      <camera name="isee_right" pos="{STEREO_BASELINE_M} 0 0" fovy="{CAMERA_FOVY_DEG}"/>
       <site name="isee_range" pos="0 0 0" zaxis="0 0 -1" size="0.005"/>
       {strobe}{halogens}
     </body>

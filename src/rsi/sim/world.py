@@ -22,6 +22,7 @@ from rsi.imaging.camera import DEFAULT_CAMERA, CameraModel, Frame, expose
 from rsi.sim import fields
 from rsi.sim.anomalies import AnomalySet, AnomalySettings, seed_anomalies
 from rsi.sim.arm import RANGEFINDER_RECESS_M, WORLD_ARM_PREFIX, Arm
+from rsi.sim.capture import CadView
 from rsi.sim.mockup import (
     A_FACE_Y_M,
     BAY_M,
@@ -85,6 +86,11 @@ ARM_HOME_TOOL_TIP_M = (
 )
 TOOL_VIEW = "tool"  # View.vista of a frame from the arm's ISEE camera
 _TRUTH_DEPTH_TOLERANCE_M = 5e-3
+# What the joint encoders leave unknown of a commanded camera pose: a 17-bit absolute encoder resolves
+# 2 pi / 2**17 = 48 urad per joint, and six joints over the arm's ~1 m reach put ~0.1 mm and ~0.1 mrad at the
+# camera. Flexure and thermal growth (seed §2.3) are outside the encoders and stay in the visit's error.
+ENCODER_POSITION_SIGMA_M = 1e-4
+ENCODER_ANGLE_SIGMA_RAD = 1e-4
 _TRUSS_PARTS = ("longeron_", "batten_", "node_", "diagonal_")  # the frame the components hang on (seed §4)
 _MARKER_COLOURS = {
     "hot_spot": (255, 64, 32),
@@ -132,6 +138,11 @@ class View:
     component_masks : dict of str to ndarray of shape (M, N), bool
         Pixels of each swappable component in view (``Mockup.components``, its replacement included), from
         the same CAD projection; decals on it (impact spots) are not its pixels. Empty from ``truth=False``.
+    believed_pose : CameraPose
+        The pose the robot believes it took the frame from: the commanded pose read through its joint
+        encoders (:data:`ENCODER_POSITION_SIGMA_M`, :data:`ENCODER_ANGLE_SIGMA_RAD`). The flexure and
+        thermal part of the visit's error (``repeatability``) is not in it (seed §2.3): registration must
+        find it.
     """
 
     vista: str
@@ -147,6 +158,7 @@ class View:
     stereo: tuple[Frame, Frame] | None = field(default=None)
     truss_mask: BoolArray | None = field(default=None, repr=False)
     component_masks: dict[str, BoolArray] = field(default_factory=dict, repr=False)
+    believed_pose: CameraPose | None = field(default=None, repr=False)
 
     @property
     def flaw_mask(self) -> BoolArray:
@@ -190,9 +202,10 @@ class World:
         self.camera = camera
         self.seed = seed_number(seed)
         # the world's own streams, spawned once from its seed: viewpoint errors and camera noise
-        poses, noise = seed_sequence(seed).spawn(2)
+        poses, noise, encoders = seed_sequence(seed).spawn(3)
         self._pose_rng = np.random.default_rng(poses)
         self._noise_rng = np.random.default_rng(noise)
+        self._encoder_rng = np.random.default_rng(encoders)
         model, index = build_model(
             mockup, anomalies, arm_home_tool_tip_m=ARM_HOME_TOOL_TIP_M if arm else None
         )
@@ -495,15 +508,17 @@ class World:
         position = np.asarray(point.position_m) + offset_m[0] * rotation[:, 0] + offset_m[1] * rotation[:, 1]
         self.place_camera(position, forward, up)
         pose = CameraPose(position, rotation, fovy, shape)
-        return self._view(
+        view = self._view(
             vista,
             pose,
-            ("isee", "isee_left", "isee_right"),
+            ("isee", "isee", "isee_right"),
             (float(-offset_px[0]), float(offset_px[1])),
             stereo=stereo,
             truth=truth,
             **settings,
         )
+        commanded = CameraPose(np.asarray(point.position_m, dtype=np.float64), rotation, fovy, shape)
+        return replace(view, believed_pose=self._through_encoders(commanded))
 
     def render_from_tool(
         self,
@@ -514,6 +529,7 @@ class World:
         lit_field: str = "odd",
         exposure_s: float | None = None,
         truth: bool = True,
+        unsensed_offset_m: tuple[float, float] = (0.0, 0.0),
     ) -> View:
         """Take a frame with the arm's ISEE cameras from where the arm now holds them (issue 4).
 
@@ -522,7 +538,9 @@ class World:
         lamps and its view-axis rangefinder (``readouts()["standoff_m"]``) move with it. No visit error
         is drawn: the pose is the arm's (``pose_error_px`` is (0, 0), ``vista`` is ``"tool"``). The
         rangefinder rays are not drawn (seed §2: the frame is what the camera sees). Needs
-        ``load(..., arm=True)``; parameters as for :meth:`render`.
+        ``load(..., arm=True)``; parameters as for :meth:`render`, and `unsensed_offset_m`: the part of the
+        camera's (right, up) position that the joint encoders do not see (the flexure and thermal error of
+        seed §2.3), left out of ``believed_pose``.
 
         Returns
         -------
@@ -537,7 +555,49 @@ class World:
         self.place_camera(left, forward, up)
         pose = CameraPose(left, _rotation(forward, up), math.radians(CAMERA_FOVY_DEG), shape)
         cameras = (arm.camera_name("left"), arm.camera_name("left"), arm.camera_name("right"))
-        return self._view(TOOL_VIEW, pose, cameras, (0.0, 0.0), stereo=stereo, truth=truth, **settings)
+        view = self._view(TOOL_VIEW, pose, cameras, (0.0, 0.0), stereo=stereo, truth=truth, **settings)
+        offset = v.as_float_array(unsensed_offset_m, "unsensed_offset_m")
+        if offset.shape != (2,) or not np.isfinite(offset).all():
+            raise InputError(
+                "unsensed_offset_m must be two finite numbers (right, up) in metres; "
+                f"got {unsensed_offset_m!r}."
+            )
+        sensed = replace(pose, position_m=pose.position_m - pose.rotation[:, :2] @ offset)
+        return replace(view, believed_pose=self._through_encoders(sensed))
+
+    def _through_encoders(self, pose: CameraPose) -> CameraPose:
+        """`pose` as the joint encoders report it: their quantisation and noise added."""
+        position = pose.position_m + self._encoder_rng.normal(0.0, ENCODER_POSITION_SIGMA_M, 3)
+        turn, _ = cv2.Rodrigues(self._encoder_rng.normal(0.0, ENCODER_ANGLE_SIGMA_RAD, 3))
+        return replace(pose, position_m=position, rotation=turn @ pose.rotation)
+
+    def cad_projection(self, pose: CameraPose) -> CadView:
+        """The robot's CAD model of the mock-up seen from `pose`: what it expects, not what is there.
+
+        The pristine mock-up (no anomaly: the robot does not know them) with the door and the arm where
+        they were commanded, rendered from `pose` (normally a view's ``believed_pose``): its depth, the
+        truss frame and arm pixels, and each swappable component's pixels. The camera is put back after.
+        """
+        if not isinstance(pose, CameraPose):
+            raise InputError(
+                f"pose must be a CameraPose (a View's believed_pose); got {type(pose).__name__}."
+            )
+        mocap = int(self.model.body_mocapid[self._id("body", "isee")])
+        kept = self.data.mocap_pos[mocap].copy(), self.data.mocap_quat[mocap].copy()
+        self.place_camera(pose.position_m, -pose.rotation[:, 2], pose.rotation[:, 1])
+        try:
+            depth, segments = self._renderer(pose.shape).depth_and_segments(
+                self.data, "isee", state="reference"
+            )
+        finally:
+            self.data.mocap_pos[mocap], self.data.mocap_quat[mocap] = kept
+            self._mujoco.mj_forward(self.model, self.data)
+        components = {
+            site: mask
+            for site, ids in self._component_geoms.items()
+            if (mask := np.isin(segments, ids)).any()
+        }
+        return CadView(depth, np.isin(segments, self._truss_geoms), components)
 
     def next_frame(self, view: View, *, lit_field: str = "even") -> Frame:
         """The visit's next video frame: same pose and light, new camera noise, the strobe in `lit_field`.
@@ -556,6 +616,23 @@ class World:
             lit_field=field_name,
             rng=self._noise_rng,
         )
+
+    def reflash(self, view: View, *, strobe_energy: float, shutter: float) -> View:
+        """The visit's frame taken again from the same pose: the strobe at `strobe_energy` times the seed's
+        flash and the shutter at `shutter` times the seed's (seed §2.1); truth and stereo pair kept."""
+        if not isinstance(view, View):
+            raise InputError(f"view must be a View from World.render; got {type(view).__name__}.")
+        energy = v.in_range(
+            strobe_energy, "strobe_energy", low=0.0, high=MAX_STROBE_ENERGY, low_inclusive=False
+        )
+        fraction = v.in_range(shutter, "shutter", low=MIN_SHUTTER, high=1.0)
+        energy_now, shutter_now = self.strobe_energy, self.shutter
+        flashed = replace(
+            view,
+            strobe_lux_s=(view.strobe_lux_s * np.float32(energy / energy_now)).astype(np.float32),
+            frame=replace(view.frame, exposure_s=view.frame.exposure_s * fraction / shutter_now),
+        )
+        return replace(flashed, frame=self.next_frame(flashed, lit_field=view.frame.lit_field))
 
     def _shot_settings(
         self, size: object, state: str, lit_field: str, exposure_s: float | None, truth: object
@@ -612,7 +689,9 @@ class World:
                 masks = self._truth(pose, depth, segments, state, camera=main)
         pair = None
         if stereo:
-            pair = (self._frame(left, shape, **settings)[0], self._frame(right, shape, **settings)[0])
+            # the main camera is the pair's left one: its frame is the left frame
+            first = frame if left == main else self._frame(left, shape, **settings)[0]
+            pair = (first, self._frame(right, shape, **settings)[0])
         return View(
             vista,
             state,
