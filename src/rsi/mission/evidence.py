@@ -26,7 +26,6 @@ from rsi.mission.views import (
     to_field,
     visible,
 )
-from rsi.sim.mockup import SCREW_HEIGHT_M
 
 if TYPE_CHECKING:
     from rsi.detection.detect import Flaw
@@ -99,7 +98,7 @@ def blobs(pair: PairResult, view: Sensed) -> list[Look]:
 def screw_relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:
     """Height of the screw head above the plate around it in the stereo range map (seed §3, §4 screws).
 
-    A head stands SCREW_HEIGHT_M proud; a removed one leaves the plate and a flat hole. The image alone
+    A head stands 2 mm proud (the mock-up's screws); a removed one leaves the plate and a flat hole. The image alone
     tells them apart poorly (the hole is as dark as the slot, the plate as bright as the head, and the
     head's pattern correlates with the hole's at 0.43 against 0.42 for a present head, seeds 0-19);
     the relief's median over ~45 head pixels has a noise of ~0.1 mm. NaN when the view holds too few.
@@ -123,9 +122,19 @@ def screw_checks(
     range_m: NDArray[np.float32],
     reliefs: Mapping[str, float],
     done: frozenset[str],
+    pair: PairResult,
+    confirm: float,
 ) -> tuple[list[MissionFinding], frozenset[str]]:
     """Screws the frame sees and no earlier visit checked (`done`): a head 2 mm proud of the plate, or gone
-    (seed §4: screws randomly removed), by its relief in the stereo range map against the reference's.
+    (seed §4: screws randomly removed).
+
+    Two measurements, the first that can answer decides. The relief in the stereo range map against the
+    reference's: matched stereo resolves a 2 mm head only where its range noise, sigma_Z = Z^2 sigma_d / (f B),
+    is well under it (a 6 cm baseline at 0.5 m gives ~1.4 mm per pixel, and the matcher's window smooths a
+    5 mm head into its plate), so a relief change counts only when both reliefs were measured and the
+    change exceeds ``settings.screw_relief_lost_m``. Otherwise the comparison with the reference (seed
+    §2.4): a head that is gone changes the image over its disc (the hole and the plate where the head was),
+    and a dark-flaw score above the confirming threshold `confirm` there is the screw's loss.
 
     Returns the missing screws' findings and the names of the screws this view checked.
     """
@@ -134,20 +143,39 @@ def screw_checks(
     seen = visible(view, np.asarray([s.position_m for s in screws])) if screws else np.zeros(0, bool)
     checked = [site for site, in_view in zip(screws, seen, strict=True) if in_view]
     for site in checked:
-        before = reliefs.get(site.name, math.nan)
-        lost = (before if math.isfinite(before) else SCREW_HEIGHT_M) - screw_relief_m(range_m, view, site)
-        if lost > settings.screw_relief_lost_m:
-            findings.append(
-                MissionFinding(
-                    kind="missing_screw",
-                    position_m=site.position_m,
-                    size_m=site.size_m,
-                    confidence=confidence((lost - settings.screw_relief_lost_m) / 2e-4),
-                    source=source,
-                    score=lost,
-                )
+        lost = reliefs.get(site.name, math.nan) - screw_relief_m(range_m, view, site)
+        if math.isfinite(lost) and lost > settings.screw_relief_lost_m:
+            margin, score = (lost - settings.screw_relief_lost_m) / 2e-4, lost
+        elif (change := screw_change(pair, view, site)) > confirm:
+            margin, score = change - confirm, change
+        else:
+            continue
+        findings.append(
+            MissionFinding(
+                kind="missing_screw",
+                position_m=site.position_m,
+                size_m=site.size_m,
+                confidence=confidence(margin),
+                source=source,
+                score=score,
             )
+        )
     return findings, frozenset(site.name for site in checked)
+
+
+def screw_change(pair: PairResult, view: Sensed, site: Site) -> float:
+    """Peak dark-flaw score of the comparison over the screw head's disc and a pixel beyond (seed §2.4)."""
+    detection = pair.detection
+    head = disc(detection.score.shape, view, site.position_m, 0.5 * site.size_m)
+    head = _widened(head) & detection.valid
+    return float(detection.score[head].max()) if head.any() else 0.0
+
+
+def _widened(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """`mask` one pixel wider: the believed pose places a site to about a pixel (lab repeatability)."""
+    import cv2
+
+    return np.asarray(cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)), dtype=bool)
 
 
 def relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:

@@ -30,6 +30,10 @@ FAR_M = 10.0  # a range at or beyond this is no surface: the renderer's far plan
 # the stereo search spans the CAD model's nearest range less 30 % to its farthest plus 50 %: the pose
 # error and a dent move surfaces by centimetres, not by tens of percent
 _NEAR_MARGIN, _FAR_MARGIN = 0.7, 1.5
+# A matched range further than this from the model's is a false match, not the surface: the believed pose
+# misses by at most ~7 mm at the standoff ("space" repeatability), a dent is <= 10 mm deep, and dark solar
+# cells and plain plates give SGBM matches tens of centimetres off (seeds 3 and 5, C_panel: p90 0.22 m).
+_RANGE_GATE_M = 0.03
 
 
 @dataclass(frozen=True)
@@ -43,7 +47,8 @@ class Sensed:
     range_m : ndarray of shape (M, N), float32
         Stereo range along the view axis (seed §3 D), NaN where the matcher gave no answer.
     surface_m : ndarray of shape (M, N), float32
-        `range_m`, and the CAD model's expected depth in its holes: the best range the robot has.
+        `range_m` where it agrees with the CAD model's expected depth within ``_RANGE_GATE_M``, the model's
+        depth elsewhere (holes, false matches): the best range the robot has, to place what it finds.
     """
 
     capture: Capture
@@ -68,7 +73,9 @@ def sense(capture: Capture) -> Sensed:
     ranges = range_map(
         *capture.stereo, capture.rig, depth_limits_m=(_NEAR_MARGIN * near, min(_FAR_MARGIN * far, FAR_M))
     )
-    filled = np.where(np.isfinite(ranges), ranges, expected).astype(np.float32)
+    with np.errstate(invalid="ignore"):
+        plausible = np.abs(ranges - expected) <= _RANGE_GATE_M
+    filled = np.where(plausible, ranges, expected).astype(np.float32)
     return Sensed(capture, ranges, filled)
 
 

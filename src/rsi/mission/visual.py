@@ -156,6 +156,7 @@ def inspect_visit(
     p_first = settings.p_preliminary if active else settings.p_false_alarm
     comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
 
+    limits = thresholds(settings)
     screws, checked = screw_checks(
         world,
         view,
@@ -164,6 +165,8 @@ def inspect_visit(
         range_m=view.range_m,
         reliefs=stored.reliefs,
         done=screws_checked,
+        pair=comparison.pair,
+        confirm=limits.confirm,
     )
     checks = component_checks(
         comparison.pair,
@@ -177,7 +180,6 @@ def inspect_visit(
     explanations = [explanation for _, explanation in checks]
     comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
 
-    limits = thresholds(settings)
     looks = _new_dark_blobs(
         comparison, view, world, explanations, active=active, limits=limits, settings=settings
     )
