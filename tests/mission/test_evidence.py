@@ -61,13 +61,25 @@ def test_one_impact_seen_from_two_vistas_is_one_finding() -> None:
     assert [f.kind for f in merged].count("missing_screw") == 1
 
 
+def _with_components(masks: dict[str, Any]) -> Any:
+    """A sensed view whose CAD projection holds only these component masks."""
+    return SimpleNamespace(capture=SimpleNamespace(cad=SimpleNamespace(components=masks)))
+
+
+def _sensed(world: Any, vista: str) -> Any:
+    from rsi.mission.views import sense
+    from rsi.sim.capture import capture
+
+    return sense(capture(world, world.render(vista, size=(120, 160), state="reference", stereo=True)))
+
+
 def test_metering_lifts_the_dark_panel_and_leaves_bright_aluminium() -> None:
     from rsi.sim.world import MAX_STROBE_ENERGY, load
 
     world: Any = load("truss", seed=0)
     try:
-        panel = metered_energy(world, world.render("C_panel", size=(120, 160)), SETTINGS)
-        plate = metered_energy(world, world.render("D_tubing", size=(120, 160)), SETTINGS)
+        panel = metered_energy(_sensed(world, "C_panel"), SETTINGS)
+        plate = metered_energy(_sensed(world, "D_tubing"), SETTINGS)
     finally:
         world.close()
     assert 1.5 < panel <= MAX_STROBE_ENERGY  # solar cells read a few tens of DN at the seed's flash
@@ -79,33 +91,35 @@ def test_metering_shortens_the_shutter_on_sunlit_metal_only() -> None:
 
     world: Any = load("truss", seed=0)
     try:
-        door = world.render("A_door", size=(120, 160), state="reference")  # lab sun on brushed aluminium
-        panel = world.render("C_panel", size=(120, 160), state="reference")  # in the truss's shadow
-        shutter = metered_shutter(world, door, SETTINGS)
-        assert ambient_dn(world, door, SETTINGS) > 1.5 * SETTINGS.ambient_target_dn
+        door = _sensed(world, "A_door")  # lab sun on brushed aluminium
+        panel = _sensed(world, "C_panel")  # in the truss's shadow
+        shutter = metered_shutter(door, SETTINGS)
+        assert ambient_dn(door, SETTINGS) > 1.5 * SETTINGS.ambient_target_dn
         assert MIN_SHUTTER <= shutter < 1 / 1.5
-        assert ambient_dn(world, door, SETTINGS) * shutter == pytest.approx(
-            SETTINGS.ambient_target_dn, rel=1e-6
-        )
-        assert metered_shutter(world, panel, SETTINGS) == 1.0
+        assert ambient_dn(door, SETTINGS) * shutter == pytest.approx(SETTINGS.ambient_target_dn, rel=1e-6)
+        assert metered_shutter(panel, SETTINGS) == 1.0
         # the strobe gets the headroom the sun gave back
-        assert metered_energy(world, door, SETTINGS, shutter) >= metered_energy(world, door, SETTINGS)
+        assert metered_energy(door, SETTINGS, shutter) >= metered_energy(door, SETTINGS)
     finally:
         world.close()
 
 
 def test_screw_relief_tells_a_head_from_its_hole() -> None:
     from rsi.mission import plan_vistas
+    from rsi.mission.views import sense
+    from rsi.sim.capture import capture
     from rsi.sim.mockup import SCREW_HEIGHT_M
     from rsi.sim.world import load
 
     world: Any = load("truss", seed=17)  # screws B_1 and B_3 removed
     try:
         plan_vistas(world)
-        view = world.render("B_tank")
+        view = world.render("B_tank", stereo=True)
         assert view.depth_m is not None
+        sensed = sense(capture(world, view))
         sites = {s.name: s for s in world.mockup.candidates.screw_sites}
-        relief = {name: screw_relief_m(view.depth_m, view, sites[name]) for name in sites if "_B_" in name}
+        # the relief of the rendered depth: what a perfect range map would give
+        relief = {name: screw_relief_m(view.depth_m, sensed, sites[name]) for name in sites if "_B_" in name}
     finally:
         world.close()
     removed = {a.site for a in world.anomalies.anomalies if a.kind == "missing_screw"} & set(relief)
@@ -118,7 +132,7 @@ def test_screw_relief_tells_a_head_from_its_hole() -> None:
 def test_a_discolouring_explains_only_blobs_on_its_own_pixels() -> None:
     mask = np.zeros((60, 80), bool)
     mask[:, :40] = True  # the discoloured component fills the left half
-    view = SimpleNamespace(component_masks={"B_tank": mask})
+    view = _with_components({"B_tank": mask})
     explanation = Explanation((0.0, 0.0, 0.0), 0.2, "B_tank")
     on_it = _look((0.05, 0.0, 0.0), 2e-6, (20, 10, 22, 12))
     beside = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62))
@@ -133,7 +147,7 @@ def test_a_discolouring_explains_only_blobs_on_its_own_pixels() -> None:
     faint = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62), darkening=0.3)
     wide = _look((0.05, 0.0, 0.0), 5e-5, (20, 60, 30, 70), darkening=0.5)
     assert explained_by(faint, view, dent, SETTINGS) and explained_by(wide, view, dent, SETTINGS)  # type: ignore[arg-type]
-    assert not explained_by(on_it, SimpleNamespace(component_masks={}), explanation, SETTINGS)  # type: ignore[arg-type]
+    assert not explained_by(on_it, _with_components({}), explanation, SETTINGS)  # type: ignore[arg-type]
 
 
 def test_a_found_discolouring_leaves_the_photometric_fit() -> None:
@@ -148,7 +162,7 @@ def test_a_found_discolouring_leaves_the_photometric_fit() -> None:
     tank = np.zeros(reference.shape, bool)
     tank[:, :90] = True
     whole = compare(_image(reference), _image(inspection), 1e-4, SETTINGS)
-    view = SimpleNamespace(component_masks={"B_tank": tank})
+    view = _with_components({"B_tank": tank})
     changed = discoloured_pixels(view, [Explanation((0.0, 0.0, 0.0), 0.2, "B_tank")], SETTINGS)  # type: ignore[arg-type]
     assert changed is not None
     # the CAD pixels and a margin of the settings' width for the pose error

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -99,10 +100,18 @@ def test_plan_covers_every_component_and_screw() -> None:
         seen = np.zeros(len(screws), dtype=bool)
         for point in plan_vistas(world):
             world.set_door(point.door_angle_rad)
-            seen |= visible(world.render(point.vista, size=SMALL, state="reference"), positions)
+            seen |= visible(_sensed(world, point.vista, size=SMALL), positions)
         assert seen.all(), [site.name for site, ok in zip(screws, seen, strict=True) if not ok]
     finally:
         world.close()
+
+
+def _sensed(world: Any, vista: str, **options: Any) -> Any:
+    """The visit as the mission receives it: the ISEE's capture and its stereo range map."""
+    from rsi.mission.views import sense
+    from rsi.sim.capture import capture
+
+    return sense(capture(world, world.render(vista, state="reference", stereo=True, **options)))
 
 
 def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> None:
@@ -125,7 +134,7 @@ def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> N
         )
         seen = np.zeros(len(grid), dtype=bool)
         for point in panels:
-            view = world.render(point.vista, state="reference")
+            view = _sensed(world, point.vista)
             seen |= visible(view, grid)
             assert pixel_size_m(view, patch.centre_m) < 0.5e-3  # a 1 mm impact spans two pixels or more
         assert world.vista(panels[0].vista).standoff_m == PANEL_STANDOFF_M
@@ -256,10 +265,14 @@ def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -
 
     world = load("truss", seed=SEED)
     try:
-        view = world.render("B_tank", size=SMALL)
+        from rsi.mission.views import sense
+        from rsi.sim.capture import capture
+
+        view = world.render("B_tank", size=SMALL, stereo=True)
+        sensed = sense(capture(world, view))  # the same visit, as the robot receives it
     finally:
         world.close()
-    region = inspection_region(view, MissionSettings())
+    region = inspection_region(sensed, MissionSettings())
     assert view.truss_mask is not None and view.depth_m is not None
     assert not (region & view.truss_mask).any()
     # no kept pixel has a neighbour across a depth jump (the tank's silhouette against its plate)

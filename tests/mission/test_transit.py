@@ -152,7 +152,7 @@ def test_same_seed_same_visits_frames_and_suns() -> None:
         built = load("truss", seed=SEED, arm=True)
         tour = Tour(built, seed=SEED, size=TINY)
         tour.start_pass("inspection", 500.0)
-        frames = [tour.visit(name, name, state="inspection").frame.raw for name in ("A_kapton", "B_tank")]
+        frames = [tour.visit(name, name, state="inspection").frames[0].raw for name in ("A_kapton", "B_tank")]
         runs.append((frames, tour.transits, tour.suns))
         built.close()
     (first_frames, first, first_suns), (second_frames, second, second_suns) = runs
@@ -170,12 +170,18 @@ def test_same_seed_same_visits_frames_and_suns() -> None:
 def test_a_visit_takes_the_frame_from_where_the_arm_holds_the_camera(world: World) -> None:
     tour = Tour(world, seed=SEED, size=TINY)
     tour.start_pass("reference", 400.0)
-    view = tour.visit("A_kapton", "A_kapton", state="reference", truth=False)
+    taken = tour.visit("A_kapton", "A_kapton", state="reference", truth=False)
+    label, view = tour.views[-1]
     moved = tour.transits[-1]
-    assert moved.reached and view.vista == "A_kapton"
+    assert moved.reached and taken.vista == view.vista == label == "A_kapton"
     assert np.allclose(view.pose.position_m, moved.camera_m, atol=1e-12)
     # the repeatability error, drawn as World.render draws it ("lab": 1-2 px), plus the arm's own miss
     assert 0.8 < math.hypot(*view.pose_error_px) < 2.2
+    # the robot believes the commanded pose: the repeatability error (flexure, seed §2.3) is not in it
+    unknown_px = (
+        np.linalg.norm(taken.believed_pose.position_m - view.pose.position_m) * view.pose.focal_px / 0.5
+    )
+    assert 0.5 < unknown_px < 2.5
     sun = tour.suns[-1]
     assert sun.time_s == pytest.approx(400.0 + moved.duration_s)
     assert tour.clock_s == pytest.approx(sun.time_s + 1 / 30)

@@ -163,16 +163,19 @@ def inspection_region(sensed: Sensed, settings: MissionSettings) -> NDArray[np.b
     error (parallax), and the truss struts behind a plate or a tank's silhouette then differ by whole edges.
     The robot knows its CAD model and believes its pose; the stereo pair measures the range (seed §3): the
     region is the components' surfaces, less a guard band (``settings.inspection_guard_px``) around the
-    model's truss and around every jump of more than ``settings.depth_jump_m`` in the measured range.
+    model's truss and around every jump of more than ``settings.depth_jump_m`` in the model's depth or in
+    the measured range.
     """
     import cv2
 
-    depth, truss = sensed.surface_m, sensed.capture.cad.truss
+    cad = sensed.capture.cad
     side = 2 * settings.inspection_guard_px + 1
     band = np.ones((side, side), np.uint8)
-    near = np.minimum(depth, np.float32(FAR_M))
-    jump = cv2.dilate(near, band) - cv2.erode(near, band) > settings.depth_jump_m
-    off = cv2.dilate(truss.astype(np.uint8), band).astype(bool) | jump | (depth >= FAR_M)
+    off = cv2.dilate(cad.truss.astype(np.uint8), band).astype(bool)
+    # the model's silhouettes and the measured range's jumps: the matcher smooths a jump over its window
+    for depth in (cad.expected_depth_m, sensed.surface_m):
+        near = np.minimum(depth, np.float32(FAR_M))
+        off |= (cv2.dilate(near, band) - cv2.erode(near, band) > settings.depth_jump_m) | (depth >= FAR_M)
     return ~off
 
 
