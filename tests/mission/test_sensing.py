@@ -47,12 +47,23 @@ TRUTH_ATTRIBUTES = frozenset(
         "views",
     }
 )
+# what the world alone knows: its fields and its repeatability draws (the sensors' models read them)
+WORLD_TRUTH = frozenset({"temperature_k", "gas_concentration_ppm", "repeatability", "anomalies"})
 SIZE = (240, 320)
 
 
 def _attributes(path: Path) -> set[str]:
     tree = ast.parse(path.read_text(encoding="utf-8"))
     return {node.attr for node in ast.walk(tree) if isinstance(node, ast.Attribute)}
+
+
+def _world_attributes(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    return {
+        node.attr
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "world"
+    }
 
 
 def _imports(path: Path) -> set[str]:
@@ -64,6 +75,7 @@ def _imports(path: Path) -> set[str]:
 def test_no_finding_module_reads_the_truth(module: str) -> None:
     read = _attributes(MISSION / module) & TRUTH_ATTRIBUTES
     assert not read, f"{module} reads the simulator's truth: {sorted(read)}"
+    assert not _world_attributes(MISSION / module) & WORLD_TRUTH
     assert not _imports(MISSION / module) & {"rsi.mission.truth", "rsi.mission.score"}
 
 
@@ -75,8 +87,9 @@ def test_the_run_hands_truth_only_to_scoring() -> None:
 
 
 def test_the_check_sees_a_truth_read() -> None:
-    # the scan above must be able to fail: the truth module itself reads the masks
+    # the scans above must be able to fail: the truth module reads the masks, the run the world's truth
     assert "flaw_masks" in _attributes(MISSION / "truth.py")
+    assert "anomalies" in _world_attributes(MISSION / "run.py")
 
 
 @pytest.fixture(scope="module")

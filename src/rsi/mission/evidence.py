@@ -98,10 +98,8 @@ def blobs(pair: PairResult, view: Sensed) -> list[Look]:
 def screw_relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:
     """Height of the screw head above the plate around it in the stereo range map (seed §3, §4 screws).
 
-    A head stands 2 mm proud (the mock-up's screws); a removed one leaves the plate and a flat hole. The image alone
-    tells them apart poorly (the hole is as dark as the slot, the plate as bright as the head, and the
-    head's pattern correlates with the hole's at 0.43 against 0.42 for a present head, seeds 0-19);
-    the relief's median over ~45 head pixels has a noise of ~0.1 mm. NaN when the view holds too few.
+    A head stands 2 mm proud (the mock-up's screws); a removed one leaves the plate and a flat hole. NaN
+    when the map holds too few matched pixels on the head or the plate around it.
     """
     distance = surface_distance_m(range_m.shape, view, site.position_m)
     radius = 0.5 * site.size_m
@@ -128,13 +126,13 @@ def screw_checks(
     """Screws the frame sees and no earlier visit checked (`done`): a head 2 mm proud of the plate, or gone
     (seed §4: screws randomly removed).
 
-    Two measurements, the first that can answer decides. The relief in the stereo range map against the
-    reference's: matched stereo resolves a 2 mm head only where its range noise, sigma_Z = Z^2 sigma_d / (f B),
-    is well under it (a 6 cm baseline at 0.5 m gives ~1.4 mm per pixel, and the matcher's window smooths a
-    5 mm head into its plate), so a relief change counts only when both reliefs were measured and the
-    change exceeds ``settings.screw_relief_lost_m``. Otherwise the comparison with the reference (seed
-    §2.4): a head that is gone changes the image over its disc (the hole and the plate where the head was),
-    and a dark-flaw score above the confirming threshold `confirm` there is the screw's loss.
+    Two measurements, the first that can answer decides. First the relief in the stereo range map against
+    the reference's. Matched stereo resolves a 2 mm head only where its range noise is well under it:
+    sigma_Z = Z^2 sigma_d / (f B) is ~1.4 mm per pixel for a 6 cm baseline at 0.5 m, and the matcher's
+    window smooths a 5 mm head into its plate. So a relief change counts only when both reliefs were
+    measured and it exceeds ``settings.screw_relief_lost_m``. Otherwise the comparison with the reference
+    (seed §2.4): a head that is gone changes the image over its disc, and a dark-flaw score above the
+    confirming threshold `confirm` there is the screw's loss.
 
     Returns the missing screws' findings and the names of the screws this view checked.
     """

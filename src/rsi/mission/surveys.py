@@ -4,7 +4,6 @@ the MOS gas sensor along the tubing (the active leak).
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -25,31 +24,13 @@ def pyrometer_pass(
     world: World, rng: np.random.Generator, settings: MissionSettings
 ) -> tuple[list[MissionFinding], dict[str, float]]:
     """Read each Kapton circle with the pyrometer aimed from 0.5 m (seed §3-4) -> hot and cold spots."""
-    from rsi.sensors.pyrometer import Pyrometer, read_pyrometer
-    from rsi.sim.fields import emissivity
+    from rsi.sensors.pyrometer import Pyrometer
 
     instrument = Pyrometer()
-    sites = world.mockup.candidates.peltier_sites
-    spot_radius_m = 0.5 * float(instrument.spot_diameter_m(0.5))
-    low, high = {"lab": (0.0, 1e-3), "space": (2e-3, 6e-3)}[world.repeatability]
     findings: list[MissionFinding] = []
     readings: dict[str, float] = {}
-    for site in sites:
-        normal = np.asarray(site.normal)
-        u = np.cross(normal, (0.0, 0.0, 1.0))
-        u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-9 else np.array([1.0, 0.0, 0.0])
-        w = np.cross(normal, u)
-        # the laser-sighted spot misses the circle's centre by the arm's repeatability
-        miss, angle = rng.uniform(low, high), rng.uniform(0.0, 2 * math.pi)
-        centre = np.asarray(site.position_m) + miss * (math.cos(angle) * u + math.sin(angle) * w)
-        radii, angles = np.meshgrid(np.linspace(0.0, spot_radius_m, 4), np.linspace(0, 2 * math.pi, 8))
-        points = centre + radii.reshape(-1, 1) * (
-            np.cos(angles).reshape(-1, 1) * u + np.sin(angles).reshape(-1, 1) * w
-        )
-        temperature = world.temperature_k(points)
-        eps = emissivity(points, site.surface, kapton_sites=sites)
-        # the optics average radiance over the spot, i.e. one reading of the mean scene
-        reading = read_pyrometer(float(np.mean(temperature)), float(np.mean(eps)), instrument, rng=rng)
+    for site in world.mockup.candidates.peltier_sites:
+        reading = world.read_pyrometer(site, standoff_m=0.5, pyrometer=instrument, rng=rng)
         temperature_k = float(reading.temperature_k)
         readings[site.name] = temperature_k
         delta = temperature_k - ROOM_TEMPERATURE_K
@@ -57,7 +38,7 @@ def pyrometer_pass(
             findings.append(
                 MissionFinding(
                     kind="hot_spot" if delta > 0 else "cold_spot",
-                    position_m=tuple(float(x) for x in centre),  # type: ignore[arg-type]
+                    position_m=site.position_m,  # where the spot was aimed
                     size_m=site.size_m,
                     confidence=confidence(
                         (abs(delta) - settings.thermal_threshold_k) / instrument.noise_std_k
@@ -87,15 +68,14 @@ def gas_pass(
     world: World, rng: np.random.Generator, settings: MissionSettings
 ) -> tuple[list[MissionFinding], FloatArray, FloatArray]:
     """Dwell the MOS sensor at each station (seed §3 H) and locate the leak along the tubing."""
-    from rsi.sensors.gas import MosGasSensor, read_gas
+    from rsi.sensors.gas import MosGasSensor
 
     sensor = MosGasSensor()
     stations = gas_stations(world, settings)
     per_station = int(settings.gas_dwell_s * sensor.sample_rate_hz)
     samples = np.repeat(np.arange(len(stations)), per_station)
     times = settings.gas_survey_start_s + np.arange(samples.size) / sensor.sample_rate_hz
-    concentration = world.gas_concentration_ppm(stations[samples], times)
-    readings = read_gas(concentration, sensor, rng=rng)
+    readings = world.read_gas(stations[samples], times, sensor=sensor, rng=rng)
     tail = int(2.0 * sensor.sample_rate_hz)  # the last 2 s of each dwell, the sensor nearly settled
     estimate = readings.estimated_ppm.reshape(len(stations), per_station)[:, -tail:].mean(axis=1)
     findings: list[MissionFinding] = []

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -65,6 +65,11 @@ from rsi.sim.solar_simulator import (
 F32 = NDArray[np.float32]
 BoolArray = NDArray[np.bool_]
 
+if TYPE_CHECKING:
+    from rsi.sensors.gas import GasReadings, MosGasSensor
+    from rsi.sensors.pyrometer import Pyrometer, PyrometerReading
+    from rsi.sim.anomalies import Site
+
 SCENES = ("truss",)
 # Seed §2.3 viewpoint repeatability, as the image shift it causes at the vista's standoff: the lab arm
 # returns within 1-2 px; in orbit arm flexibility and thermal expansion give about 10 px.
@@ -90,6 +95,8 @@ _TRUTH_DEPTH_TOLERANCE_M = 5e-3
 # 2 pi / 2**17 = 48 urad per joint, and six joints over the arm's ~1 m reach put ~0.1 mm and ~0.1 mrad at the
 # camera. Flexure and thermal growth (seed §2.3) are outside the encoders and stay in the visit's error.
 ENCODER_POSITION_SIGMA_M = 1e-4
+# how far the pyrometer's laser-sighted spot misses its aim: the arm's repeatability at the tool
+_PYROMETER_MISS_M = {"lab": (0.0, 1e-3), "space": (2e-3, 6e-3)}
 ENCODER_ANGLE_SIGMA_RAD = 1e-4
 _TRUSS_PARTS = ("longeron_", "batten_", "node_", "diagonal_")  # the frame the components hang on (seed §4)
 _MARKER_COLOURS = {
@@ -419,6 +426,42 @@ class World:
     def gas_concentration_ppm(self, points_m: object, time_s: object) -> NDArray[np.float64]:
         """Ammonia concentration at world points and times from the active leaks (seed §4)."""
         return fields.gas_concentration_ppm(points_m, time_s, self.anomalies)
+
+    def read_pyrometer(
+        self, site: Site, *, standoff_m: float, pyrometer: Pyrometer, rng: np.random.Generator
+    ) -> PyrometerReading:
+        """The ISEE pyrometer aimed at `site` from `standoff_m` (seed §3-4): one reading of its spot.
+
+        The laser-sighted spot misses the site by the arm's repeatability (drawn here: the robot does not
+        know it), and the optics average the radiance over the spot: one reading of its mean temperature
+        and emissivity, through the instrument's model (:func:`rsi.sensors.pyrometer.read_pyrometer`).
+        """
+        from rsi.sensors.pyrometer import read_pyrometer
+
+        low, high = _PYROMETER_MISS_M[self.repeatability]
+        normal = np.asarray(site.normal)
+        u = np.cross(normal, (0.0, 0.0, 1.0))
+        u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-9 else np.array([1.0, 0.0, 0.0])
+        w = np.cross(normal, u)
+        miss, angle = rng.uniform(low, high), rng.uniform(0.0, 2 * math.pi)
+        centre = np.asarray(site.position_m) + miss * (math.cos(angle) * u + math.sin(angle) * w)
+        radius = 0.5 * float(pyrometer.spot_diameter_m(standoff_m))
+        radii, angles = np.meshgrid(np.linspace(0.0, radius, 4), np.linspace(0, 2 * math.pi, 8))
+        points = centre + radii.reshape(-1, 1) * (
+            np.cos(angles).reshape(-1, 1) * u + np.sin(angles).reshape(-1, 1) * w
+        )
+        temperature = float(np.mean(self.temperature_k(points)))
+        kapton = self.mockup.candidates.peltier_sites
+        eps = float(np.mean(fields.emissivity(points, site.surface, kapton_sites=kapton)))
+        return read_pyrometer(temperature, eps, pyrometer, rng=rng)
+
+    def read_gas(
+        self, points_m: object, time_s: object, *, sensor: MosGasSensor, rng: np.random.Generator
+    ) -> GasReadings:
+        """The ISEE's MOS gas sensor sampled at world points and times (seed §3 H), through its model."""
+        from rsi.sensors.gas import read_gas
+
+        return read_gas(self.gas_concentration_ppm(points_m, time_s), sensor, rng=rng)
 
     # ------------------------------------------------------------------------------------------ frames
 
