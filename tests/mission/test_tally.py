@@ -149,6 +149,13 @@ def test_a_records_own_subtype_wins() -> None:
     assert subtype_of(named) == "bright-uniform"
 
 
+def test_strata_need_an_anomaly() -> None:
+    with pytest.raises(InputError, match="anomaly"):
+        size_band("impact")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="anomaly"):
+        subtype_of(None)  # type: ignore[arg-type]
+
+
 def test_finding_kinds_are_the_simulators_anomaly_kinds() -> None:
     assert set(FINDING_KINDS) == set(ANOMALY_KINDS)
 
@@ -291,8 +298,10 @@ def test_tally_merges_and_round_trips_through_json() -> None:
 
 
 def test_tally_refuses_bad_input() -> None:
-    with pytest.raises(InputError, match="runs must be a sequence"):
+    with pytest.raises(InputError, match="runs must be a tuple"):
         Tally(5)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="confidence"):
+        Tally().per_stratum(confidence=1.5)
     with pytest.raises(InputError, match="runs must hold only RunTally"):
         Tally((RUN_A, "run"))  # type: ignore[arg-type]
     with pytest.raises(InputError, match=r"seeds \[0\] more than once"):

@@ -10,7 +10,7 @@ another (a resumed or split benchmark) and round-trips through JSON (:meth:`Tall
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from statistics import NormalDist
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -110,9 +110,21 @@ def poisson_rate_interval(events: int, runs: int, confidence: float = CONFIDENCE
 # ------------------------------------------------------------------------------------------ strata
 
 
+def _anomaly(value: object) -> Anomaly:
+    from rsi.sim.anomalies import Anomaly
+
+    return v.instance_of(value, "anomaly", Anomaly, none_allowed=False)
+
+
 def size_band(anomaly: Anomaly) -> str:
-    """An impact's diameter band (``"<1 mm"``, ``"1-2 mm"``, ``"2-4 mm"``, ``">=4 mm"``); ``"n/a"`` else."""
-    if anomaly.kind != "impact":
+    """An impact's diameter band (``"<1 mm"``, ``"1-2 mm"``, ``"2-4 mm"``, ``">=4 mm"``); ``"n/a"`` else.
+
+    Raises
+    ------
+    InputError
+        If `anomaly` is not an :class:`rsi.sim.anomalies.Anomaly`.
+    """
+    if _anomaly(anomaly).kind != "impact":
         return "n/a"
     below = sum(anomaly.size_m >= edge for edge in IMPACT_BAND_EDGES_M)
     return SIZE_BANDS[below]
@@ -120,8 +132,14 @@ def size_band(anomaly: Anomaly) -> str:
 
 def subtype_of(anomaly: Anomaly) -> str:
     """The anomaly's subtype for stratified scoring: its own ``subtype`` where the record has one, else one
-    derived from the kind's fields (the narrow draw: impacts all dark, discolouring whole and darker)."""
-    own = getattr(anomaly, "subtype", None)
+    derived from the kind's fields (the narrow draw: impacts all dark, discolouring whole and darker).
+
+    Raises
+    ------
+    InputError
+        If `anomaly` is not an :class:`rsi.sim.anomalies.Anomaly`.
+    """
+    own = getattr(_anomaly(anomaly), "subtype", None)
     if isinstance(own, str) and own:
         return own
     kind = anomaly.kind
@@ -395,8 +413,8 @@ class Tally:
 
     def __post_init__(self) -> None:
         runs = self.runs
-        if isinstance(runs, (str, bytes)) or not isinstance(runs, Iterable):
-            raise InputError(f"runs must be a sequence of RunTally; got {runs!r}.")
+        if not isinstance(runs, (tuple, list)):
+            raise InputError(f"runs must be a tuple of RunTally; got {type(runs).__name__}.")
         runs = tuple(runs)
         if not all(isinstance(run, RunTally) for run in runs):
             raise InputError(f"runs must hold only RunTally (from tally_run); got {runs!r}.")
@@ -444,6 +462,7 @@ class Tally:
 
     def per_stratum(self, confidence: float = CONFIDENCE) -> dict[Stratum, Recall]:
         """Recall in each stratum present, sorted; impacts under 1 mm included (band ``"<1 mm"``)."""
+        _z(confidence)  # checked even when there is no run
         found: dict[Stratum, list[int]] = {}
         for outcome in (o for run in self.runs for o in run.outcomes):
             entry = found.setdefault(outcome.stratum, [0, 0])
