@@ -62,6 +62,7 @@ MODULES = (
     "rsi.datasets.rendered",
     "rsi.mission.plan",
     "rsi.mission.score",
+    "rsi.mission.tally",
     "rsi.units",
 )
 # Covered elsewhere, not here: each runs a whole simulation or cluster for seconds per call.

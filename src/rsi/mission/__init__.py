@@ -7,7 +7,8 @@
   :mod:`~rsi.mission.views` a view's geometry, :mod:`~rsi.mission.surveys` pyrometer and gas,
   :mod:`~rsi.mission.store` the archive writes;
 - :func:`score_mission` (:mod:`~rsi.mission.score`) against ground truth; the records in
-  :mod:`~rsi.mission.records`;
+  :mod:`~rsi.mission.records`; many scored missions tallied with Wilson intervals
+  (:class:`Tally`, :func:`tally_run`, :mod:`~rsi.mission.tally`);
 - :func:`inspect_pair` (from :mod:`rsi.detection.pair`) one reference/inspection pair;
   :mod:`~rsi.mission.batch` many pairs on dask.
 
@@ -28,8 +29,21 @@ from rsi.mission.records import (
     VisitImages,
     VisitRecord,
     counts_towards_recall,
+    scored_type,
 )
 from rsi.mission.settings import MISSION_SIZE, MissionSettings
+from rsi.mission.tally import (
+    AnomalyFree,
+    Outcome,
+    Rate,
+    Recall,
+    RunTally,
+    Stratum,
+    Tally,
+    poisson_rate_interval,
+    tally_run,
+    wilson_interval,
+)
 
 if TYPE_CHECKING:
     from rsi.detection.pair import PairResult, Score, inspect_pair, score_flaws
@@ -63,21 +77,32 @@ __all__ = [
     "ORBIT_START_S",
     "PLAN",
     "SCORED_TYPES",
+    "AnomalyFree",
     "Miss",
     "MissionFinding",
     "MissionResult",
     "MissionScore",
     "MissionSettings",
+    "Outcome",
     "PairResult",
     "PlanPoint",
+    "Rate",
+    "Recall",
+    "RunTally",
     "Score",
+    "Stratum",
+    "Tally",
     "TypeScore",
     "VisitImages",
     "VisitRecord",
     "counts_towards_recall",
     "inspect_pair",
     "plan_vistas",
+    "poisson_rate_interval",
     "run_mission",
     "score_flaws",
     "score_mission",
+    "scored_type",
+    "tally_run",
+    "wilson_interval",
 ]

@@ -30,6 +30,11 @@ IMPACT_MIN_SIZE_M = (
 )
 
 
+def scored_type(kind: str) -> str:
+    """The scored type of an anomaly or finding kind: hot and cold spots are one type, ``thermal_spot``."""
+    return "thermal_spot" if kind in ("hot_spot", "cold_spot") else kind
+
+
 def counts_towards_recall(anomaly: Anomaly) -> bool:
     """Whether `anomaly` counts towards recall: every anomaly but an impact under IMPACT_MIN_SIZE_M."""
     return anomaly.kind != "impact" or anomaly.size_m >= IMPACT_MIN_SIZE_M

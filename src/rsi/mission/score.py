@@ -18,6 +18,7 @@ from rsi.mission.records import (
     MissionResult,
     VisitRecord,
     counts_towards_recall,
+    scored_type,
 )
 from rsi.mission.settings import MissionSettings
 
@@ -35,7 +36,6 @@ _MATCH_RADIUS_M = {
     "cold_spot": 0.03,
     "gas_leak": 0.03,
 }
-_TYPE_OF = {"hot_spot": "thermal_spot", "cold_spot": "thermal_spot"}
 
 
 @dataclass(frozen=True)
@@ -155,7 +155,7 @@ def _tally(
     }
     misses: list[Miss] = []
     for k, anomaly in enumerate(anomalies):
-        kind_type = _TYPE_OF.get(anomaly.kind, anomaly.kind)
+        kind_type = scored_type(anomaly.kind)
         if not counts_towards_recall(anomaly):
             continue
         entry = per_type[kind_type]
@@ -167,7 +167,7 @@ def _tally(
             misses.append(Miss(k, anomaly.kind, _why_missed(result, k, anomaly)))
     for i, finding in enumerate(result.findings):
         if i not in used_findings:
-            per_type[_TYPE_OF.get(finding.kind, finding.kind)]["false"] += 1
+            per_type[scored_type(finding.kind)]["false"] += 1
     return per_type, misses
 
 
