@@ -120,7 +120,7 @@ def screw_checks(
     range_m: NDArray[np.float32],
     reliefs: Mapping[str, float],
     done: frozenset[str],
-    pair: PairResult,
+    pairs: tuple[PairResult, PairResult],
     confirm: float,
 ) -> tuple[list[MissionFinding], frozenset[str]]:
     """Screws the frame sees and no earlier visit checked (`done`): a head 2 mm proud of the plate, or gone
@@ -132,7 +132,8 @@ def screw_checks(
     window smooths a 5 mm head into its plate. So a relief change counts only when both reliefs were
     measured and it exceeds ``settings.screw_relief_lost_m``. Otherwise the comparison with the reference
     (seed §2.4): a head that is gone changes the image over its disc, and a dark-flaw score above the
-    confirming threshold `confirm` there is the screw's loss.
+    confirming threshold `confirm` there against *both* pristine visits (`pairs`: a head's relief renders
+    differently at each viewpoint, and what one reference's sampling made is not new) is the screw's loss.
 
     Returns the missing screws' findings and the names of the screws this view checked.
     """
@@ -144,7 +145,7 @@ def screw_checks(
         lost = reliefs.get(site.name, math.nan) - screw_relief_m(range_m, view, site)
         if math.isfinite(lost) and lost > settings.screw_relief_lost_m:
             margin, score = (lost - settings.screw_relief_lost_m) / 2e-4, lost
-        elif (change := screw_change(pair, view, site)) > confirm:
+        elif (change := min(screw_change(pair, view, site) for pair in pairs)) > confirm:
             margin, score = change - confirm, change
         else:
             continue

@@ -165,7 +165,7 @@ def inspect_visit(
         range_m=view.range_m,
         reliefs=stored.reliefs,
         done=screws_checked,
-        pair=comparison.pair,
+        pairs=(comparison.pair, compare(stored.second, inspection, p_first, settings, comparison.scale)),
         confirm=limits.confirm,
     )
     checks = component_checks(
