@@ -215,7 +215,8 @@ def test_an_impact_darkens_a_discoloured_replacement_by_its_own_fraction() -> No
     plain, _, _ = scene_mjcf(mockup, AnomalySet((spot,)))
     on_faded, _, _ = scene_mjcf(mockup, AnomalySet((faded, spot)))
     assert _attribute(on_faded, "material", "impact_1", "rgba")[:3] == pytest.approx(
-        0.6 * _attribute(plain, "material", "impact_0", "rgba")[:3]
+        0.6 * _attribute(plain, "material", "impact_0", "rgba")[:3],
+        rel=1e-5,  # 6 digits in the MJCF
     )
     assert _attribute(on_faded, "material", "C_panel_swapped", "rgba")[:3] == pytest.approx(
         0.6 * _attribute(plain, "material", "solar_cell", "rgba")[:3]
