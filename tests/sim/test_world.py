@@ -19,7 +19,7 @@ from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.world import REPEATABILITY_PX, World, load
 
 SMALL = (120, 160)
-SEED = 5  # the conftest world's seed and draw (the seed mock-up's): five impacts on the solar panel
+SEED = 101  # the conftest world's seed and draw (the seed mock-up's): four impacts in the panel view
 SETTINGS = AnomalySettings.seed_mockup()
 
 
@@ -58,7 +58,7 @@ def load_and_render() -> object:
 
 def test_every_visible_flaw_is_dark_where_its_mask_says(world: World) -> None:
     view = world.render("C_panel", size=(480, 640))
-    assert len(view.flaw_masks) >= 3  # this seed plants its impacts on the panel, three in this view
+    assert len(view.flaw_masks) >= 4  # this seed plants four impacts in the panel view
     compensated = compensate_interlaced(view.frame)
     field = compensated.image
     checked = 0
