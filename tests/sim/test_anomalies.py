@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import doctest
 import json
+import math
 from typing import Any
 
 import numpy as np
@@ -19,6 +20,7 @@ from rsi.sim.anomalies import (
     AnomalySet,
     AnomalySettings,
     Candidates,
+    CylinderPatch,
     GasLeak,
     Impact,
     MissingScrew,
@@ -452,3 +454,206 @@ def test_bad_truth_raises() -> None:
     flipped = "cold_spot" if entries[0]["kind"] == "hot_spot" else "hot_spot"
     with pytest.raises(InputError, match="kind"):
         AnomalySet.from_dict(truth | {"anomalies": [entries[0] | {"kind": flipped}]})
+
+
+# ------------------------------------------------------------------------------------ the wide draw
+
+
+def test_wide_draw_spreads_counts_kinds_and_strengths() -> None:
+    """Issue 13: 0-8 impacts, 0-2 swaps and leaks, 2-40 K, leaks over two decades, ~1 run in 10 empty."""
+    from rsi.sim.mockup import SURFACES, truss_mockup
+
+    candidates = truss_mockup().candidates
+    worlds = [seed_anomalies(candidates, rng=seed) for seed in range(300)]
+    empty = sum(len(world) == 0 for world in worlds)
+    assert 15 <= empty <= 45  # binomial(300, 0.1): 30 +- 5
+    counts = [world.counts() for world in worlds if len(world)]
+    assert {c["impact"] for c in counts} == set(range(9))
+    assert {c["swapped_component"] for c in counts} == {0, 1, 2}
+    assert {c["gas_leak"] for c in counts} == {0, 1, 2}
+    records = [item for world in worlds for item in world.anomalies]
+    deltas = [abs(item.delta_k) for item in records if isinstance(item, ThermalSpot)]
+    assert 2.0 <= min(deltas) < 4.0 and 38.0 < max(deltas) <= 40.0
+    ppm = np.log10([item.exit_ppm for item in records if isinstance(item, GasLeak)])
+    assert ppm.min() < np.log10(700) and ppm.max() > np.log10(35000)
+    impacts = [item for item in records if isinstance(item, Impact)]
+    assert {item.surface for item in impacts} == set(SURFACES)
+    assert {item.subtype for item in impacts} == {
+        "dark-uniform",
+        "dark-crater",
+        "bright-uniform",
+        "bright-crater",
+    }
+    bright = np.mean([item.polarity == "bright" for item in impacts])
+    assert 0.18 < bright < 0.32
+    contrast = [item.darkening for item in impacts]
+    assert min(contrast) < 0.12 and max(contrast) > 0.78
+    sizes = [item.size_m for item in impacts]
+    assert min(sizes) < 0.6e-3 and max(sizes) > 3.9e-3
+    swaps = [item for item in records if isinstance(item, SwappedComponent)]
+    assert {item.subtype for item in swaps} == {
+        "dent",
+        "discolour-whole-darker",
+        "discolour-whole-brighter",
+        "discolour-patch-darker",
+        "discolour-patch-brighter",
+    }
+    depths = [item.dent_depth_m for item in swaps if item.defect == "dented"]
+    assert min(depths) < 2e-3 and max(depths) > 9e-3
+
+
+def test_impacts_lie_on_their_surface_and_follow_the_area() -> None:
+    from rsi.sim.mockup import truss_mockup
+
+    candidates = truss_mockup().candidates
+    patches = {patch.name: patch for patch in candidates.impact_patches}
+    chosen = dataclasses.replace(SEED_MOCKUP, impact_count_range=(400, 400))
+    impacts = seed_anomalies(candidates, rng=1, settings=chosen).of_kind("impact")
+    for impact in impacts:
+        patch = patches[impact.site]
+        assert isinstance(impact, Impact)
+        if isinstance(patch, CylinderPatch):
+            offset = np.asarray(impact.position_m) - np.asarray(patch.centre_m)
+            along = float(offset @ np.asarray(patch.axis))
+            radial = offset - along * np.asarray(patch.axis)
+            # on the skin, the normal radial, inside the window a radius clear of its edges
+            assert float(np.linalg.norm(radial)) == pytest.approx(patch.radius_m, abs=1e-12)
+            assert np.asarray(impact.normal) == pytest.approx(radial / patch.radius_m, abs=1e-12)
+            assert abs(along) <= patch.half_length_m - impact.size_m / 2 + TOLERANCE_M
+            angle = math.acos(min(1.0, float(np.asarray(impact.normal) @ np.asarray(patch.front))))
+            assert angle <= patch.half_angle_rad - impact.size_m / 2 / patch.radius_m + 1e-9
+    # micrometeoroid flux is uniform per unit area: the panel (about half the area) takes about half
+    area = {name: patch.area_m2 for name, patch in patches.items()}
+    share = area["C_cells"] / sum(area.values())
+    on_panel = np.mean([impact.site == "C_cells" for impact in impacts])
+    assert abs(on_panel - share) < 4 * math.sqrt(share * (1 - share) / len(impacts))
+
+
+def test_cylinder_patch_places_points_on_its_skin() -> None:
+    patch = CylinderPatch("tank", (0, 0, 0), (0, 0, 2), (0, -1, 0.5), 0.05, 0.1, math.pi / 3)
+    assert patch.front == pytest.approx((0, -1, 0))
+    assert patch.area_m2 == pytest.approx(4 * 0.05 * math.pi / 3 * 0.1)
+    middle, normal = patch.place((0.5, 0.5), 0.0)
+    assert middle == pytest.approx((0, -0.05, 0)) and normal == pytest.approx((0, -1, 0))
+    corner, normal = patch.place((1.0, 0.0), 0.0)
+    assert corner[2] == pytest.approx(-0.1) and math.acos(-normal[1]) == pytest.approx(math.pi / 3)
+    assert patch.fits(0.05) and not patch.fits(0.06)  # 60 deg of a 5 cm radius: 52 mm of arc
+
+
+@pytest.mark.parametrize(
+    ("arguments", "argument"),
+    [
+        ({"front": (0, 0, 1)}, "front"),
+        ({"radius_m": 0.0}, "radius_m"),
+        ({"half_length_m": -1.0}, "half_length_m"),
+        ({"half_angle_rad": 4.0}, "half_angle_rad"),
+        ({"axis": (0, 0, 0)}, "axis"),
+    ],
+)
+def test_bad_cylinder_patch_raises(arguments: dict[str, Any], argument: str) -> None:
+    base: dict[str, Any] = {
+        "name": "tank",
+        "centre_m": (0, 0, 0),
+        "axis": (0, 0, 1),
+        "front": (0, -1, 0),
+        "radius_m": 0.05,
+        "half_length_m": 0.1,
+        "half_angle_rad": 1.0,
+    }
+    with pytest.raises(InputError, match=argument):
+        CylinderPatch(**(base | arguments))
+
+
+def test_defects_sit_on_the_component_s_visible_surfaces() -> None:
+    from rsi.sim.mockup import truss_mockup
+
+    candidates = truss_mockup().candidates
+    chosen = dataclasses.replace(AnomalySettings(), anomaly_free_probability=0.0)
+    swaps = [
+        item
+        for seed in range(60)
+        for item in seed_anomalies(candidates, rng=seed, settings=chosen).anomalies
+        if isinstance(item, SwappedComponent) and item.subtype != "discolour-whole-darker"
+    ]
+    centred = 0
+    for swap in swaps:
+        centre, _ = swap.defect_at
+        if swap.subtype.startswith("discolour-whole"):
+            assert centre == swap.position_m and swap.defect_radius_m == 0.0
+            continue
+        (patch,) = candidates.dent_patches[swap.site]
+        middle, _ = patch.place((0.5, 0.5), 0.0)
+        centred += centre == middle
+        # the whole dent (rim) or patch lies inside the visible surface
+        if isinstance(patch, Patch):
+            offset = np.asarray(centre) - np.asarray(patch.centre_m)
+            reach = np.abs([offset @ np.asarray(patch.u_axis), offset @ np.asarray(patch.v_axis)])
+            assert np.all(reach <= np.asarray(patch.half_extent_m) - swap.defect_radius_m + 1e-12)
+    assert centred == 0  # issue 13: off centre
+    fixed = seed_anomalies(candidates, rng=4, settings=SEED_MOCKUP).of_kind("swapped_component")
+    for swap in fixed:  # the seed mock-up's dent at the middle of the visible face
+        assert isinstance(swap, SwappedComponent)
+        (patch,) = candidates.dent_patches[swap.site]
+        assert swap.subtype in ("dent", "discolour-whole-darker")
+        if swap.defect == "dented":
+            assert swap.defect_at[0] == patch.place((0.5, 0.5), 0.0)[0]
+
+
+def test_a_run_may_be_free_of_anomalies() -> None:
+    chosen = dataclasses.replace(SEED_MOCKUP, anomaly_free_probability=1.0)
+    assert len(seed_anomalies(CANDIDATES, rng=0, settings=chosen)) == 0
+
+
+def test_subtypes_of_every_kind() -> None:
+    common: dict[str, Any] = {"site": "s", "position_m": (0, 0, 0), "normal": (0, 0, 1), "size_m": 0.002}
+    assert ThermalSpot(**common, surface="kapton", delta_k=-3.0).subtype == "cold"
+    assert ThermalSpot(**common, surface="kapton", delta_k=3.0).subtype == "hot"
+    bands = [GasLeak(**common, surface="tubing", exit_ppm=ppm).subtype for ppm in (600.0, 5000.0, 40000.0)]
+    assert bands == ["weak", "medium", "strong"]
+    assert MissingScrew(**common, surface="plate").subtype == "screw"
+    spot = Impact(**common, surface="door", profile="crater", polarity="bright", centre_diameter_m=0.001)
+    assert spot.subtype == "bright-crater"
+    patch = SwappedComponent(
+        **common, surface="panel", defect="discoloured", reflectance_factor=1.3, defect_radius_m=0.02
+    )
+    assert patch.subtype == "discolour-patch-brighter"
+
+
+def test_truth_written_before_subtypes_still_reads() -> None:
+    """Older truth: no subtype, no polarity, no defect centre, and the crater profile called "peak"."""
+    world = seed_anomalies(CANDIDATES, rng=2, settings=SEED_MOCKUP)
+    truth = json.loads(json.dumps(world.to_dict()))
+    new_fields = {"subtype", "polarity", "defect_centre_m", "defect_normal", "defect_radius_m"}
+    entries = [{k: v for k, v in entry.items() if k not in new_fields} for entry in truth["anomalies"]]
+    for entry in entries:
+        if entry.get("profile") == "crater":
+            entry["profile"] = "peak"
+    old = AnomalySet.from_dict(truth | {"anomalies": entries})
+    assert [item.subtype for item in old.anomalies] == [item.subtype for item in world.anomalies]
+    assert all(item.polarity == "dark" for item in old.of_kind("impact"))  # type: ignore[attr-defined]
+
+
+def test_settings_from_a_dict_and_presets() -> None:
+    assert anomalies_module.preset("wide") == AnomalySettings()
+    assert anomalies_module.preset("seed-mockup") == SEED_MOCKUP
+    chosen = AnomalySettings.from_dict({"preset": "seed-mockup", "impact_count_range": [2, 3]})
+    assert chosen == dataclasses.replace(SEED_MOCKUP, impact_count_range=(2, 3))
+    assert AnomalySettings.from_dict({}) == AnomalySettings()
+    with pytest.raises(InputError, match="unknown fields"):
+        AnomalySettings.from_dict({"impact_count": 3})
+    with pytest.raises(InputError, match="JSON object"):
+        AnomalySettings.from_dict([1, 2])  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="preset"):
+        anomalies_module.preset("narrow")
+    with pytest.raises(InputError, match="impact_count_range"):
+        AnomalySettings.from_dict({"impact_count_range": [3, 1]})
+
+
+def test_bad_dent_patches_raise() -> None:
+    patch = Patch("p", (0, 0, 0), (0, 0, 1), (1, 0, 0), (0.1, 0.1))
+    with pytest.raises(InputError, match="dent_patches"):
+        dataclasses.replace(CANDIDATES, dent_patches={"no_such_tank": (patch,)})
+    with pytest.raises(InputError, match="dent_patches"):
+        dataclasses.replace(CANDIDATES, dent_patches=[patch])  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="dent_patches"):
+        dataclasses.replace(CANDIDATES, dent_patches={"tank_0": (CANDIDATES.screw_sites[0],)})
