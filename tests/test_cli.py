@@ -361,7 +361,7 @@ def test_import_and_help_stay_light() -> None:
 
 def test_sim_render_writes_both_visits_the_truth_and_the_overview(tmp_path: Path) -> None:
     result = invoke("sim", "render", "--seed", "3", "--vista", "C_panel", "--rows", "120", "--cols", "160",
-                    "--out", tmp_path)  # fmt: skip
+                    "--anomalies", "seed-mockup", "--out", tmp_path)  # fmt: skip
     assert result.exit_code == 0, result.output
     for state in ("reference", "inspection"):
         assert (tmp_path / f"C_panel_{state}_frame.png").read_bytes().startswith(PNG_SIGNATURE)
@@ -369,6 +369,73 @@ def test_sim_render_writes_both_visits_the_truth_and_the_overview(tmp_path: Path
         assert truth["seed"] == 3 and truth["vista"] == "C_panel"
     assert (tmp_path / "overview.png").read_bytes().startswith(PNG_SIGNATURE)
     assert "impact" in result.stdout
+
+
+def test_sim_render_takes_the_anomaly_draw_from_a_json_file(tmp_path: Path) -> None:
+    fields = {"impact_count_range": [3, 3], "impact_bright_probability": 1.0, "anomaly_free_probability": 0}
+    settings = tmp_path / "anomalies.json"
+    settings.write_text(json.dumps(fields))
+    options = ("--anomalies", "seed-mockup", "--anomalies-json", settings, "--out", tmp_path)
+    result = invoke("sim", "render", "--seed", "3", "--vista", "C_panel", "--rows", "64", "--cols", "64",
+                    *options)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    truth = json.loads((tmp_path / "C_panel_inspection_truth.json").read_text())["anomalies"]
+    assert truth["counts"]["impact"] == 3 and truth["counts"]["gas_leak"] == 1  # the seed mock-up's leak
+    impacts = [entry for entry in truth["anomalies"] if entry["kind"] == "impact"]
+    assert {entry["subtype"].split("-")[0] for entry in impacts} == {"bright"}
+    assert "subtype" in result.stdout
+
+
+def test_demo_passes_the_anomaly_draw_to_the_mission(tmp_path: Path) -> None:
+    import rsi.mission.run
+    from rsi.errors import InputError
+    from rsi.sim.anomalies import AnomalySettings
+
+    seen: dict[str, Any] = {}
+
+    def stop(seed: int, **kwargs: Any) -> None:
+        seen.update(kwargs)
+        raise InputError("stopped after the settings were passed")
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(rsi.mission.run, "run_mission", stop)
+        result = invoke("demo", "--anomalies", "seed-mockup", "--out", tmp_path / "out")
+    assert result.exit_code == cli.EXIT_INVALID_VALUE and "stopped after" in result.stderr
+    assert seen["anomalies"] == AnomalySettings.seed_mockup()
+
+
+def test_anomaly_draw_choices_follow_the_presets() -> None:
+    from rsi.sim.anomalies import ANOMALY_PRESETS
+
+    assert tuple(draw.value for draw in cli.AnomalyDraw) == ANOMALY_PRESETS
+
+
+@pytest.mark.parametrize("command", [("demo",), ("sim", "render")])
+@pytest.mark.parametrize(
+    ("content", "code", "message"),
+    [
+        (None, cli.EXIT_USAGE, "narrow"),
+        ("missing", cli.EXIT_FILE, "anomalies-json"),
+        ("{not json", cli.EXIT_FILE, "anomalies-json"),
+        ("[1, 2]", cli.EXIT_INVALID_VALUE, "not a JSON object"),
+        ('{"impact_count": 3}', cli.EXIT_INVALID_VALUE, "impact_count"),
+        ('{"impact_count_range": [8, 0]}', cli.EXIT_INVALID_VALUE, "impact_count_range"),
+        ('{"anomaly_free_probability": 2}', cli.EXIT_INVALID_VALUE, "anomaly_free_probability"),
+    ],
+)
+def test_bad_anomaly_draw_is_refused_by_name(
+    command: tuple[str, ...], content: str | None, code: int, message: str, tmp_path: Path
+) -> None:
+    settings = tmp_path / "anomalies.json"
+    if content is None:
+        options: tuple[str | Path, ...] = ("--anomalies", "narrow")
+    else:
+        options = ("--anomalies-json", settings)
+        if content != "missing":
+            settings.write_text(content)
+    result = invoke(*command, *options, "--out", tmp_path / "out")
+    assert result.exit_code == code, result.output
+    assert message in result.stderr
 
 
 def test_sim_sun_writes_the_lamp_trajectory(tmp_path: Path) -> None:

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from rsi.detection.roc import RocCurve
     from rsi.mission import MissionResult, MissionScore
     from rsi.mission.proximity_records import Check
+    from rsi.sim.anomalies import AnomalySettings
 
 EXIT_OK = 0
 EXIT_USAGE = 2
@@ -95,6 +96,13 @@ class Repeatability(str, Enum):
     space = "space"
 
 
+class AnomalyDraw(str, Enum):
+    """Named anomaly draws of ``rsi.sim.anomalies.ANOMALY_PRESETS`` (kept in step by a test)."""
+
+    wide = "wide"
+    seed_mockup = "seed-mockup"
+
+
 class Split(str, Enum):
     """DeepPCB splits."""
 
@@ -109,6 +117,45 @@ PFalseAlarmOption = Annotated[float, typer.Option(help="Per-pixel false-alarm pr
 PolarityOption = Annotated[Polarity, typer.Option(help="Which changes count as flaws.")]
 RegistrationModelOption = Annotated[RegistrationModel, typer.Option(help="Registration motion model.")]
 MethodOption = Annotated[Method, typer.Option(help="Likelihood-ratio test or erosion approximation.")]
+# The world's anomaly draw, shared by `rsi demo` and `rsi sim render` (issue 13).
+AnomaliesOption = Annotated[
+    AnomalyDraw,
+    typer.Option(
+        "--anomalies",
+        help="Anomaly draw: 'wide' (issue 13: 0-8 impacts, dark and bright, on every visible surface, "
+        "0-2 swaps and leaks, 2-40 K, one run in ten without anomalies) or 'seed-mockup' (the paper's "
+        "fixed selection).",
+    ),
+]
+AnomaliesJsonOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--anomalies-json",
+        help="JSON object of AnomalySettings fields overriding the --anomalies draw, "
+        'e.g. {"impact_count_range": [2, 4], "impact_bright_probability": 0.5}.',
+    ),
+]
+
+
+def _anomaly_settings(draw: AnomalyDraw, json_path: Path | None) -> AnomalySettings:
+    """The draw named on the command line, with the fields of `json_path` (if any) overriding it."""
+    from rsi.sim.anomalies import AnomalySettings
+
+    fields: dict[str, Any] = {}
+    if json_path is not None:
+        try:
+            fields = json.loads(json_path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+            raise FileError(
+                f"--anomalies-json {str(json_path)!r} is not a readable JSON file ({error}). "
+                "Pass a file holding a JSON object of AnomalySettings fields."
+            ) from error
+        if not isinstance(fields, dict):
+            raise InputError(
+                f"--anomalies-json {str(json_path)!r} holds a {type(fields).__name__}, not a JSON object of "
+                'AnomalySettings fields, e.g. {"impact_count_range": [2, 4]}.'
+            )
+    return AnomalySettings.from_dict({"preset": draw.value, **fields})
 
 
 app = typer.Typer(
@@ -239,6 +286,8 @@ def demo(
     out: Annotated[
         Path, typer.Option("--out", help="Results folder (created if missing; earlier runs are kept).")
     ] = DEFAULT_OUT,
+    anomalies: AnomaliesOption = AnomalyDraw.wide,
+    anomalies_json: AnomaliesJsonOption = None,
 ) -> None:
     """The whole inspection mission over the simulated truss mock-up, scored, archived and reported.
     Reference pass, anomalies, inspection pass with active second looks, pyrometer and gas surveys (seed
@@ -247,6 +296,7 @@ def demo(
     """
     with _errors():
         _out_folder(out)
+        settings = _anomaly_settings(anomalies, anomalies_json)
         import time
 
         from rsi.archive import Archive
@@ -257,7 +307,7 @@ def demo(
         _results_folder(out)
         with Archive.open(out / "archive.db") as archive, _progress_bar("mission") as update:
             stages = _FinalStage(update, "report")
-            result = run_mission(seed, archive=archive, progress=stages.update)
+            result = run_mission(seed, archive=archive, progress=stages.update, anomalies=settings)
             scoring_s = time.perf_counter()
             score = score_mission(result)
             scoring_s = time.perf_counter() - scoring_s
@@ -611,17 +661,20 @@ def sim_render(
     repeatability: Annotated[
         Repeatability, typer.Option(help="Viewpoint repeatability of each visit (seed §2.3).")
     ] = Repeatability.lab,
+    anomalies: AnomaliesOption = AnomalyDraw.wide,
+    anomalies_json: AnomaliesJsonOption = None,
 ) -> None:
     """Visit a vista twice (reference, then inspection with anomalies) and write what the camera saw."""
     with _errors():
         _out_folder(out)
+        settings = _anomaly_settings(anomalies, anomalies_json)
         from rich.table import Table
 
         import rsi.sim
         from rsi.datasets.rendered import render_vista_to_folder
         from rsi.report.sim import write_overview
 
-        world = rsi.sim.load("truss", seed=seed, repeatability=repeatability.value)
+        world = rsi.sim.load("truss", seed=seed, repeatability=repeatability.value, settings=settings)
         name = _pick_vista(world.vistas, vista)
         files: dict[str, Path] = {}
         with _progress_bar("render") as update:
@@ -632,14 +685,16 @@ def sim_render(
             files.update(write_overview(out, world.overview_picture()))
             update("overview", 3, 3)
         table = Table(title=f"World seed {seed}: anomalies (ground truth)")
-        for column in ("#", "kind", "site", "x m", "y m", "z m", "size mm"):
+        for column in ("#", "kind", "subtype", "surface", "site", "x m", "y m", "z m", "size mm"):
             table.add_column(column)
         for number, anomaly in enumerate(world.anomalies.anomalies):
             x, y, z = anomaly.position_m
             table.add_row(
-                str(number), anomaly.kind, anomaly.site, f"{x:.3f}", f"{y:.3f}", f"{z:.3f}",
-                f"{1000 * anomaly.size_m:.1f}",
+                str(number), anomaly.kind, anomaly.subtype, anomaly.surface, anomaly.site,
+                f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{1000 * anomaly.size_m:.1f}",
             )  # fmt: skip
+        if not world.anomalies.anomalies:
+            table.caption = "no anomalies this run (the wide draw leaves about one run in ten clean)"
         console = _stdout()
         console.print(table)
         console.print(f"Vista {name!r} ({', '.join(world.vistas)}). Wrote {len(files)} files to {out}/.")

@@ -6,6 +6,7 @@ import math
 import os
 import re
 from collections import Counter
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -14,7 +15,18 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.sim.anomalies import AnomalySet, Impact, Site, SwappedComponent
-from rsi.sim.dent import BoxMesh, Crater, box_mesh, crater_on_box, crater_surface, local_rotation
+from rsi.sim.dent import (
+    BoxMesh,
+    Crater,
+    SkinDent,
+    box_mesh,
+    crater_on_box,
+    crater_surface,
+    dent_on_skin,
+    local_rotation,
+    skin_mesh,
+    skin_surface,
+)
 from rsi.sim.mockup import Mockup, truss_mockup
 from rsi.sim.scene import scene_mjcf
 
@@ -215,8 +227,50 @@ def test_an_impact_darkens_a_discoloured_replacement_by_its_own_fraction() -> No
     plain, _, _ = scene_mjcf(mockup, AnomalySet((spot,)))
     on_faded, _, _ = scene_mjcf(mockup, AnomalySet((faded, spot)))
     assert _attribute(on_faded, "material", "impact_1", "rgba")[:3] == pytest.approx(
-        0.6 * _attribute(plain, "material", "impact_0", "rgba")[:3]
+        0.6 * _attribute(plain, "material", "impact_0", "rgba")[:3],
+        rel=1e-5,  # 6 digits in the MJCF
     )
     assert _attribute(on_faded, "material", "C_panel_swapped", "rgba")[:3] == pytest.approx(
         0.6 * _attribute(plain, "material", "solar_cell", "rgba")[:3]
     )
+
+
+@pytest.mark.parametrize("capsule", [False, True])
+def test_skin_mesh_is_closed_and_holds_its_volume(capsule: bool) -> None:
+    radius, half = 0.045, 0.075
+    flat = skin_mesh(radius, half, capsule=capsule, repeat_per_m=10.0)
+    solid = math.pi * radius**2 * 2 * half + (4 / 3 * math.pi * radius**3 if capsule else 0.0)
+    # a polygon of 29 sides of 1 cm inscribed in the 45 mm circle: (2 pi / 29)^2 / 6 = 0.8 % less area
+    assert _signed_volume(flat) == pytest.approx(solid, rel=1.5e-2)
+    dent = SkinDent(angle_rad=-math.pi / 2, height_m=0.01, depth_m=0.006, radius_m=0.04)
+    dented = skin_mesh(radius, half, capsule=capsule, repeat_per_m=10.0, dent=dent)
+    edges = _edges(dented)
+    assert all(edges[(end, start)] == n for (start, end), n in edges.items())
+    # the dent takes volume away (pressed in, not proud): pi a^2 d / 3 of a flat crater, less the skin's
+    # curvature (the sunk skin is shorter by (1 - sink / R)), on the same grid without the dent
+    same_grid = skin_mesh(radius, half, capsule=capsule, repeat_per_m=10.0, dent=replace(dent, depth_m=0.0))
+    removed = _signed_volume(same_grid) - _signed_volume(dented)
+    assert removed == pytest.approx(math.pi * 0.04**2 * 0.006 / 3, rel=0.1)
+    # at the dent's centre (azimuth -90 deg: the -y side, 1 cm up) the skin is pressed in by the depth
+    x, y, z = dented.vertices.T
+    centre = (np.abs(x) < 5e-4) & (np.abs(z - 0.01) < 5e-4) & (y < 0)
+    assert y[centre].max() == pytest.approx(-(radius - dent.depth_m), abs=1e-5)
+
+
+def test_skin_surface_lies_on_the_dented_mesh() -> None:
+    radius, half, pos, zaxis = 0.07, 0.12, (0.9, -0.4, 1.2), (1.0, 0.0, 0.0)
+    dent = SkinDent(angle_rad=0.3, height_m=0.02, depth_m=0.008, radius_m=0.046)
+    rotation = local_rotation(zaxis)
+    centre = np.array([radius * math.cos(0.3), radius * math.sin(0.3), 0.02])
+    point, normal = skin_surface(dent, radius, pos, zaxis, tuple(rotation @ centre + np.asarray(pos)))
+    expected = rotation @ (centre * np.array([1 - dent.depth_m / radius] * 2 + [1.0])) + np.asarray(pos)
+    assert point == pytest.approx(expected, abs=1e-12)
+    assert normal == pytest.approx(rotation @ np.array([math.cos(0.3), math.sin(0.3), 0.0]), abs=1e-12)
+    # off the dent the skin is round and untouched
+    far = np.array([radius, 0.0, -0.1])
+    point, normal = skin_surface(dent, radius, pos, zaxis, tuple(rotation @ far + np.asarray(pos)))
+    assert point == pytest.approx(rotation @ far + np.asarray(pos)) and normal == pytest.approx(
+        rotation[:, 0]
+    )
+    placed = dent_on_skin(radius, half, pos, zaxis, tuple(point), depth_m=0.2, radius_m=0.5)
+    assert placed.depth_m == pytest.approx(0.5 * radius) and placed.radius_m < half

@@ -97,7 +97,12 @@ def test_no_spots_and_an_anomaly_set_are_accepted() -> None:
     world = seed_anomalies(
         Candidates(peltier_sites=sites),
         rng=0,
-        settings=AnomalySettings(active_leak_count=0, impact_count=0, swapped_component_count=0),
+        settings=AnomalySettings(
+            anomaly_free_probability=0.0,
+            active_leak_count_range=(0, 0),
+            impact_count_range=(0, 0),
+            swapped_component_count_range=(0, 0),
+        ),
     )
     centres = [spot.position_m for spot in world.thermal_spots]
     expected = [AMBIENT_K + spot.delta_k for spot in world.thermal_spots]
@@ -215,7 +220,13 @@ def test_leaks_add_and_an_anomaly_set_is_accepted() -> None:
     world = seed_anomalies(
         Candidates(leak_sites=leaks),
         rng=0,
-        settings=AnomalySettings(active_peltier_count=0, impact_count=0, swapped_component_count=0),
+        settings=AnomalySettings(
+            active_peltier_count=0,
+            active_leak_count_range=(1, 1),
+            impact_count_range=(0, 0),
+            swapped_component_count_range=(0, 0),
+            anomaly_free_probability=0.0,
+        ),
     )
     (leak,) = world.gas_leaks
     np.testing.assert_array_equal(

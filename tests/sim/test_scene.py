@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 
@@ -42,7 +43,7 @@ def test_vistas_look_at_their_target_from_the_standoff() -> None:
 
 def test_anomalies_go_to_their_geom_groups() -> None:
     mockup = truss_mockup()
-    settings = AnomalySettings(missing_screw_count=2, impact_count=3, swapped_component_count=1)
+    settings = replace(AnomalySettings.seed_mockup(), missing_screw_count=2, impact_count_range=(3, 3))
     anomalies = seed_anomalies(mockup.candidates, rng=5, settings=settings)
     model, index = build_model(mockup, anomalies)
     import mujoco

@@ -192,3 +192,180 @@ def _face(
     if np.dot(np.cross(e_first, e_second), outward) < 0:
         triangles = triangles[:, ::-1]
     return points, uv, triangles
+
+
+# ------------------------------------------------------------------------------------- cylinders, capsules
+
+SKIN_SEGMENTS_PER_M = 100.0  # grid lines around and along a tank's skin: every centimetre, as a box face
+CAP_RINGS = 8
+
+
+@dataclass(frozen=True)
+class SkinDent:
+    """A dent in the side of a cylinder or capsule, in its own frame (axis along the local z).
+
+    Attributes
+    ----------
+    angle_rad : float
+        Azimuth of the dent's centre around the local z, from the local x axis.
+    height_m : float
+        Position of the centre along the local z, metres.
+    depth_m : float
+        Depth at the centre, metres (radially inwards).
+    radius_m : float
+        Radius of the rim, measured along the skin, metres.
+    """
+
+    angle_rad: float
+    height_m: float
+    depth_m: float
+    radius_m: float
+
+
+def dent_on_skin(
+    radius: float,
+    half_length: float,
+    pos: tuple[float, float, float],
+    zaxis: tuple[float, float, float],
+    point_m: tuple[float, float, float],
+    *,
+    depth_m: float,
+    radius_m: float,
+) -> SkinDent:
+    """The dent centred at world `point_m` on the side of a cylinder or capsule (`radius`, `half_length`)."""
+    local = local_rotation(zaxis).T @ (np.asarray(point_m, dtype=float) - np.asarray(pos, dtype=float))
+    # the rim stays on the side (a dent wider than the tank would fold it) and the centre clear of the ends
+    rim = min(radius_m, 0.95 * half_length, 0.5 * np.pi * radius)
+    height = float(np.clip(local[2], -half_length + rim, half_length - rim))
+    return SkinDent(float(np.arctan2(local[1], local[0])), height, min(depth_m, 0.5 * radius), rim)
+
+
+def _skin_sink(dent: SkinDent, radius: float, angle: F64, height: F64) -> tuple[F64, F64, F64]:
+    """Radial sink ``depth (1 - s^2 / rim^2)^2`` at skin points, ``s`` the distance along the skin, and its
+    slopes along the arc and the axis (the same profile as a box's crater)."""
+    arc = radius * (np.angle(np.exp(1j * (angle - dent.angle_rad))))
+    along = height - dent.height_m
+    inside = np.clip(1.0 - (arc**2 + along**2) / dent.radius_m**2, 0.0, None)
+    sink = dent.depth_m * inside**2
+    scale = -4.0 * dent.depth_m * inside / dent.radius_m**2
+    return sink, scale * arc, scale * along
+
+
+def skin_surface(
+    dent: SkinDent,
+    radius: float,
+    pos: tuple[float, float, float],
+    zaxis: tuple[float, float, float],
+    point_m: tuple[float, float, float],
+) -> tuple[F64, F64]:
+    """World point and outward unit normal of the dented skin under `point_m` (a point of the round skin).
+
+    A spot planted before the blow follows the metal into the dent, as on a box (:func:`crater_surface`).
+    """
+    rotation = local_rotation(zaxis)
+    local = rotation.T @ (np.asarray(point_m, dtype=float) - np.asarray(pos, dtype=float))
+    angle = float(np.arctan2(local[1], local[0]))
+    sink, slope_arc, slope_along = (
+        float(value[0]) for value in _skin_sink(dent, radius, np.array([angle]), np.array([local[2]]))
+    )
+    radial = np.array([np.cos(angle), np.sin(angle), 0.0])
+    tangent = np.array([-np.sin(angle), np.cos(angle), 0.0])
+    point = (radius - sink) * radial + np.array([0.0, 0.0, local[2]])
+    # the sink deepens towards the centre: the normal leans towards it by the slope (as crater_surface)
+    normal = radial + slope_arc * tangent + slope_along * np.array([0.0, 0.0, 1.0])
+    return rotation @ point + np.asarray(pos, dtype=float), rotation @ (normal / np.linalg.norm(normal))
+
+
+def skin_mesh(
+    radius: float, half_length: float, *, capsule: bool, repeat_per_m: float, dent: SkinDent | None = None
+) -> BoxMesh:
+    """A closed mesh of a cylinder (flat ends) or capsule (round ends) along the local z, flat or dented.
+
+    The side is a grid in azimuth and height, refined to :data:`CRATER_SPACING_M` over the dent, its seam
+    opposite the dent; each end is its own set of rings, so a cylinder's rims stay sharp.
+    """
+    centre = 0.0 if dent is None else dent.angle_rad
+    step = 1.0 / (SKIN_SEGMENTS_PER_M * radius)
+    angles = np.linspace(centre - np.pi, centre + np.pi, max(int(np.ceil(2 * np.pi / step)), 16) + 1)
+    heights = _grid_lines(half_length, None, 0.0)
+    if dent is not None:
+        span = dent.radius_m / radius
+        count = max(int(np.ceil(2 * dent.radius_m / CRATER_SPACING_M)), 8)
+        angles = np.unique(np.concatenate([angles, np.linspace(centre - span, centre + span, count + 1)]))
+        heights = _grid_lines(half_length, dent.height_m, dent.radius_m)
+    scale = repeat_per_m / 2  # as a box face: half the material's repeat per metre
+    grid_angle, grid_height = np.meshgrid(angles, heights, indexing="ij")
+    sink = np.zeros_like(grid_angle)
+    if dent is not None:
+        sink = _skin_sink(dent, radius, grid_angle, grid_height)[0]
+    reach = radius - sink
+    side = np.column_stack(
+        [(reach * np.cos(grid_angle)).ravel(), (reach * np.sin(grid_angle)).ravel(), grid_height.ravel()]
+    )
+    side_uv = np.column_stack(
+        [scale * radius * (grid_angle - angles[0]).ravel(), scale * grid_height.ravel()]
+    )
+    triangles = _grid_triangles(len(angles), len(heights))
+    parts = [(side, side_uv, triangles)]
+    for sign in (1, -1):
+        parts.append(_end(radius, half_length, angles, sign, capsule=capsule, scale=scale))
+    vertices, texcoords, faces, count = [], [], [], 0
+    for points, uv, tris in parts:
+        vertices.append(points)
+        texcoords.append(uv)
+        faces.append(_outward(points, tris, half_length, capsule) + count)
+        count += len(points)
+    return BoxMesh(np.concatenate(vertices), np.concatenate(texcoords), np.concatenate(faces))
+
+
+def _grid_triangles(n_a: int, n_b: int) -> NDArray[np.int64]:
+    corner = (np.arange(n_a - 1)[:, None] * n_b + np.arange(n_b - 1)[None, :]).ravel()
+    lower = np.column_stack([corner, corner + n_b, corner + n_b + 1])
+    upper = np.column_stack([corner, corner + n_b + 1, corner + 1])
+    return np.concatenate([lower, upper]).astype(np.int64)
+
+
+def _end(
+    radius: float, half_length: float, angles: F64, sign: int, *, capsule: bool, scale: float
+) -> tuple[F64, F64, NDArray[np.int64]]:
+    """Rings from the rim to the pole of one end: a hemisphere (capsule) or a flat disc (cylinder)."""
+    polar = np.linspace(0.0, 0.5 * np.pi, CAP_RINGS + 1)[:-1]
+    rings = radius * np.cos(polar) if capsule else radius * (1.0 - np.arange(CAP_RINGS) / CAP_RINGS)
+    lift = radius * np.sin(polar) if capsule else np.zeros(CAP_RINGS)
+    grid_angle, grid_ring = np.meshgrid(angles, np.arange(CAP_RINGS), indexing="ij")
+    reach, height = rings[grid_ring], sign * (half_length + lift[grid_ring])
+    ring_points = np.column_stack(
+        [(reach * np.cos(grid_angle)).ravel(), (reach * np.sin(grid_angle)).ravel(), height.ravel()]
+    )
+    pole = np.array([[0.0, 0.0, sign * (half_length + (radius if capsule else 0.0))]])
+    points = np.concatenate([ring_points, pole])
+    triangles = [_grid_triangles(len(angles), CAP_RINGS)]
+    last = np.arange(len(angles) - 1) * CAP_RINGS + CAP_RINGS - 1
+    triangles.append(np.column_stack([last, last + CAP_RINGS, np.full(len(last), len(points) - 1)]))
+    uv = scale * points[:, :2]
+    return points, uv, np.concatenate(triangles)
+
+
+def _outward(
+    points: F64, triangles: NDArray[np.int64], half_length: float, capsule: bool
+) -> NDArray[np.int64]:
+    """The triangles wound so that every normal points out of the solid (away from its axis segment)."""
+    a, b, c = (points[triangles[:, k]] for k in range(3))
+    normal = np.cross(b - a, c - a)
+    centroid = (a + b + c) / 3
+    if capsule:
+        inside = np.column_stack(
+            [np.zeros((len(centroid), 2)), np.clip(centroid[:, 2], -half_length, half_length)]
+        )
+        reference = centroid - inside
+    else:
+        on_end = np.abs(np.abs(centroid[:, 2]) - half_length) < 1e-12
+        reference = np.where(
+            on_end[:, None],
+            np.column_stack([np.zeros((len(centroid), 2)), np.sign(centroid[:, 2])]),
+            np.column_stack([centroid[:, :2], np.zeros(len(centroid))]),
+        )
+    flip = np.einsum("ij,ij->i", normal, reference) < 0
+    wound = triangles.copy()
+    wound[flip] = wound[flip][:, ::-1]
+    return wound

@@ -18,13 +18,13 @@ Nothing here imports MuJoCo: :mod:`rsi.sim.scene` turns :func:`truss_mockup` int
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from rsi import _validate as v
 from rsi.errors import InputError
-from rsi.sim.anomalies import Candidates, Patch, Site
+from rsi.sim.anomalies import Candidates, CylinderPatch, Patch, Site, Surface
 
 Vector3 = tuple[float, float, float]
 
@@ -41,6 +41,11 @@ LEAK_HOLE_RADIUS_M = 1.5e-3
 VISTA_STANDOFF_M = 0.5  # seed §2.1: a ~0.1 m^2 scene at a typical inspection standoff
 DOOR_HINGE_AXIS = (0.0, 0.0, -1.0)
 SHAPES = ("box", "cylinder", "capsule", "sphere")
+# What an anomaly sits on (its truth `surface`, for stratified scoring; issue 13): the ORU's skin, its door,
+# a Kapton circle, a tank, tubing, a bead-blasted base plate, the solar panel's cells.
+SURFACES = ("oru_face", "door", "kapton", "tank", "tubing", "plate", "panel")
+# The part of a round skin a camera in front sees well: +-60 deg, foreshortened at most by half.
+SKIN_HALF_ANGLE_RAD = np.pi / 3
 
 
 @dataclass(frozen=True)
@@ -206,7 +211,7 @@ def _screw_sites(
     ]
 
 
-def _oru_a() -> tuple[list[Part], list[Site], list[Patch], Vector3]:
+def _oru_a() -> tuple[list[Part], list[Site], list[Surface], Vector3]:
     """Electrical ORU (A): body, door pocket with connectors and cold plate, Kapton circles."""
     back, front, face = _MOUNT_Y_M, _MOUNT_Y_M - 0.14, A_FACE_Y_M  # pocket 20 mm deep
     cx, cz = 0.3, TRUSS_Z0_M + BAY_M / 2
@@ -297,13 +302,13 @@ def _oru_a() -> tuple[list[Part], list[Site], list[Patch], Vector3]:
                 2 * KAPTON_RADIUS_M,
             )
         )
-    patches = [
+    patches: list[Surface] = [
         # above and below the Kapton circles, so that a planted spot is never hidden under one
         Patch(
-            "A_face_upper", vector3(0.38, face, cz + 0.1125), _FRONT, (1, 0, 0), (0.085, 0.0225), "aluminium"
+            "A_face_upper", vector3(0.38, face, cz + 0.1125), _FRONT, (1, 0, 0), (0.085, 0.0225), "oru_face"
         ),
         Patch(
-            "A_face_lower", vector3(0.38, face, cz - 0.1125), _FRONT, (1, 0, 0), (0.085, 0.0225), "aluminium"
+            "A_face_lower", vector3(0.38, face, cz - 0.1125), _FRONT, (1, 0, 0), (0.085, 0.0225), "oru_face"
         ),
         Patch(
             "A_door_face",
@@ -311,13 +316,19 @@ def _oru_a() -> tuple[list[Part], list[Site], list[Patch], Vector3]:
             _FRONT,
             (1, 0, 0),
             (0.065, 0.105),
-            "aluminium",
+            "door",
         ),
+    ]
+    # the square inside each Kapton circle (issue 13: impacts on the Kapton too)
+    half = KAPTON_RADIUS_M / np.sqrt(2.0)
+    patches += [
+        Patch(f"A_kapton_patch_{k}", site.position_m, _FRONT, (1, 0, 0), (half, half), "kapton")
+        for k, site in enumerate(peltier)
     ]
     return parts, peltier, patches, hinge
 
 
-def _oru_b() -> tuple[list[Part], list[Patch]]:
+def _oru_b() -> tuple[list[Part], list[Surface]]:
     """Tank ORU (B): base plate, horizontal tank, two straps."""
     cx, cz, plate = 0.9, TRUSS_Z0_M + BAY_M / 2, _MOUNT_Y_M - 0.01
     tank_y = plate - 0.01 - 0.075
@@ -337,23 +348,34 @@ def _oru_b() -> tuple[list[Part], list[Patch]]:
                 (1.0, 0.0, 0.0),
             )
         )
-    patches = [
+    patches: list[Surface] = [
+        Patch("B_plate_top", vector3(cx, plate - 0.01, cz + 0.11), _FRONT, (1, 0, 0), (0.18, 0.02), "plate"),
         Patch(
-            "B_plate_top", vector3(cx, plate - 0.01, cz + 0.11), _FRONT, (1, 0, 0), (0.18, 0.02), "aluminium"
-        ),
-        Patch(
-            "B_plate_bottom",
-            vector3(cx, plate - 0.01, cz - 0.11),
-            _FRONT,
-            (1, 0, 0),
-            (0.18, 0.02),
-            "aluminium",
+            "B_plate_bottom", vector3(cx, plate - 0.01, cz - 0.11), _FRONT, (1, 0, 0), (0.18, 0.02), "plate"
         ),
     ]
+    # the tank's round skin between and beside the straps (a spot under a strap would be hidden)
+    for name, (start, end) in (
+        ("B_tank_left", (cx - 0.12, cx - 0.088)),
+        ("B_tank_mid", (cx - 0.072, cx + 0.072)),
+        ("B_tank_right", (cx + 0.088, cx + 0.12)),
+    ):
+        patches.append(
+            CylinderPatch(
+                name,
+                vector3((start + end) / 2, tank_y, cz),
+                (1.0, 0.0, 0.0),
+                _FRONT,
+                0.07,
+                (end - start) / 2,
+                SKIN_HALF_ANGLE_RAD,
+                "tank",
+            )
+        )
     return parts, patches
 
 
-def _panel_c() -> tuple[list[Part], list[Site], list[Patch]]:
+def _panel_c() -> tuple[list[Part], list[Site], list[Surface]]:
     """Solar panel (C) on four posts over the top face of bay 2."""
     cx, top = 1.5, TRUSS_Z0_M + BAY_M + STRUT_RADIUS_M
     surface_z = top + 0.06 + 0.006
@@ -363,14 +385,16 @@ def _panel_c() -> tuple[list[Part], list[Site], list[Patch]]:
             Part(f"C_post_{k}", "C", "cylinder", (0.008, 0.027), vector3(x, y, top + 0.027), "aluminium")
         )
     screws = [
-        Site(f"screw_C_{k}", vector3(x, y, surface_z), _UP, "solar_cell", 2 * SCREW_RADIUS_M)
+        Site(f"screw_C_{k}", vector3(x, y, surface_z), _UP, "panel", 2 * SCREW_RADIUS_M)
         for k, (x, y) in enumerate((x, y) for x in (cx - 0.245, cx + 0.245) for y in (-0.185, 0.185))
     ]
-    patches = [Patch("C_cells", vector3(cx, 0.0, surface_z), _UP, (1, 0, 0), (0.23, 0.17), "solar_cell")]
+    patches: list[Surface] = [
+        Patch("C_cells", vector3(cx, 0.0, surface_z), _UP, (1, 0, 0), (0.23, 0.17), "panel")
+    ]
     return parts, screws, patches
 
 
-def _oru_d() -> tuple[list[Part], list[Site], list[Patch]]:
+def _oru_d() -> tuple[list[Part], list[Site], list[Surface]]:
     """Tank-and-tubing ORU (D): two upright tanks, tubing, three leak holes."""
     cx, cz, plate = 1.5, TRUSS_Z0_M + BAY_M / 2, _MOUNT_Y_M - 0.01
     tank_y, tube_y, tube_r = plate - 0.01 - 0.05, plate - 0.01 - 0.05, 0.008
@@ -403,13 +427,49 @@ def _oru_d() -> tuple[list[Part], list[Site], list[Patch]]:
         )
     # seed §4: three holes on the tubing from which an ammonia mist may spray
     leaks = [
-        Site(f"leak_{k}", vector3(x, tube_y - tube_r, z), _FRONT, "aluminium", 2 * LEAK_HOLE_RADIUS_M)
+        Site(f"leak_{k}", vector3(x, tube_y - tube_r, z), _FRONT, "tubing", 2 * LEAK_HOLE_RADIUS_M)
         for k, (x, z) in enumerate(((cx - 0.04, high), (cx + 0.04, high), (cx, low)))
     ]
-    patches = [
-        Patch("D_plate_centre", vector3(cx, plate - 0.01, cz), _FRONT, (1, 0, 0), (0.04, 0.06), "aluminium")
+    patches: list[Surface] = [
+        Patch("D_plate_centre", vector3(cx, plate - 0.01, cz), _FRONT, (1, 0, 0), (0.04, 0.06), "plate")
+    ]
+    patches += [
+        CylinderPatch(
+            f"D_tank_{k}_skin", vector3(x, tank_y, cz), _UP, _FRONT, 0.045, 0.07, SKIN_HALF_ANGLE_RAD, "tank"
+        )
+        for k, x in enumerate((cx - 0.1, cx + 0.1))
+    ]
+    # the two horizontal tubes, clear of the risers at their ends; +-50 deg of a 16 mm tube
+    patches += [
+        CylinderPatch(
+            f"{name}_skin", vector3(cx, tube_y, z), (1.0, 0.0, 0.0), _FRONT, tube_r, 0.09, 0.87, "tubing"
+        )
+        for name, z in (("D_tube_high", high), ("D_tube_low", low))
     ]
     return parts, leaks, patches
+
+
+def _dent_patches(
+    a_face: float, b_patches: list[Surface], c_patches: list[Surface], d_patches: list[Surface]
+) -> dict[str, tuple[Surface, ...]]:
+    """Where a swapped component's dent or discoloured patch may be centred: the visible skin (issue 13).
+
+    The first patch of each holds the seed mock-up's centred defect: the A fill plate's middle, between the
+    Kapton circles; the B tank's front between its straps; the panel's centre; the D tank's front.
+    """
+    cz = TRUSS_Z0_M + BAY_M / 2
+    by_name = {patch.name: patch for patch in (*b_patches, *c_patches, *d_patches)}
+    tank = by_name["D_tank_0_skin"]
+    assert isinstance(tank, CylinderPatch)  # built as one in _oru_d
+    return {
+        "A_oru": (
+            Patch("A_fill_face", vector3(0.38, a_face, cz), _FRONT, (1, 0, 0), (0.09, 0.14), "oru_face"),
+        ),
+        "B_tank": (by_name["B_tank_mid"],),
+        "C_panel": (by_name["C_cells"],),
+        # a dent's rim may reach round to the tank's sides: the window is the whole front half
+        "D_tank_0": (replace(tank, half_angle_rad=np.pi / 2),),
+    }
 
 
 def _screw_parts(site: Site) -> list[Part]:
@@ -452,24 +512,26 @@ def truss_mockup() -> Mockup:
     cz = TRUSS_Z0_M + BAY_M / 2
     a_face, plate_face = A_FACE_Y_M, _MOUNT_Y_M - 0.02
     screws = (
-        _screw_sites("A", (0.155, 0.445), a_face, (cz - 0.125, cz + 0.125), "aluminium")
-        + _screw_sites("B", (0.72, 1.08), plate_face, (cz - 0.12, cz + 0.12), "aluminium")
-        + _screw_sites("D", (1.32, 1.68), plate_face, (cz - 0.12, cz, cz + 0.12), "aluminium")
+        _screw_sites("A", (0.155, 0.445), a_face, (cz - 0.125, cz + 0.125), "oru_face")
+        + _screw_sites("B", (0.72, 1.08), plate_face, (cz - 0.12, cz + 0.12), "plate")
+        + _screw_sites("D", (1.32, 1.68), plate_face, (cz - 0.12, cz, cz + 0.12), "plate")
         + c_screws
     )
     for site in screws:
         parts += _screw_parts(site)
+    # the first part of a component is the one a defect marks: the A ORU's fill plate, whose face a camera
+    # sees (its body's front lies behind the fill and the door: the hidden-dent fault of issue 13)
     components = {
-        "A_oru": ("A_body", "A_fill"),
+        "A_oru": ("A_fill", "A_body"),
         "B_tank": ("B_tank",),
         "C_panel": ("C_panel",),
         "D_tank_0": ("D_tank_0",),
     }
     component_sites = (
-        Site("A_oru", vector3(0.3, a_face, cz), _FRONT, "aluminium", 0.34),
-        Site("B_tank", vector3(0.9, plate_face - 0.15, cz), _FRONT, "aluminium", 0.38),
-        Site("C_panel", c_patches[0].centre_m, _UP, "solar_cell", 0.52),
-        Site("D_tank_0", vector3(1.4, plate_face - 0.1, cz), _FRONT, "aluminium", 0.15),
+        Site("A_oru", vector3(0.3, a_face, cz), _FRONT, "oru_face", 0.34),
+        Site("B_tank", vector3(0.9, plate_face - 0.15, cz), _FRONT, "tank", 0.38),
+        Site("C_panel", c_patches[0].centre_m, _UP, "panel", 0.52),
+        Site("D_tank_0", vector3(1.4, plate_face - 0.1, cz), _FRONT, "tank", 0.15),
     )
     candidates = Candidates(
         peltier_sites=tuple(peltier),
@@ -477,6 +539,7 @@ def truss_mockup() -> Mockup:
         screw_sites=tuple(screws),
         impact_patches=tuple(a_patches + b_patches + c_patches + d_patches),
         component_sites=component_sites,
+        dent_patches=_dent_patches(a_face, b_patches, c_patches, d_patches),
     )
     standoff = VISTA_STANDOFF_M
     vistas = [

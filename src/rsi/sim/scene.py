@@ -18,13 +18,32 @@ group 4 what they remove (removed screws, the original components: the *referenc
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cache
 from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
 
-from rsi.sim.anomalies import AnomalySet, Impact, MissingScrew, SwappedComponent
-from rsi.sim.dent import Crater, box_mesh, crater_on_box, crater_surface, local_rotation
+from rsi.sim.anomalies import (
+    DENT_RIM_M,
+    DENT_RIM_PER_DEPTH,
+    AnomalySet,
+    Impact,
+    MissingScrew,
+    SwappedComponent,
+)
+from rsi.sim.dent import (
+    BoxMesh,
+    Crater,
+    SkinDent,
+    box_mesh,
+    crater_on_box,
+    crater_surface,
+    dent_on_skin,
+    local_rotation,
+    skin_mesh,
+    skin_surface,
+)
 from rsi.sim.mockup import (
     DOOR_HINGE_AXIS,
     SCREW_RADIUS_M,
@@ -98,6 +117,8 @@ MATERIALS: dict[str, Material] = {
     "hole": Material((0.02, 0.02, 0.02), 0.0, 0.0, None),
 }
 _PLATES = ("B_plate", "D_plate")  # bead-blasted plates: matte, so that they read differently from tanks
+# The material under an anomaly, by its truth surface (rsi.sim.mockup.SURFACES); older truth named materials.
+_SURFACE_MATERIALS = {"kapton": "kapton", "panel": "solar_cell", "plate": "plate"}
 _TEXTURE_PX = 256
 _TEXTURE_REPEAT_PER_M = 10.0  # one 256-texel tile per 0.1 m: ~0.4 mm texels, finer than a pixel at 0.5 m
 # Lights: the room is dark (seed §4, black curtains); its ambient is 0.5 % of the lamp's illuminance.
@@ -155,7 +176,7 @@ def _fmt(values: tuple[float, ...] | list[float] | np.ndarray) -> str:
 
 
 def _material_xml(name: str, material: Material, factor: float = 1.0, *, mesh: bool = False) -> str:
-    rgb = _fmt([channel * factor for channel in material.rgb])
+    rgb = _fmt([min(channel * factor, 1.0) for channel in material.rgb])
     texture = ""
     if material.texture is not None and mesh:
         # a mesh carries its own texture coordinates (rsi.sim.dent), already in tiles
@@ -210,7 +231,7 @@ def _decal(
 def _impact_parts(
     index: int, impact: Impact, centre: np.ndarray, normal: np.ndarray
 ) -> tuple[list[Part], list[str]]:
-    """Seed §2.4 flaw models: a uniformly darkened disc, or one with a darker crater centre ("peak")."""
+    """Seed §2.4 flaw models: a uniform disc, or one with a stronger centre ("crater")."""
     parts = [
         _decal(
             f"impact_{index}",
@@ -222,7 +243,7 @@ def _impact_parts(
         )
     ]
     materials = [f"impact_{index}"]
-    if impact.profile == "peak" and impact.centre_diameter_m > 0:
+    if impact.profile == "crater" and impact.centre_diameter_m > 0:
         parts.append(
             _decal(
                 f"impact_{index}_core",
@@ -237,27 +258,53 @@ def _impact_parts(
     return parts, materials
 
 
+@cache
+def _texture_mean(kind: str | None) -> float:
+    """Mean of a procedural texture (1 for none): what a flat decal multiplies to match the surface."""
+    return 1.0 if kind is None else float(_texture(kind).mean()) / 255.0
+
+
+def _surface_material(surface: str) -> Material:
+    return MATERIALS[surface if surface in MATERIALS else _SURFACE_MATERIALS.get(surface, "aluminium")]
+
+
+def _spot_material(base: Material, factor: float, contrast: float, polarity: str) -> Material:
+    """A flat decal of `contrast` on `base` (scaled by `factor`), the texture's mean folded in.
+
+    Dark spots (tape, ink, soot: seed §4) lose the fraction `contrast` of the reflectance and are matte;
+    bright ones (spall, exposed metal) gain that fraction of what the surface lacks of white and keep the
+    surface's gloss.
+    """
+    rgb = [channel * factor * _texture_mean(base.texture) for channel in base.rgb]
+    if polarity == "bright":
+        return Material(tuple(c + (1.0 - c) * contrast for c in rgb), base.specular, base.shininess, None)  # type: ignore[arg-type]
+    return Material(tuple(c * (1.0 - contrast) for c in rgb), 0.05, 0.1, None)  # type: ignore[arg-type]
+
+
 def _impact_materials(index: int, impact: Impact, surface_factor: float) -> list[str]:
-    base = MATERIALS["kapton" if impact.surface == "kapton" else "aluminium"]
-    if impact.site.startswith(("B_plate", "D_plate")):
+    base = _surface_material(impact.surface)
+    if impact.site.startswith(("B_plate", "D_plate")):  # older truth named the plates' material aluminium
         base = MATERIALS["plate"]
-    if impact.site.startswith("C_"):
-        base = MATERIALS["solar_cell"]
-    flat = Material(base.rgb, 0.05, 0.1, None)  # tape and pen ink (seed §4) are matte
-    # the darkening is relative to the surface under the spot: a discoloured replacement's, if swapped
-    xml = [_material_xml(f"impact_{index}", flat, surface_factor * (1.0 - impact.darkening))]
-    if impact.profile == "peak":
-        xml.append(
-            _material_xml(f"impact_{index}_core", flat, surface_factor * (1.0 - impact.centre_darkening))
+    xml = [
+        _material_xml(
+            f"impact_{index}", _spot_material(base, surface_factor, impact.darkening, impact.polarity)
         )
+    ]
+    if impact.profile == "crater":
+        core = _spot_material(base, surface_factor, impact.centre_darkening, impact.polarity)
+        xml.append(_material_xml(f"impact_{index}_core", core))
     return xml
 
 
-def _on_box(part: Part, point: np.ndarray, tolerance_m: float = 2e-3) -> bool:
-    if part.shape != "box":
-        return False
+def _on_part(part: Part, point: np.ndarray, tolerance_m: float = 2e-3) -> bool:
+    """Whether `point` lies on the surface of a box, cylinder or capsule part (within `tolerance_m`)."""
     local = local_rotation(part.zaxis).T @ (point - np.asarray(part.pos))
-    return bool(np.all(np.abs(local) <= np.asarray(part.size) + tolerance_m))
+    if part.shape == "box":
+        return bool(np.all(np.abs(local) <= np.asarray(part.size) + tolerance_m))
+    if part.shape in ("cylinder", "capsule"):
+        radial = float(np.hypot(local[0], local[1]))
+        return abs(radial - part.size[0]) <= tolerance_m and abs(local[2]) <= part.size[1] + tolerance_m
+    return False
 
 
 def _planted(
@@ -266,20 +313,27 @@ def _planted(
     """Centre and normal of an impact's decal and the reflectance factor of the surface it lies on.
 
     Seed §4: spots and swapped components are planted independently, so a spot may land on the replacement:
-    on a discoloured one it darkens the new finish, on a dented box face it follows the crater.
+    on a discoloured one (or its discoloured patch) it changes the new finish, in a dent it follows the
+    metal (a box's crater, a tank's dented skin).
     """
     centre, normal = np.asarray(impact.position_m, dtype=float), np.asarray(impact.normal, dtype=float)
     by_name = {part.name: part for part in mockup.parts}
     for swap in swaps:
         originals = [by_name[name] for name in mockup.components[swap.site]]
-        hosts = [part for part in originals if _on_box(part, centre)]
+        hosts = [part for part in originals if _on_part(part, centre)]
         if not hosts:
             continue
+        defect_centre, _ = swap.defect_at
         if swap.defect == "discoloured":
-            return centre, normal, swap.reflectance_factor
-        if hosts[0] is originals[0]:  # the dented box of :func:`_swapped`
-            host = hosts[0]
+            inside = float(np.linalg.norm(centre - np.asarray(defect_centre))) <= swap.defect_radius_m
+            return centre, normal, swap.reflectance_factor if swap.defect_radius_m == 0 or inside else 1.0
+        host = hosts[0]
+        if host is originals[0] and host.shape == "box":  # the dented box of :func:`_swapped`
             surface, tilted = crater_surface(_crater(swap, host), host.pos, host.zaxis, impact.position_m)
+            return surface, tilted, 1.0
+        if host is originals[0]:  # a dented tank
+            dent = _skin_dent(swap, host)
+            surface, tilted = skin_surface(dent, host.size[0], host.pos, host.zaxis, impact.position_m)
             return surface, tilted, 1.0
     return centre, normal, 1.0
 
@@ -292,8 +346,9 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
     mockup : Mockup
         The geometry (:func:`rsi.sim.mockup.truss_mockup`).
     anomalies : AnomalySet
-        What to plant: impacts become dark decals, removed screws leave a hole, swapped components are
-        dented (a bulging facet) or discoloured. Thermal spots and leaks do not show in visible light.
+        What to plant: impacts become dark or bright decals, removed screws leave a hole, swapped components
+        are dented (a crater pressed into a box face or a tank's skin) or discoloured (as a whole, or a
+        patch decal). Thermal spots and leaks do not show in visible light.
 
     Returns
     -------
@@ -324,24 +379,18 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
         elif isinstance(anomaly, MissingScrew):
             heads = (anomaly.site, f"{anomaly.site}_slot")
             pristine_names.update(heads)
-            hole = _decal(
-                f"hole_{anomaly.site}",
-                np.asarray(anomaly.position_m),
-                np.asarray(anomaly.normal),
-                0.45 * SCREW_RADIUS_M,
-                material="hole",
-                lift_m=DECAL_LIFT_M,
-            )
+            hole = _hole(anomaly)
             anomaly_parts.append(hole)
             flaw_geoms[index] = (hole.name,)
             pristine_geoms[index] = heads
         elif isinstance(anomaly, SwappedComponent):
             originals = [by_name[name] for name in mockup.components[anomaly.site]]
-            pristine_names.update(part.name for part in originals)
             parts, flaw_geoms[index], extra = _swapped(index, anomaly, originals, meshes)
             anomaly_parts += parts
             (materials if anomaly.defect == "discoloured" else mesh_xml).extend(extra)
-            pristine_geoms[index] = tuple(part.name for part in originals)
+            if not _is_patch(anomaly):  # a patch lies on the original: nothing of it is replaced
+                pristine_names.update(part.name for part in originals)
+                pristine_geoms[index] = tuple(part.name for part in originals)
     hinge = np.asarray(mockup.door_hinge_m)
     world_xml, door_xml = [], []
     for part in mockup.parts:
@@ -377,14 +426,52 @@ def _material_of(part: Part) -> Material:
     return MATERIALS[_visual(part)]
 
 
+def _hole(screw: MissingScrew) -> Part:
+    """The dark threaded hole a removed screw leaves (seed §4)."""
+    return _decal(
+        f"hole_{screw.site}",
+        np.asarray(screw.position_m),
+        np.asarray(screw.normal),
+        0.45 * SCREW_RADIUS_M,
+        material="hole",
+        lift_m=DECAL_LIFT_M,
+    )
+
+
+def _is_patch(anomaly: SwappedComponent) -> bool:
+    return anomaly.defect == "discoloured" and anomaly.defect_radius_m > 0.0
+
+
+def _discoloured_patch(index: int, anomaly: SwappedComponent, part: Part) -> tuple[Part, str]:
+    """A replacement discoloured over a patch (issue 13): a flat decal of the face's finish, scaled.
+
+    Only flat faces get patches (:func:`rsi.sim.anomalies.seed_anomalies`); the decal lies flush on the face,
+    below an impact spot planted on it.
+    """
+    centre, normal = (np.asarray(value, dtype=float) for value in anomaly.defect_at)
+    base = _material_of(part)
+    flat = Material(
+        tuple(c * _texture_mean(base.texture) for c in base.rgb),  # type: ignore[arg-type]
+        base.specular,
+        base.shininess,
+        None,
+    )
+    name = f"discolour_{index}"
+    decal = _decal(name, centre, normal, anomaly.defect_radius_m, material=name, lift_m=0.0)
+    return decal, _material_xml(name, flat, anomaly.reflectance_factor)
+
+
 def _swapped(
     index: int, anomaly: SwappedComponent, originals: list[Part], meshes: dict[str, str]
 ) -> tuple[list[Part], tuple[str, ...], list[str]]:
     """Parts of a defective replacement (seed §4), the geoms that show the defect, and their assets.
 
-    The assets are materials of a discoloured component, or the meshes of a dented box (registered in
-    `meshes`).
+    The assets are materials of a discoloured component or patch, or the meshes of a dented box or tank
+    (registered in `meshes`): the dent is pressed into the first part, the one a camera sees.
     """
+    if _is_patch(anomaly):
+        decal, material = _discoloured_patch(index, anomaly, originals[0])
+        return [decal], (decal.name,), [material]
     if anomaly.defect == "discoloured":
         copies = [
             Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, f"{p.name}_swapped", p.zaxis)
@@ -398,56 +485,75 @@ def _swapped(
     copies = [
         Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, _visual(p), p.zaxis) for p in originals
     ]
-    if originals[0].shape == "box":
-        return copies, (copies[0].name,), _dented_box(anomaly, originals[0], copies[0].name, meshes)
-    dent = _dent(index, anomaly, originals[0])
-    return [*copies, dent], (dent.name,), []
+    first = originals[0]
+    if first.shape == "box":
+        crater = _crater(anomaly, first)
+        pair = (box_mesh(first.size, _TEXTURE_REPEAT_PER_M, replace(crater, depth_m=0.0)),
+                box_mesh(first.size, _TEXTURE_REPEAT_PER_M, crater))  # fmt: skip
+    else:
+        dent = _skin_dent(anomaly, first)
+        pair = tuple(  # type: ignore[assignment]
+            skin_mesh(
+                first.size[0],
+                first.size[1],
+                capsule=first.shape == "capsule",
+                repeat_per_m=_TEXTURE_REPEAT_PER_M,
+                dent=shape,
+            )
+            for shape in (replace(dent, depth_m=0.0), dent)
+        )
+    return copies, (copies[0].name,), _register_meshes((first.name, copies[0].name), pair, meshes)
 
 
 def _dent_radius_m(anomaly: SwappedComponent) -> float:
-    return 0.03 + 2.0 * anomaly.dent_depth_m
+    # truth written before issue 13 carried no rim: 3 cm plus twice the depth, as drawn today
+    if anomaly.defect_radius_m > 0.0:
+        return anomaly.defect_radius_m
+    return DENT_RIM_M + DENT_RIM_PER_DEPTH * anomaly.dent_depth_m
 
 
 def _crater(anomaly: SwappedComponent, part: Part) -> Crater:
+    centre, normal = anomaly.defect_at
     return crater_on_box(
         part.size,
         part.pos,
         part.zaxis,
-        anomaly.position_m,
-        anomaly.normal,
+        centre,
+        normal,
         depth_m=anomaly.dent_depth_m,
         radius_m=_dent_radius_m(anomaly),
     )
 
 
-def _dented_box(
-    anomaly: SwappedComponent, part: Part, swapped_name: str, meshes: dict[str, str]
-) -> list[str]:
-    """Mesh assets of a dented box (seed §4) and of the flat box it replaces, registered in `meshes`.
+def _skin_dent(anomaly: SwappedComponent, part: Part) -> SkinDent:
+    centre, _ = anomaly.defect_at
+    return dent_on_skin(
+        part.size[0],
+        part.size[1],
+        part.pos,
+        part.zaxis,
+        centre,
+        depth_m=anomaly.dent_depth_m,
+        radius_m=_dent_radius_m(anomaly),
+    )
 
-    The pristine box is drawn as a flat mesh too, so both states share one texture mapping: the reference
-    and the inspection images then differ by the crater alone.
+
+def _register_meshes(
+    names: tuple[str, str], pair: tuple[BoxMesh, BoxMesh], meshes: dict[str, str]
+) -> list[str]:
+    """Mesh assets of a dented part and of the undented part it replaces, registered in `meshes`.
+
+    The pristine part is drawn as a mesh of the same grid, so both states share one texture mapping: the
+    reference and the inspection images then differ by the dent alone.
     """
-    crater = _crater(anomaly, part)
     xml = []
-    for geom, dent in ((part.name, replace(crater, depth_m=0.0)), (swapped_name, crater)):
-        mesh = box_mesh(part.size, _TEXTURE_REPEAT_PER_M, dent)
+    for geom, mesh in zip(names, pair, strict=True):
         meshes[geom] = f"mesh_{geom}"
         xml.append(
             f'<mesh name="mesh_{geom}" vertex="{_fmt(mesh.vertices.ravel())}" '
             f'texcoord="{_fmt(mesh.texcoords.ravel())}" face="{_fmt(mesh.faces.ravel())}"/>'
         )
     return xml
-
-
-def _dent(index: int, anomaly: SwappedComponent, part: Part) -> Part:
-    """A dent in a curved skin: a flat facet sunk `dent_depth_m` into it at its site (seed §4)."""
-    normal = np.asarray(anomaly.normal)
-    radius = _dent_radius_m(anomaly)
-    # a flat disc pushed into the surface: the flat facet shades unlike the curved or painted skin around it
-    centre = np.asarray(anomaly.position_m) - normal * anomaly.dent_depth_m
-    lift = anomaly.dent_depth_m * 0.5
-    return _decal(f"dent_{index}", centre, normal, radius, material=_visual(part), lift_m=lift)
 
 
 def _document(
