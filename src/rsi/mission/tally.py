@@ -131,29 +131,14 @@ def size_band(anomaly: Anomaly) -> str:
 
 
 def subtype_of(anomaly: Anomaly) -> str:
-    """The anomaly's subtype for stratified scoring: its own ``subtype`` where the record has one, else one
-    derived from the kind's fields (the narrow draw: impacts all dark, discolouring whole and darker).
+    """The anomaly's subtype for stratified scoring (:attr:`rsi.sim.anomalies.Anomaly.subtype`).
 
     Raises
     ------
     InputError
         If `anomaly` is not an :class:`rsi.sim.anomalies.Anomaly`.
     """
-    own = getattr(_anomaly(anomaly), "subtype", None)
-    if isinstance(own, str) and own:
-        return own
-    kind = anomaly.kind
-    if kind == "impact":
-        return "dark-crater" if getattr(anomaly, "profile", "") == "peak" else "dark-uniform"
-    if kind == "swapped_component":
-        dented = getattr(anomaly, "defect", "") == "dented"
-        return "dent" if dented else "discolour-whole-darker"
-    if kind in ("hot_spot", "cold_spot"):
-        return kind.removesuffix("_spot")
-    if kind == "gas_leak":
-        decade = math.floor(math.log10(getattr(anomaly, "exit_ppm", 1.0)))
-        return f"{10**decade:g}-{10 ** (decade + 1):g} ppm"
-    return "missing"
+    return _anomaly(anomaly).subtype
 
 
 class Stratum(NamedTuple):
