@@ -154,7 +154,12 @@ def test_sigma_z_is_the_derivative_of_triangulation() -> None:
 
 @pytest.mark.parametrize(
     ("limits", "message"),
-    [((0.5, 0.4), "near < far"), ((0.0, 1.0), "depth_limits_m"), ((0.001, 0.002), "frame width")],
+    [
+        ((0.5, 0.4), "near < far"),
+        ((0.0, 1.0), "depth_limits_m"),
+        ((0.001, 0.002), "frame width"),
+        (0.5, "pair"),
+    ],
 )
 def test_bad_range_limits_are_refused_by_name(
     world: World, limits: tuple[float, float], message: str

@@ -11,6 +11,7 @@ errors of matching, nothing from the renderer.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -106,6 +107,12 @@ def range_map(
         raise InputError(
             f"left, right and rig.shape must agree; got {left.raw.shape}, {right.raw.shape} and {rig.shape}."
         )
+    if (
+        isinstance(depth_limits_m, (str, bytes))
+        or not isinstance(depth_limits_m, Sequence)
+        or len(depth_limits_m) != 2
+    ):
+        raise InputError(f"depth_limits_m must be a (near, far) pair in metres; got {depth_limits_m!r}.")
     near, far = (v.in_range(x, "depth_limits_m", low=0.0, low_inclusive=False) for x in depth_limits_m)
     if near >= far:
         raise InputError(f"depth_limits_m must be (near, far) with near < far; got {depth_limits_m!r}.")
