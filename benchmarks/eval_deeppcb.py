@@ -41,15 +41,16 @@ from rsi.datasets.evaluate import (
     detect_defects,
     evaluate_pairs,
     group_defects,
+    group_detection,
     group_of,
     leave_one_group_out,
     match_counts,
+    name_defects,
+    register_pair,
 )
 from rsi.datasets.official import OfficialTally
-from rsi.datasets.pcb_classes import classify_defects
 from rsi.datasets.pcb_learn import DefectClassifier, fit_classifier, training_labels
 from rsi.detection.detect import detect
-from rsi.imaging.registration import register
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "deeppcb"
 MID_GREY_DN = 127.5
@@ -179,7 +180,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
     """CPU time of each stage of detect_defects per pair, one thread, reading the JPEGs included."""
     cv2.setNumThreads(1)
     stages: dict[str, list[float]] = {
-        name: [] for name in ("read", "register", "detect", "group", "classify", "total")
+        name: [] for name in ("read", "register", "detect", "group", "name", "total")
     }
     for pair in pairs:
         clock = [time.thread_time()]
@@ -192,7 +193,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
         start = clock[0]
         reference, inspection = read_pair(pair)
         lap("read")
-        fit = register(reference, inspection, model=settings.registration_model)
+        fit = register_pair(reference, inspection, settings.registration_model)
         lap("register")
         detection = detect(
             reference,
@@ -206,13 +207,11 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
             misregistration_std_px=settings.misregistration_std_px,
         )
         lap("detect")
-        found = group_defects(
-            detection.mask, merge_gap_px=settings.merge_gap_px, grow_px=settings.box_padding_px + 1
-        )
+        found = group_detection(detection, settings)
         lap("group")
         template = np.where(detection.valid, inspection - detection.difference, inspection)
-        classify_defects(template, inspection, found.boxes_xyxy)
-        lap("classify")
+        name_defects(found, template, inspection)
+        lap("name")
         stages["total"].append(time.thread_time() - start)
     print(f"\nstage CPU ms per pair, one thread, {len(pairs)} pairs ({settings.registration_model})\n")
     print("| stage | median ms | mean ms |")

@@ -346,3 +346,8 @@ def test_register_pair_falls_back_to_the_identity_when_no_fit_is_plausible(
     fit = register_pair(reference, reference.copy(), "affine")
     assert fit.reason == "implausible" and not fit.converged
     np.testing.assert_array_equal(fit.matrix, np.eye(3))
+
+
+def test_detect_defects_refuses_a_classifier_of_the_wrong_type() -> None:
+    with pytest.raises(InputError, match="classifier"):
+        detect_defects(np.zeros((8, 8)), np.zeros((8, 8)), classifier="forest")  # type: ignore[arg-type]

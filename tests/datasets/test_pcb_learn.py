@@ -10,7 +10,13 @@ import pytest
 
 from rsi.datasets.deeppcb import DEFECT_TYPES, DeepPcbPair
 from rsi.datasets.evaluate import PcbDetections
-from rsi.datasets.pcb_learn import FEATURES, defect_features, fit_classifier, training_labels
+from rsi.datasets.pcb_learn import (
+    FEATURES,
+    defect_features,
+    fit_classifier,
+    train_classifier,
+    training_labels,
+)
 from rsi.errors import InputError
 
 Drawn = Callable[[str], tuple[np.ndarray, np.ndarray]]
@@ -70,3 +76,9 @@ def test_training_labels_pair_each_detection_with_its_box() -> None:
 def test_fit_classifier_refuses_bad_training_data(features: object, labels: object, message: str) -> None:
     with pytest.raises(InputError, match=message):
         fit_classifier(features, labels)
+
+
+def test_train_classifier_refuses_what_is_not_a_list_of_pairs() -> None:
+    for pairs in ("trainval", []):
+        with pytest.raises(InputError, match="pairs must be a non-empty list of DeepPcbPair"):
+            train_classifier(pairs)  # type: ignore[arg-type]

@@ -43,6 +43,7 @@ from rsi.imaging.registration import REGISTRATION_MODELS, Registration
 if TYPE_CHECKING:
     from rsi.datasets.official import OfficialTally
     from rsi.datasets.pcb_learn import DefectClassifier
+    from rsi.detection.detect import Detection
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -405,8 +406,10 @@ def register_pair(
     """
     from rsi.imaging.registration import register
 
-    for candidate in (model, "translation"):
-        fit = register(reference, inspection, model=candidate, initial=np.eye(3))
+    reference_image = as_image(reference, "reference")
+    inspection_image = as_image(inspection, "inspection")
+    for candidate in (choice(model, "model", REGISTRATION_MODELS), "translation"):
+        fit = register(reference_image, inspection_image, model=candidate, initial=np.eye(3))
         if _plausible(fit):
             return fit
     return Registration(
@@ -458,11 +461,12 @@ def detect_defects(
     PcbDetections
         In inspection-image pixels, with ``features`` to train a classifier on.
     """
-    from rsi.datasets.pcb_learn import DefectClassifier, defect_features
+    from rsi.datasets.pcb_learn import DefectClassifier
     from rsi.detection.detect import detect
-    from rsi.detection.roc import threshold_for
 
     chosen = instance_or_default(settings, "settings", DeepPcbSettings)
+    if classifier is not None:
+        instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
     reference_image = as_image(reference, "reference")
     inspection_image = as_image(inspection, "inspection")
     fit = register_pair(reference_image, inspection_image, chosen.registration_model)
@@ -480,32 +484,58 @@ def detect_defects(
         # std knows nothing of etching or local distortion, so it is floored at what these boards show.
         misregistration_std_px=chosen.misregistration_std_px,
     )
+    found = group_detection(detection, chosen)
+    # The template as the detector predicted it in the test's frame: inspection less the difference.
+    template = np.where(detection.valid, inspection_image - detection.difference, inspection_image)
+    return name_defects(found, template, inspection_image, classifier)
+
+
+def group_detection(detection: Detection, settings: DeepPcbSettings) -> PcbDetections:
+    """The defects of one detection: border cleared, grown to the per-pixel extent, merged, padded."""
+    from rsi.detection.detect import Detection
+    from rsi.detection.roc import threshold_for
+
+    instance_of(detection, "detection", Detection, none_allowed=False)
+    instance_of(settings, "settings", DeepPcbSettings, none_allowed=False)
     mask = detection.mask.copy()
-    _clear_border(mask, chosen.border_px)
+    _clear_border(mask, settings.border_px)
     # seed §2.4: the per-pixel statistic d / sigma, with the same noise model (mis-registration included).
     pixel_z = np.abs(detection.difference) / np.maximum(detection.sigma, np.float32(1e-6))
     # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
-    undo_erosion = chosen.size // 2 if chosen.method == "erosion" else 0
-    if chosen.grow_to_changes:
-        single = threshold_for(chosen.p_false_alarm, polarity="both", method="lrt", flaw_model="single")
+    undo_erosion = settings.size // 2 if settings.method == "erosion" else 0
+    if settings.grow_to_changes:
+        single = threshold_for(settings.p_false_alarm, polarity="both", method="lrt", flaw_model="single")
         extent = (pixel_z > single) & detection.valid
-        _clear_border(extent, chosen.border_px)
+        _clear_border(extent, settings.border_px)
         mask, undo_erosion = _grown(mask, extent), 0
-    found = group_defects(
+    return group_defects(
         mask,
-        merge_gap_px=chosen.merge_gap_px,
-        min_area_px=chosen.min_area_px,
-        grow_px=undo_erosion + chosen.box_padding_px,
+        merge_gap_px=settings.merge_gap_px,
+        min_area_px=settings.min_area_px,
+        grow_px=undo_erosion + settings.box_padding_px,
         score=pixel_z,
     )
-    # The template as the detector predicted it in the test's frame: inspection less the difference.
-    template = np.where(detection.valid, inspection_image - detection.difference, inspection_image)
-    strengths, areas = cast(FloatArray, found.strengths), cast(FloatArray, found.areas_px)
-    features = defect_features(template, inspection_image, found.boxes_xyxy, strengths, areas)
-    if classifier is None:
-        classes, confidences = classify_defects(template, inspection_image, found.boxes_xyxy)
-    else:
+
+
+def name_defects(
+    found: PcbDetections,
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    classifier: DefectClassifier | None = None,
+) -> PcbDetections:
+    """`found` with its topology features, classes and confidences (the classifier's, or the rules')."""
+    from rsi.datasets.pcb_learn import DefectClassifier, defect_features
+
+    instance_of(found, "found", PcbDetections, none_allowed=False)
+    if classifier is not None:
         instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
+    if found.strengths is None or found.areas_px is None:
+        raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
+    strengths, areas = cast(FloatArray, found.strengths), cast(FloatArray, found.areas_px)
+    features = defect_features(template, test, found.boxes_xyxy, strengths, areas)
+    if classifier is None:
+        classes, confidences = classify_defects(template, test, found.boxes_xyxy)
+    else:
         classes, confidences = classifier.predict(features)
     return dataclasses.replace(found, classes=classes, confidences=confidences, features=features)
 

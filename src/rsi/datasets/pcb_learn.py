@@ -19,10 +19,10 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi._validate import as_float_array
+from rsi._validate import as_float_array, as_image, instance_of, instance_or_default, same_shape
 from rsi.datasets.deeppcb import DeepPcbPair, read_pair
 from rsi.datasets.evaluate import OFFICIAL_IOU, DeepPcbSettings, PcbDetections, box_iou, detect_defects
-from rsi.datasets.pcb_classes import COPPER_BELOW_DN, classify_window, copper_pieces
+from rsi.datasets.pcb_classes import COPPER_BELOW_DN, _boxes_inside, _copper_pieces, classify_window
 from rsi.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -40,8 +40,8 @@ def _window_features(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> lis
     added, removed = after & (1 - before), before & (1 - after)
     opened_added = cv2.morphologyEx(added, cv2.MORPH_OPEN, _SQUARE)
     opened_removed = cv2.morphologyEx(removed, cv2.MORPH_OPEN, _SQUARE)
-    pieces_before, holes_before = copper_pieces(before)
-    pieces_after, holes_after = copper_pieces(after)
+    pieces_before, holes_before = _copper_pieces(before)
+    pieces_after, holes_after = _copper_pieces(after)
     return [
         float(added.sum()),
         float(removed.sum()),
@@ -119,12 +119,20 @@ def defect_features(
     -------
     ndarray of shape (D, FEATURES), float64
     """
-    boxes = np.asarray(boxes_xyxy, dtype=np.int64).reshape(-1, 4)
-    template_image = np.asarray(template, dtype=np.float64)
-    test_image = np.asarray(test, dtype=np.float64)
+    template_image = as_image(template, "template")
+    test_image = as_image(test, "test")
+    same_shape(template_image, test_image, ("template", "test"))
+    boxes = _boxes_inside(boxes_xyxy, test_image.shape)
+    strength_values = as_float_array(strengths, "strengths").reshape(-1)
+    area_values = as_float_array(areas, "areas").reshape(-1)
+    if strength_values.size != len(boxes) or area_values.size != len(boxes):
+        raise InputError(
+            f"strengths and areas must hold one value per box ({len(boxes)}); got {strength_values.size} "
+            f"and {area_values.size}."
+        )
     rows = [
         _box_features(template_image, test_image, box, float(strength), float(area))
-        for box, strength, area in zip(boxes, np.ravel(strengths), np.ravel(areas), strict=True)
+        for box, strength, area in zip(boxes, strength_values, area_values, strict=True)
     ]
     return np.array(rows, dtype=np.float64).reshape(len(boxes), FEATURES)
 
@@ -184,6 +192,8 @@ def fit_classifier(features: object, labels: object) -> DefectClassifier:
 def training_labels(pair: DeepPcbPair, found: PcbDetections) -> IntArray:
     """The class of the ground-truth box each detection pairs with (IoU > 0.33, one-to-one, greedy by
     IoU, class ignored), 0 for a detection that pairs with none."""
+    instance_of(pair, "pair", DeepPcbPair, none_allowed=False)
+    instance_of(found, "found", PcbDetections, none_allowed=False)
     iou = box_iou(found.boxes_xyxy, pair.boxes_xyxy)
     labels = np.zeros(iou.shape[0], dtype=np.int64)
     taken = np.zeros(iou.shape[1], dtype=bool)
@@ -197,9 +207,16 @@ def training_labels(pair: DeepPcbPair, found: PcbDetections) -> IntArray:
 
 def train_classifier(pairs: list[DeepPcbPair], settings: DeepPcbSettings | None = None) -> DefectClassifier:
     """Run the detector on training pairs and fit the classifier to their detections (see the module)."""
+    is_list = isinstance(pairs, (list, tuple)) and len(pairs) > 0
+    if not is_list or not all(isinstance(pair, DeepPcbPair) for pair in pairs):
+        raise InputError(
+            "pairs must be a non-empty list of DeepPcbPair (rsi.datasets.deeppcb.load_split); "
+            f"got {pairs!r:.60}."
+        )
+    chosen = instance_or_default(settings, "settings", DeepPcbSettings)
     features, labels = [], []
     for pair in pairs:
-        found = detect_defects(*read_pair(pair), settings=settings)
+        found = detect_defects(*read_pair(pair), settings=chosen)
         features.append(cast(FloatArray, found.features))
         labels.append(training_labels(pair, found))
     return fit_classifier(np.concatenate(features), np.concatenate(labels))
