@@ -18,7 +18,7 @@ import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -531,8 +531,7 @@ def name_defects(
         instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
     if found.strengths is None or found.areas_px is None:
         raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
-    strengths, areas = cast(FloatArray, found.strengths), cast(FloatArray, found.areas_px)
-    features = defect_features(template, test, found.boxes_xyxy, strengths, areas)
+    features = defect_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
     if classifier is None:
         classes, confidences = classify_defects(template, test, found.boxes_xyxy)
     else:

@@ -76,7 +76,11 @@ def _surroundings(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[f
 
 
 def _box_features(
-    template: FloatArray, test: FloatArray, box: NDArray[np.int64], strength: float, area: float
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    box: NDArray[np.int64],
+    strength: float,
+    area: float,
 ) -> list[float]:
     x1, y1, x2, y2 = (int(value) for value in box)
     rows, cols = test.shape
