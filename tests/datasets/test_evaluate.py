@@ -23,6 +23,7 @@ from rsi.datasets.evaluate import (
     group_defects,
     iou_match,
     leave_one_group_out,
+    register_pair,
 )
 from rsi.errors import InputError
 
@@ -282,3 +283,71 @@ def test_match_counts_add_and_give_the_figures() -> None:
 def test_leave_one_group_out_rejects_uneven_counts(counts: dict[str, dict[str, MatchCounts]]) -> None:
     with pytest.raises(InputError, match="counts"):
         leave_one_group_out(counts)
+
+
+def test_group_defects_reports_each_groups_area_and_peak_score() -> None:
+    mask = np.zeros((30, 30), bool)
+    mask[2:4, 2:5] = True
+    mask[20:25, 20:21] = True
+    score = np.zeros((30, 30))
+    score[3, 4], score[22, 20] = 7.0, 5.0
+    found = group_defects(mask, score=score)
+    order = np.argsort(found.centres_xy[:, 0])
+    np.testing.assert_array_equal(np.asarray(found.areas_px)[order], [6, 5])
+    np.testing.assert_array_equal(np.asarray(found.strengths)[order], [7.0, 5.0])
+    with pytest.raises(InputError, match="score"):
+        group_defects(mask, score=np.zeros((4, 4)))
+
+
+def _thin_scratch() -> tuple[np.ndarray, np.ndarray]:
+    """Blank board, and the same with a 7 x 7 blob trailing a 1 px line 30 px long (a thin scratch)."""
+    reference = np.full((120, 120), 255.0)
+    inspection = reference.copy()
+    inspection[50:57, 30:37] = 0.0
+    inspection[53, 37:67] = 0.0
+    return reference, inspection
+
+
+def test_grow_to_changes_boxes_the_whole_thin_scratch() -> None:
+    reference, inspection = _thin_scratch()
+    grown = detect_defects(reference, inspection, settings=DeepPcbSettings())
+    seeds = detect_defects(reference, inspection, settings=DeepPcbSettings(grow_to_changes=False))
+    # The 3x3 erosion test sees the blob only (x 30-36, +1 erosion undone, +10 padding); the per-pixel
+    # extent reaches the line's end at x = 66.
+    np.testing.assert_array_equal(seeds.boxes_xyxy, [[20, 40, 46, 66]])
+    np.testing.assert_array_equal(grown.boxes_xyxy, [[20, 40, 76, 66]])
+    assert grown.features is not None and grown.features.shape == (1, 45)
+
+
+def test_register_pair_keeps_a_plausible_fit_and_refuses_a_wild_one() -> None:
+    rng = np.random.default_rng(3)
+    reference = np.where(rng.random((40, 40)) > 0.5, 255.0, 0.0).repeat(4, 0).repeat(4, 1)
+    inspection = np.roll(reference, 2, axis=1)
+    fit = register_pair(reference, inspection, "affine")
+    assert fit.reason != "implausible"
+    np.testing.assert_allclose(fit.translation_xy, (2.0, 0.0), atol=0.05)
+
+
+def test_register_pair_falls_back_to_the_identity_when_no_fit_is_plausible(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from rsi.imaging import registration
+
+    real = registration.register
+    scaled = np.diag([1.3, 1.0, 1.0])  # a 30 % scale: what a sparse board's wrong lock looked like
+
+    def wild(*args: object, **kwargs: object) -> registration.Registration:
+        fit = real(*args, **kwargs)  # type: ignore[arg-type]
+        return dataclasses.replace(fit, matrix=scaled)
+
+    monkeypatch.setattr(registration, "register", wild)
+    reference = np.full((64, 64), 255.0)
+    reference[20:40, 10:50] = 0.0
+    fit = register_pair(reference, reference.copy(), "affine")
+    assert fit.reason == "implausible" and not fit.converged
+    np.testing.assert_array_equal(fit.matrix, np.eye(3))
+
+
+def test_detect_defects_refuses_a_classifier_of_the_wrong_type() -> None:
+    with pytest.raises(InputError, match="classifier"):
+        detect_defects(np.zeros((8, 8)), np.zeros((8, 8)), classifier="forest")  # type: ignore[arg-type]

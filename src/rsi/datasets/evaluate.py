@@ -32,15 +32,18 @@ from rsi._validate import (
     instance_of,
     instance_or_default,
     positive_int,
+    same_shape,
 )
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.datasets.pcb_classes import classify_defects
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
-from rsi.imaging.registration import REGISTRATION_MODELS
+from rsi.imaging.registration import REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
     from rsi.datasets.official import OfficialTally
+    from rsi.datasets.pcb_learn import DefectClassifier
+    from rsi.detection.detect import Detection
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -91,6 +94,10 @@ class DeepPcbSettings:
         Margin added on every side of a reported box, DeepPCB's own convention: its boxes exceed the
         defect's extent by 10 px a side (20 px wider and taller in at least 3/4 of matched boxes). Only
         the IoU rule looks at boxes.
+    grow_to_changes : bool
+        Grow each detection over the connected pixels that the single-pixel test flags at the same
+        `p_false_alarm` (hysteresis: the erosion test seeds, the per-pixel test gives the extent). A thin
+        scratch (1-2 px wide) passes the 3x3 erosion test only in pieces; DeepPCB's box covers all of it.
     """
 
     registration_model: str = "affine"
@@ -104,6 +111,7 @@ class DeepPcbSettings:
     min_area_px: int = 1
     border_px: int = 6
     box_padding_px: int = 10
+    grow_to_changes: bool = True
 
     def __post_init__(self) -> None:
         choice(self.registration_model, "registration_model", REGISTRATION_MODELS)
@@ -136,12 +144,19 @@ class PcbDetections:
         (then the official figures count every detection as unpaired).
     confidences : ndarray of shape (D,), float64, optional
         Ranking of the detections for average precision (higher first).
+    areas_px, strengths : ndarray of shape (D,), float64, optional
+        Mask pixels of each defect, and its largest score (when a score map was given to the grouping).
+    features : ndarray of shape (D, F), float64, optional
+        Topology features (:func:`rsi.datasets.pcb_learn.defect_features`), to train a classifier on.
     """
 
     centres_xy: FloatArray
     boxes_xyxy: IntArray
     classes: IntArray | None = None
     confidences: FloatArray | None = None
+    areas_px: FloatArray | None = None
+    strengths: FloatArray | None = None
+    features: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -297,7 +312,12 @@ def _grown_boxes(stats: NDArray[Any], shrink_px: int, shape: tuple[int, int]) ->
 
 
 def group_defects(
-    mask: NDArray[np.bool_], *, merge_gap_px: int = 0, min_area_px: int = 1, grow_px: int = 0
+    mask: NDArray[np.bool_],
+    *,
+    merge_gap_px: int = 0,
+    min_area_px: int = 1,
+    grow_px: int = 0,
+    score: NDArray[np.floating] | None = None,
 ) -> PcbDetections:
     """Group a detection mask into defects: merge pieces closer than a gap, drop small groups.
 
@@ -312,11 +332,13 @@ def group_defects(
     grow_px : int
         Each box is grown by this margin on every side, then clipped to the image (an erosion test's
         mask is its defect eroded by ``size // 2``; DeepPCB pads its boxes).
+    score : ndarray of shape (M, N), optional
+        A score map: each group's ``strengths`` is its largest value over the group's mask pixels.
 
     Returns
     -------
     PcbDetections
-        Centres are the centroids of each group's mask pixels.
+        Centres are the centroids of each group's mask pixels; ``areas_px`` their counts.
     """
     pixels = np.asarray(mask, dtype=np.uint8)
     if pixels.ndim != 2:
@@ -338,7 +360,14 @@ def group_defects(
     )[keep]
     grow = positive_int(grow_px, "grow_px", minimum=0)
     boxes = _grown_boxes(stats[keep], radius - grow, (int(pixels.shape[0]), int(pixels.shape[1])))
-    return PcbDetections(centres_xy=centres, boxes_xyxy=boxes)
+    strengths = None
+    if score is not None:
+        values = as_image(score, "score")
+        same_shape(values, pixels, ("score", "mask"))
+        peak = np.zeros(count)
+        np.maximum.at(peak, np.asarray(owner, dtype=np.intp), values[rows, cols])
+        strengths = peak[keep]
+    return PcbDetections(centres_xy=centres, boxes_xyxy=boxes, areas_px=area[keep], strengths=strengths)
 
 
 def _clear_border(mask: NDArray[np.bool_], border_px: int) -> None:
@@ -349,10 +378,72 @@ def _clear_border(mask: NDArray[np.bool_], border_px: int) -> None:
         mask[:, -border_px:] = False
 
 
+# DeepPCB's pairs come pre-aligned: most within 1 px, a few 2-4 px, with up to ~1-3% scale along one axis
+# (docs/deeppcb.md). A fit beyond these bounds has locked onto the wrong structure of a sparse board.
+_MAX_LINEAR_DEPARTURE = 0.05
+_MAX_SHIFT_PX = 20.0
+
+
+def _plausible(fit: Registration) -> bool:
+    matrix = fit.matrix / fit.matrix[2, 2]
+    return bool(
+        np.all(np.isfinite(matrix))
+        and np.abs(matrix[:2, :2] - np.eye(2)).max() <= _MAX_LINEAR_DEPARTURE
+        and np.abs(matrix[:2, 2]).max() <= _MAX_SHIFT_PX
+        and abs(matrix[2, 0]) + abs(matrix[2, 1]) < 1e-3
+    )
+
+
+def register_pair(
+    reference: NDArray[np.floating], inspection: NDArray[np.floating], model: str
+) -> Registration:
+    """Register a DeepPCB pair: start at the identity (the pairs are pre-aligned), keep a plausible fit.
+
+    A sparse board (a few traces on blank board) lets the coarse phase-correlation start of
+    :func:`rsi.register` pick a wrong peak; 20 of the 1,000 trainval pairs then diverged or locked onto a
+    5-40 % scale, and every defect of the pair was missed. From the identity, the model's fit is kept if
+    plausible, else a translation's, else the identity itself (``reason="implausible"``).
+    """
+    from rsi.imaging.registration import register
+
+    reference_image = as_image(reference, "reference")
+    inspection_image = as_image(inspection, "inspection")
+    for candidate in (choice(model, "model", REGISTRATION_MODELS), "translation"):
+        fit = register(reference_image, inspection_image, model=candidate, initial=np.eye(3))
+        if _plausible(fit):
+            return fit
+    return Registration(
+        model="translation",
+        matrix=np.eye(3),
+        gain=1.0,
+        bias=0.0,
+        converged=False,
+        reason="implausible",
+        iterations=0,
+        residual_rms=float("nan"),
+        shift_std_px=(float("nan"), float("nan")),
+        elapsed_s=0.0,
+    )
+
+
+def _grown(seeds: BoolArray, extent: BoolArray) -> BoolArray:
+    """Pixels of `extent` 8-connected to a seed (morphological reconstruction by labelling)."""
+    count, labels = cv2.connectedComponents((extent | seeds).view(np.uint8), connectivity=8)
+    keep = np.zeros(count, dtype=bool)
+    keep[labels[seeds]] = True
+    keep[0] = False
+    grown: BoolArray = keep[labels]
+    return grown
+
+
 def detect_defects(
-    reference: NDArray[Any], inspection: NDArray[Any], *, settings: DeepPcbSettings | None = None
+    reference: NDArray[Any],
+    inspection: NDArray[Any],
+    *,
+    settings: DeepPcbSettings | None = None,
+    classifier: DefectClassifier | None = None,
 ) -> PcbDetections:
-    """Find defects on a PCB inspection image with rsi's core: register, detect, group.
+    """Find defects on a PCB inspection image with rsi's core: register, detect, group, name.
 
     Parameters
     ----------
@@ -360,19 +451,25 @@ def detect_defects(
         Grey template and tested board, DN (0..255).
     settings : DeepPcbSettings, optional
         Defaults to ``DeepPcbSettings()``.
+    classifier : DefectClassifier, optional
+        Names the defects from their topology features
+        (:func:`rsi.datasets.pcb_learn.fit_classifier`); None: the topology rules of
+        :mod:`rsi.datasets.pcb_classes`.
 
     Returns
     -------
     PcbDetections
-        In inspection-image pixels.
+        In inspection-image pixels, with ``features`` to train a classifier on.
     """
+    from rsi.datasets.pcb_learn import DefectClassifier
     from rsi.detection.detect import detect
-    from rsi.imaging.registration import register
 
     chosen = instance_or_default(settings, "settings", DeepPcbSettings)
+    if classifier is not None:
+        instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
     reference_image = as_image(reference, "reference")
     inspection_image = as_image(inspection, "inspection")
-    fit = register(reference_image, inspection_image, model=chosen.registration_model)
+    fit = register_pair(reference_image, inspection_image, chosen.registration_model)
     detection = detect(
         reference_image,
         inspection_image,
@@ -387,20 +484,59 @@ def detect_defects(
         # std knows nothing of etching or local distortion, so it is floored at what these boards show.
         misregistration_std_px=chosen.misregistration_std_px,
     )
-    mask = detection.mask.copy()
-    _clear_border(mask, chosen.border_px)
-    # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
-    undo_erosion = chosen.size // 2 if chosen.method == "erosion" else 0
-    found = group_defects(
-        mask,
-        merge_gap_px=chosen.merge_gap_px,
-        min_area_px=chosen.min_area_px,
-        grow_px=undo_erosion + chosen.box_padding_px,
-    )
+    found = group_detection(detection, chosen)
     # The template as the detector predicted it in the test's frame: inspection less the difference.
     template = np.where(detection.valid, inspection_image - detection.difference, inspection_image)
-    classes, confidences = classify_defects(template, inspection_image, found.boxes_xyxy)
-    return dataclasses.replace(found, classes=classes, confidences=confidences)
+    return name_defects(found, template, inspection_image, classifier)
+
+
+def group_detection(detection: Detection, settings: DeepPcbSettings) -> PcbDetections:
+    """The defects of one detection: border cleared, grown to the per-pixel extent, merged, padded."""
+    from rsi.detection.detect import Detection
+    from rsi.detection.roc import threshold_for
+
+    instance_of(detection, "detection", Detection, none_allowed=False)
+    instance_of(settings, "settings", DeepPcbSettings, none_allowed=False)
+    mask = detection.mask.copy()
+    _clear_border(mask, settings.border_px)
+    # seed §2.4: the per-pixel statistic d / sigma, with the same noise model (mis-registration included).
+    pixel_z = np.abs(detection.difference) / np.maximum(detection.sigma, np.float32(1e-6))
+    # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
+    undo_erosion = settings.size // 2 if settings.method == "erosion" else 0
+    if settings.grow_to_changes:
+        single = threshold_for(settings.p_false_alarm, polarity="both", method="lrt", flaw_model="single")
+        extent = (pixel_z > single) & detection.valid
+        _clear_border(extent, settings.border_px)
+        mask, undo_erosion = _grown(mask, extent), 0
+    return group_defects(
+        mask,
+        merge_gap_px=settings.merge_gap_px,
+        min_area_px=settings.min_area_px,
+        grow_px=undo_erosion + settings.box_padding_px,
+        score=pixel_z,
+    )
+
+
+def name_defects(
+    found: PcbDetections,
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    classifier: DefectClassifier | None = None,
+) -> PcbDetections:
+    """`found` with its topology features, classes and confidences (the classifier's, or the rules')."""
+    from rsi.datasets.pcb_learn import DefectClassifier, defect_features
+
+    instance_of(found, "found", PcbDetections, none_allowed=False)
+    if classifier is not None:
+        instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
+    if found.strengths is None or found.areas_px is None:
+        raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
+    features = defect_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
+    if classifier is None:
+        classes, confidences = classify_defects(template, test, found.boxes_xyxy)
+    else:
+        classes, confidences = classifier.predict(features)
+    return dataclasses.replace(found, classes=classes, confidences=confidences, features=features)
 
 
 Detector = Callable[[NDArray[np.float32], NDArray[np.float32]], PcbDetections]

@@ -40,7 +40,7 @@ IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 
 
-def _pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
+def _copper_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
     """(copper pieces, holes): 8-connected copper components and 4-connected board components off the
     window's border, each of at least _MIN_PIECE_PX (a sliver cut off at the window's edge is no piece)."""
     count, _, stats, _ = cv2.connectedComponentsWithStats(copper, connectivity=8)
@@ -106,7 +106,7 @@ def classify_window(template: NDArray[np.floating], test: NDArray[np.floating]) 
         # Nothing survives the opening: decide on the raw difference (a thin defect).
         added, removed = int((after & (1 - before)).sum()), int((before & (1 - after)).sum())
     core = float(cv2.erode(before ^ after, _CORE).sum())
-    return _name(added > removed, _pieces(before), _pieces(after)), core
+    return _name(added > removed, _copper_pieces(before), _copper_pieces(after)), core
 
 
 def _name(grown: bool, before: tuple[int, int], after: tuple[int, int]) -> int:

@@ -1,0 +1,226 @@
+"""Name DeepPCB defects with a small classical classifier on topology features (issue 12, item 3).
+
+The topology rules of :mod:`rsi.datasets.pcb_classes` decide on one window with hard cut-offs; the boundary
+between an open and a mousebite (does the bite cut the trace inside the window?) and between a removal
+and a pin-hole depends on the window's size and on slivers. Here the same quantities, measured at three
+window sizes, with the copper around the change and the trace width at it, feed scikit-learn's
+histogram gradient boosting (default settings, nothing tuned), trained on the detections of training
+pairs only: each detection paired class-agnostically with a ground-truth box (IoU > 0.33) takes its class,
+an unpaired one class 0 ("no defect"). The probability of the predicted class ranks the detections for
+average precision.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, cast
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rsi._validate import as_float_array, as_image, instance_of, instance_or_default, same_shape
+from rsi.datasets.deeppcb import DeepPcbPair, read_pair
+from rsi.datasets.evaluate import OFFICIAL_IOU, DeepPcbSettings, PcbDetections, box_iou, detect_defects
+from rsi.datasets.pcb_classes import COPPER_BELOW_DN, _boxes_inside, _copper_pieces, classify_window
+from rsi.errors import InputError
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+_SQUARE = np.ones((3, 3), np.uint8)
+# Windows around each box: shrunk by 7 px (the defect alone, DeepPCB pads by 10), the box, grown by 10 px.
+_WINDOW_GROWTH_PX = (-7, 0, 10)
+_MIN_WINDOW_PX = 2
+FEATURES = 45  # columns of defect_features
+
+
+def _window_features(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[float]:
+    """Changed copper (raw and after a 3x3 opening) and the pieces and holes before and after."""
+    added, removed = after & (1 - before), before & (1 - after)
+    opened_added = cv2.morphologyEx(added, cv2.MORPH_OPEN, _SQUARE)
+    opened_removed = cv2.morphologyEx(removed, cv2.MORPH_OPEN, _SQUARE)
+    pieces_before, holes_before = _copper_pieces(before)
+    pieces_after, holes_after = _copper_pieces(after)
+    return [
+        float(added.sum()),
+        float(removed.sum()),
+        float(opened_added.sum()),
+        float(opened_removed.sum()),
+        pieces_before,
+        pieces_after,
+        holes_before,
+        holes_after,
+        pieces_after - pieces_before,
+        holes_after - holes_before,
+        float(before.mean()),
+    ]
+
+
+def _surroundings(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[float]:
+    """What surrounds the change in the template: a spur touches copper once, a short twice, spurious
+    copper never; a pin-hole is all copper around, a mousebite board on one side, an open on two."""
+    features = []
+    for change, around in ((after & (1 - before), before), (before & (1 - after), 1 - before)):
+        ring = np.asarray(cv2.dilate(change, _SQUARE), dtype=np.uint8) & (1 - change)
+        touching = (around & ring).astype(np.uint8)
+        features += [
+            float(touching.sum()) / max(float(ring.sum()), 1.0),
+            float(cv2.connectedComponents(touching, connectivity=8)[0] - 1),
+        ]
+    # Width of the copper a removal bites into, and of the board an addition grows into.
+    for change, material in ((before & (1 - after), before), (after & (1 - before), 1 - before)):
+        distance = cv2.distanceTransform(material.astype(np.uint8), cv2.DIST_L2, 3)
+        features.append(float(distance[change > 0].max()) if change.any() else 0.0)
+    return features
+
+
+def _box_features(
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    box: NDArray[np.int64],
+    strength: float,
+    area: float,
+) -> list[float]:
+    x1, y1, x2, y2 = (int(value) for value in box)
+    rows, cols = test.shape
+    features = [float(x2 - x1), float(y2 - y1), strength, area]
+    for growth in _WINDOW_GROWTH_PX:
+        top, bottom = max(0, y1 - growth), min(rows, y2 + 1 + growth)
+        left, right = max(0, x1 - growth), min(cols, x2 + 1 + growth)
+        if bottom - top < _MIN_WINDOW_PX or right - left < _MIN_WINDOW_PX:
+            top, bottom, left, right = y1, y2 + 1, x1, x2 + 1
+        window = (slice(top, bottom), slice(left, right))
+        before = (template[window] < COPPER_BELOW_DN).astype(np.uint8)
+        after = (test[window] < COPPER_BELOW_DN).astype(np.uint8)
+        features += _window_features(before, after)
+        if growth == 0:
+            features += _surroundings(before, after)
+            rule, core = classify_window(template[window], test[window])
+            features += [float(rule), core]
+    return features
+
+
+def defect_features(
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    boxes_xyxy: NDArray[np.integer],
+    strengths: NDArray[np.floating],
+    areas: NDArray[np.floating],
+) -> FloatArray:
+    """Topology features of each detection (rows) for :class:`DefectClassifier`.
+
+    Parameters
+    ----------
+    template, test : ndarray of shape (M, N)
+        The registered template and the tested board (grey, 0..255).
+    boxes_xyxy : ndarray of shape (D, 4)
+        Corners-inclusive boxes inside the image.
+    strengths, areas : ndarray of shape (D,)
+        The detection's largest |test statistic| and its pixel count.
+
+    Returns
+    -------
+    ndarray of shape (D, FEATURES), float64
+    """
+    template_image = as_image(template, "template")
+    test_image = as_image(test, "test")
+    same_shape(template_image, test_image, ("template", "test"))
+    boxes = _boxes_inside(boxes_xyxy, test_image.shape)
+    strength_values = as_float_array(strengths, "strengths").reshape(-1)
+    area_values = as_float_array(areas, "areas").reshape(-1)
+    if strength_values.size != len(boxes) or area_values.size != len(boxes):
+        raise InputError(
+            f"strengths and areas must hold one value per box ({len(boxes)}); got {strength_values.size} "
+            f"and {area_values.size}."
+        )
+    rows = [
+        _box_features(template_image, test_image, box, float(strength), float(area))
+        for box, strength, area in zip(boxes, strength_values, area_values, strict=True)
+    ]
+    return np.array(rows, dtype=np.float64).reshape(len(boxes), FEATURES)
+
+
+def _as_features(features: object, name: str) -> FloatArray:
+    table = as_float_array(features, name)
+    if table.ndim != 2 or table.shape[1] != FEATURES or not np.isfinite(table).all():
+        raise InputError(
+            f"{name} must be a finite array of shape (D, {FEATURES}) from defect_features; "
+            f"got shape {table.shape}."
+        )
+    return table
+
+
+@dataclass(frozen=True)
+class DefectClassifier:
+    """A fitted classifier: :meth:`predict` names defects and scores them for average precision."""
+
+    model: Any  # sklearn.ensemble.HistGradientBoostingClassifier, fitted
+
+    def predict(self, features: object) -> tuple[IntArray, FloatArray]:
+        """Class (1-6, never 0) of each row and its probability (the confidence).
+
+        A detection is always named (it was detected); "no defect" only lowers its confidence.
+        """
+        table = _as_features(features, "features")
+        if len(table) == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64)
+        probabilities = np.zeros((len(table), 7))
+        probabilities[:, self.model.classes_] = self.model.predict_proba(table)
+        named = 1 + np.argmax(probabilities[:, 1:], axis=1)
+        return named.astype(np.int64), probabilities[np.arange(len(table)), named]
+
+
+def fit_classifier(features: object, labels: object) -> DefectClassifier:
+    """Fit on training detections: `labels` 0 (no defect) or a DeepPCB class 1-6 per row of `features`.
+
+    Raises
+    ------
+    InputError
+        If the rows and labels disagree, a label is outside 0-6, or no row carries a defect class.
+    """
+    from sklearn.ensemble import HistGradientBoostingClassifier
+
+    table = _as_features(features, "features")
+    classes = as_float_array(labels, "labels").reshape(-1)
+    if classes.size != len(table) or not np.all(np.isin(classes, np.arange(7))):
+        raise InputError(
+            f"labels must hold one class 0-6 per row of features ({len(table)}); got {labels!r:.80}."
+        )
+    if not np.any(classes > 0):
+        raise InputError("labels name no defect (all 0); pass detections paired with ground-truth boxes.")
+    model = HistGradientBoostingClassifier(random_state=0).fit(table, classes.astype(np.int64))
+    return DefectClassifier(model)
+
+
+def training_labels(pair: DeepPcbPair, found: PcbDetections) -> IntArray:
+    """The class of the ground-truth box each detection pairs with (IoU > 0.33, one-to-one, greedy by
+    IoU, class ignored), 0 for a detection that pairs with none."""
+    instance_of(pair, "pair", DeepPcbPair, none_allowed=False)
+    instance_of(found, "found", PcbDetections, none_allowed=False)
+    iou = box_iou(found.boxes_xyxy, pair.boxes_xyxy)
+    labels = np.zeros(iou.shape[0], dtype=np.int64)
+    taken = np.zeros(iou.shape[1], dtype=bool)
+    rows, cols = np.nonzero(iou > OFFICIAL_IOU)
+    for index in np.argsort(-iou[rows, cols], kind="stable"):
+        row, col = rows[index], cols[index]
+        if labels[row] == 0 and not taken[col]:
+            labels[row], taken[col] = pair.defect_types[col], True
+    return labels
+
+
+def train_classifier(pairs: list[DeepPcbPair], settings: DeepPcbSettings | None = None) -> DefectClassifier:
+    """Run the detector on training pairs and fit the classifier to their detections (see the module)."""
+    is_list = isinstance(pairs, (list, tuple)) and len(pairs) > 0
+    if not is_list or not all(isinstance(pair, DeepPcbPair) for pair in pairs):
+        raise InputError(
+            "pairs must be a non-empty list of DeepPcbPair (rsi.datasets.deeppcb.load_split); "
+            f"got {pairs!r:.60}."
+        )
+    chosen = instance_or_default(settings, "settings", DeepPcbSettings)
+    features, labels = [], []
+    for pair in pairs:
+        found = detect_defects(*read_pair(pair), settings=chosen)
+        features.append(cast(FloatArray, found.features))
+        labels.append(training_labels(pair, found))
+    return fit_classifier(np.concatenate(features), np.concatenate(labels))

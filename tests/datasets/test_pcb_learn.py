@@ -1,0 +1,84 @@
+"""The learned defect classes: features of hand-drawn defects, labels by pairing, a fitted classifier."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rsi.datasets.deeppcb import DEFECT_TYPES, DeepPcbPair
+from rsi.datasets.evaluate import PcbDetections
+from rsi.datasets.pcb_learn import (
+    FEATURES,
+    defect_features,
+    fit_classifier,
+    train_classifier,
+    training_labels,
+)
+from rsi.errors import InputError
+
+Drawn = Callable[[str], tuple[np.ndarray, np.ndarray]]
+
+
+def _features(drawn_defect: Drawn, kind: str) -> np.ndarray:
+    template, test = drawn_defect(kind)
+    box = np.array([[8, 8, 31, 31]])
+    return defect_features(template, test, box, np.array([6.0]), np.array([30.0]))
+
+
+def test_features_have_one_row_per_box(drawn_defect: Drawn) -> None:
+    rows = _features(drawn_defect, "open")
+    assert rows.shape == (1, FEATURES) and np.isfinite(rows).all()
+    empty = defect_features(*drawn_defect("open"), np.empty((0, 4)), np.empty(0), np.empty(0))
+    assert empty.shape == (0, FEATURES)
+
+
+def test_a_classifier_learns_the_six_hand_drawn_classes(drawn_defect: Drawn) -> None:
+    rng = np.random.default_rng(0)
+    kinds = list(DEFECT_TYPES.items())
+    table = np.concatenate([_features(drawn_defect, name) for _, name in kinds])
+    # Repeat each class with jittered sizes so that the boosting has several rows per class.
+    features = np.repeat(table, 10, axis=0) * rng.uniform(0.95, 1.05, (10 * len(kinds), FEATURES))
+    labels = np.repeat([cls for cls, _ in kinds], 10)
+    classifier = fit_classifier(features, labels)
+    classes, confidences = classifier.predict(table)
+    np.testing.assert_array_equal(classes, [cls for cls, _ in kinds])
+    assert np.all((confidences > 0.5) & (confidences <= 1.0))
+    assert classifier.predict(np.empty((0, FEATURES)))[0].shape == (0,)
+
+
+def test_training_labels_pair_each_detection_with_its_box() -> None:
+    pair = DeepPcbPair(
+        "g/1",
+        Path("t.jpg"),
+        Path("i.jpg"),
+        Path("a.txt"),
+        np.array([[0, 0, 20, 20], [50, 50, 70, 70]]),
+        np.array([3, 5]),
+    )
+    found = PcbDetections(
+        np.zeros((3, 2)), np.array([[52, 52, 72, 72], [1, 1, 21, 21], [200, 200, 220, 220]])
+    )
+    np.testing.assert_array_equal(training_labels(pair, found), [5, 3, 0])
+
+
+@pytest.mark.parametrize(
+    ("features", "labels", "message"),
+    [
+        (np.zeros((2, FEATURES)), [1], "one class 0-6 per row"),
+        (np.zeros((2, FEATURES)), [1, 9], "one class 0-6 per row"),
+        (np.zeros((2, FEATURES)), [0, 0], "name no defect"),
+        (np.zeros((2, 3)), [1, 2], "shape"),
+    ],
+)
+def test_fit_classifier_refuses_bad_training_data(features: object, labels: object, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        fit_classifier(features, labels)
+
+
+def test_train_classifier_refuses_what_is_not_a_list_of_pairs() -> None:
+    for pairs in ("trainval", []):
+        with pytest.raises(InputError, match="pairs must be a non-empty list of DeepPcbPair"):
+            train_classifier(pairs)  # type: ignore[arg-type]
