@@ -21,6 +21,7 @@ from rsi.mission import (
     run_mission,
     score_mission,
 )
+from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.mockup import truss_mockup
 from rsi.sim.world import load
 
@@ -286,8 +287,8 @@ def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -
 
 
 def test_screws_and_the_swapped_component_are_found_at_full_size() -> None:
-    # the mission's world of seed 26 has missing screws and one swapped component (seed §4 defects)
-    result = run_mission(26, active=False, arm=False, orbit=False)
+    # the seed mock-up's draw of seed 26: screws B_2 and D_2 missing, the A ORU dented (seed §4 defects)
+    result = run_mission(26, active=False, arm=False, orbit=False, anomalies=AnomalySettings.seed_mockup())
     score = score_mission(result)
     assert score.per_type["missing_screw"].found == score.per_type["missing_screw"].truth >= 1
     assert score.per_type["missing_screw"].false_findings == 0
