@@ -128,8 +128,9 @@ def test_the_range_map_is_matched_within_the_rigs_physics(world: World) -> None:
     truth = view.depth_m
     assert truth is not None
     surface = truth < 10.0
-    matched = np.isfinite(sensed.range_m) & surface
-    error = (sensed.range_m - truth)[matched]
+    raw = range_map(*sensed.capture.stereo, sensed.capture.rig, depth_limits_m=(0.2, 2.0))
+    matched = np.isfinite(raw) & surface
+    error = (raw - truth)[matched]
     inliers = np.abs(error) < 0.03
     # holes and false matches exist (the matcher's, not a renderer's), but most of the surface is matched
     assert 0.0 < 1.0 - matched.sum() / surface.sum() < 0.5
@@ -140,7 +141,10 @@ def test_the_range_map_is_matched_within_the_rigs_physics(world: World) -> None:
     per_px = float(np.median(rig.depth_sigma_m(truth[matched][inliers], 1.0)))
     spread = float(np.median(np.abs(error[inliers])))
     assert 0.05 * 0.674 * per_px < spread < 0.674 * per_px
-    # the model's depth stands in where the match is implausible, so every surface pixel has a range
+    # the mission keeps the matches its model finds plausible, and the model's depth stands in elsewhere
+    expected = sensed.capture.cad.expected_depth_m
+    kept = np.isfinite(sensed.range_m)
+    assert np.all(np.abs(sensed.range_m[kept] - expected[kept]) <= 0.03)
     assert np.isfinite(sensed.surface_m[surface]).all()
 
 

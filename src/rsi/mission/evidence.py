@@ -177,15 +177,39 @@ def _widened(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     return np.asarray(cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)), dtype=bool)
 
 
-def relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:
-    """Depth of the site's centre below its surroundings: central 3 cm disc against a 4.5-7 cm ring."""
-    distance = surface_distance_m(range_m.shape, view, site.position_m)
-    inner, ring = distance <= 0.03, (distance >= 0.045) & (distance <= 0.07)
-    usable = np.isfinite(range_m) & (range_m < 10.0)
-    inner, ring = inner & usable, ring & usable
-    if inner.sum() < 20 or ring.sum() < 20:
+# Seed §4 dents are centimetres across and 1-10 mm deep; the range change is averaged over a ~2 cm window
+# (31 px at 0.66 mm per pixel) so that SGBM's ~1.5 mm per-pixel noise, correlated over its 5 px block, falls
+# to ~0.25 mm, and the largest of those averages over a component stays under the 1.5 mm dent threshold.
+_DENT_WINDOW_PX = 31
+# the deepest planted dent is 10 mm: a larger change between two matches is a false match, not a dent
+_DENT_CLIP_M = 0.015
+
+
+def sinking_m(
+    view: Sensed, reference_m: NDArray[np.float32], shift_xy: tuple[float, float], site: Site
+) -> float:
+    """How far the component's surface sank since the reference, at its most sunk ~2 cm patch (seed §4).
+
+    The reference's range map is moved by the registered shift `shift_xy` (reference to inspection) and
+    subtracted from this visit's over the component's pixels in the CAD projection, where both ranges were
+    matched; a dent anywhere on the component (not only at its site) shows as a patch that moved away.
+    """
+    import cv2
+
+    mask = view.capture.cad.components.get(site.name)
+    if mask is None or mask.sum() < _DENT_WINDOW_PX**2:
         return 0.0
-    return float(np.median(range_m[inner]) - np.median(range_m[ring]))
+    rows, cols = reference_m.shape
+    move = np.array([[1.0, 0.0, shift_xy[0]], [0.0, 1.0, shift_xy[1]]], dtype=np.float32)
+    before = cv2.warpAffine(reference_m, move, (cols, rows), flags=cv2.INTER_NEAREST, borderValue=math.nan)
+    change = view.range_m - before
+    usable = mask & np.isfinite(change)
+    clipped = np.where(usable, np.clip(change, -_DENT_CLIP_M, _DENT_CLIP_M), 0.0).astype(np.float32)
+    window = (_DENT_WINDOW_PX, _DENT_WINDOW_PX)
+    share = cv2.blur(usable.astype(np.float32), window)
+    mean = cv2.blur(clipped, window) / np.maximum(share, np.float32(1e-6))
+    inside = cv2.erode(mask.astype(np.uint8), np.ones(window, np.uint8)).astype(bool) & (share > 0.5)
+    return float(mean[inside].max()) if inside.any() else 0.0
 
 
 def component_change(pair: PairResult, view: Sensed, site: Site, settings: MissionSettings) -> float:
@@ -274,8 +298,7 @@ def component_checks(
     view: Sensed,
     source: str,
     *,
-    reliefs: Mapping[str, float],
-    range_m: NDArray[np.float32],
+    reference_m: NDArray[np.float32],
     world: World,
     settings: MissionSettings,
 ) -> list[tuple[MissionFinding, Explanation]]:
@@ -283,17 +306,21 @@ def component_checks(
 
     A discoloured replacement changes the strobe image over the whole component, unless it fills the frame
     and the registration's gain absorbs it (then its raw brightness tells); a dent shows in the stereo range
-    map, sunk below its surroundings by millimetres. Each finding comes with the radius around it within
-    which the difference image shows the swap itself (blobs there are not impacts, those elsewhere are); a
-    discolouring changed only the component's own surface, which the view's CAD projection tells.
+    map, sunk since the reference by millimetres somewhere on the component (:func:`sinking_m`). Each
+    finding comes with the radius around it within which the difference image shows the swap itself (blobs
+    there are not impacts, those elsewhere are); a discolouring changed only the component's own surface,
+    which the view's CAD projection tells.
     """
     found = []
+    registration = pair.detection.registration
+    shift = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
     for site in seen_components(world, view):
         change = component_change(pair, view, site, settings)
-        sunk = relief_m(range_m, view, site) - reliefs.get(site.name, math.nan)
-        if abs(sunk) > settings.dent_relief_min_m:  # a dent: its disc changed, the rest of the skin did not
-            score, margin = sunk, (abs(sunk) - settings.dent_relief_min_m) / 2e-4
-            size = min(site.size_m, 2 * settings.component_disc_m)
+        sunk = sinking_m(view, reference_m, (shift[0], shift[1]), site)
+        if sunk > settings.dent_relief_min_m:
+            # the dent may be anywhere on the component: its crater's shading is explained over all of it
+            score, margin = sunk, (sunk - settings.dent_relief_min_m) / 2e-4
+            size = site.size_m
             explained = Explanation(site.position_m, 0.5 * size + 0.02)
         elif change > settings.component_change_min:
             score, margin, size = change, (change - settings.component_change_min) / 0.01, site.size_m

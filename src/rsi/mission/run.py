@@ -24,7 +24,7 @@ import numpy as np
 
 from rsi import _validate as v
 from rsi.errors import InputError
-from rsi.mission.evidence import relief_m, screw_relief_m
+from rsi.mission.evidence import screw_relief_m
 from rsi.mission.exposure import metered, settle
 from rsi.mission.plan import plan_vistas
 from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
@@ -32,7 +32,7 @@ from rsi.mission.score import run_roc
 from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, MissionSettings
 from rsi.mission.surveys import gas_pass, pyrometer_pass
 from rsi.mission.truth import with_truth
-from rsi.mission.views import Sensed, seen_components, seen_screws, sense, strobe_image
+from rsi.mission.views import Sensed, seen_screws, sense, strobe_image
 from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit
 from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.orbit import orbital_period_s
@@ -194,9 +194,7 @@ def _reference_pass(
         world.set_strobe_energy(energy)
         reference = _with_shadow_edges(strobe_image(view), view, settings)
         depth = view.range_m
-        reliefs = {site.name: relief_m(depth, view, site) for site in seen_components(world, view)} | {
-            site.name: screw_relief_m(depth, view, site) for site in seen_screws(world, view)
-        }
+        reliefs = {site.name: screw_relief_m(depth, view, site) for site in seen_screws(world, view)}
         again = sense(tour.visit(point.name, point.vista, state="reference", truth=False))
         second = _with_shadow_edges(strobe_image(again), again, settings)
         scale = nuisance_scale(
@@ -208,7 +206,7 @@ def _reference_pass(
             window_px=settings.nuisance_window_px,
             spread_px=settings.nuisance_spread_px,
         )
-        stored[point.name] = StoredView(reference, second, scale, reliefs, energy, shutter)
+        stored[point.name] = StoredView(reference, second, scale, depth, reliefs, energy, shutter)
         report(f"reference {point.name}")
     return stored
 

@@ -45,10 +45,10 @@ class Sensed:
     capture : Capture
         Frames, stereo pair, believed pose and CAD expectation (:mod:`rsi.sim.capture`).
     range_m : ndarray of shape (M, N), float32
-        Stereo range along the view axis (seed §3 D), NaN where the matcher gave no answer.
+        Stereo range along the view axis (seed §3 D), NaN where the matcher gave no answer or one further
+        than ``_RANGE_GATE_M`` from the CAD model's expected depth (a false match).
     surface_m : ndarray of shape (M, N), float32
-        `range_m` where it agrees with the CAD model's expected depth within ``_RANGE_GATE_M``, the model's
-        depth elsewhere (holes, false matches): the best range the robot has, to place what it finds.
+        `range_m`, and the model's depth in its holes: the best range the robot has, to place what it finds.
     """
 
     capture: Capture
@@ -75,8 +75,8 @@ def sense(capture: Capture) -> Sensed:
     )
     with np.errstate(invalid="ignore"):
         plausible = np.abs(ranges - expected) <= _RANGE_GATE_M
-    filled = np.where(plausible, ranges, expected).astype(np.float32)
-    return Sensed(capture, ranges, filled)
+    matched = np.where(plausible, ranges, np.float32(np.nan)).astype(np.float32)
+    return Sensed(capture, matched, np.where(plausible, ranges, expected).astype(np.float32))
 
 
 def field_to_world(sensed: Sensed, row: float, col: float) -> tuple[float, float, float] | None:

@@ -56,8 +56,10 @@ class StoredView:
         The two pristine visits' full-resolution strobe images, shadow-edge variance included.
     scale : ndarray of shape (M, N), float32
         Their nuisance factor on the variance (:func:`rsi.detection.nuisance.nuisance_scale`).
+    range_m : ndarray of shape (M, N), float32
+        The reference's stereo range map (NaN where unmatched), for the dents.
     reliefs : mapping of str to float
-        Stereo relief of every component and screw site the reference saw, metres.
+        Stereo relief of every screw site the reference saw, metres.
     strobe_energy, shutter : float
         The metered flash energy and shutter, kept for every later visit of the point.
     """
@@ -65,6 +67,7 @@ class StoredView:
     reference: Compensated
     second: Compensated
     scale: NDArray[np.float32]
+    range_m: NDArray[np.float32]
     reliefs: Mapping[str, float]
     strobe_energy: float
     shutter: float
@@ -172,8 +175,7 @@ def inspect_visit(
         comparison.pair,
         view,
         point.name,
-        reliefs=stored.reliefs,
-        range_m=view.range_m,
+        reference_m=stored.range_m,
         world=world,
         settings=settings,
     )
