@@ -213,3 +213,26 @@ def test_cad_projection_and_reflash_refuse_bad_input(world: World) -> None:
         world.reflash(view, strobe_energy=1.0, shutter=5.0)
     with pytest.raises(InputError, match="view"):
         world.reflash("view", strobe_energy=1.0, shutter=1.0)  # type: ignore[arg-type]
+
+
+def test_the_gas_survey_finds_each_of_two_leaks() -> None:
+    from rsi.mission import MissionSettings
+    from rsi.mission.surveys import gas_pass
+    from rsi.sim.anomalies import AnomalySettings
+
+    # seed §4 draws from three holes; two on at once, both strong enough to stand above the threshold
+    draw = AnomalySettings(
+        anomaly_free_probability=0.0,
+        active_leak_count_range=(2, 2),
+        leak_exit_ppm_range=(20000.0, 20000.0),
+    )
+    built = load("truss", seed=3, settings=draw)
+    try:
+        leaks = built.anomalies.gas_leaks
+        findings, _, _ = gas_pass(built, np.random.default_rng(0), MissionSettings())
+    finally:
+        built.close()
+    assert len(leaks) == 2 and len(findings) == 2
+    for leak in leaks:
+        nearest = min(np.linalg.norm(np.subtract(f.position_m, leak.position_m)) for f in findings)
+        assert nearest < 0.03  # the scoring radius of a leak

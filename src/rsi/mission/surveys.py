@@ -64,10 +64,50 @@ def gas_stations(world: World, settings: MissionSettings) -> FloatArray:
     return np.asarray(stations, dtype=np.float64)
 
 
+# Seed §4 has up to two leaks on: each plume is its own peak along the tubing. A round turbulent jet's
+# concentration half-width grows as 0.11 x (Pope, Turbulent Flows §5.1; rsi.sim.fields.RoundJet), ~1 cm at
+# the 0.1 m standoff, and the MOS sensor's slow recovery drags a tail behind the peak as the survey moves
+# on: a station with a stronger one within 5 cm on its run reads a flank, not a plume of its own.
+_PLUME_SEPARATION_M = 0.05
+
+
+def _plume_peaks(stations: FloatArray, estimate: FloatArray, settings: MissionSettings) -> list[int]:
+    """Stations above the threshold that read the most within _PLUME_SEPARATION_M on their run: a plume's
+    peak (its flanks and the slow sensor's tail behind it, seed §3 H, fall away from it on the run)."""
+    peaks: list[int] = []
+    for index in np.flatnonzero(estimate > settings.gas_threshold_ppm):
+        run = stations[:, 2] == stations[index][2]
+        window = run & (np.abs(stations[:, 0] - stations[index][0]) < _PLUME_SEPARATION_M)
+        if estimate[index] >= estimate[window].max():
+            peaks.append(int(index))
+    return peaks
+
+
+def _leak_finding(
+    stations: FloatArray, estimate: FloatArray, best: int, leak_y: float, settings: MissionSettings
+) -> MissionFinding:
+    """A leak at a plume's peak station, refined along the run by a parabola through its neighbours."""
+    position = stations[best].copy()
+    # the jet is round: a parabola through the neighbours on the same run refines the peak
+    if 0 < best < len(stations) - 1 and stations[best - 1][2] == stations[best + 1][2] == position[2]:
+        left, mid, right = estimate[best - 1 : best + 2]
+        curvature = left - 2 * mid + right
+        if curvature < 0:
+            position[0] += 0.5 * (left - right) / curvature * settings.gas_station_spacing_m
+    return MissionFinding(
+        kind="gas_leak",
+        position_m=(float(position[0]), leak_y, float(position[2])),
+        size_m=settings.gas_station_spacing_m,
+        confidence=confidence(float(estimate[best]) / settings.gas_threshold_ppm - 1.0),
+        source="gas",
+        score=float(estimate[best]),
+    )
+
+
 def gas_pass(
     world: World, rng: np.random.Generator, settings: MissionSettings
 ) -> tuple[list[MissionFinding], FloatArray, FloatArray]:
-    """Dwell the MOS sensor at each station (seed §3 H) and locate the leak along the tubing."""
+    """Dwell the MOS sensor at each station (seed §3 H) and locate each leak's plume along the tubing."""
     from rsi.sensors.gas import MosGasSensor
 
     sensor = MosGasSensor()
@@ -78,25 +118,9 @@ def gas_pass(
     readings = world.read_gas(stations[samples], times, sensor=sensor, rng=rng)
     tail = int(2.0 * sensor.sample_rate_hz)  # the last 2 s of each dwell, the sensor nearly settled
     estimate = readings.estimated_ppm.reshape(len(stations), per_station)[:, -tail:].mean(axis=1)
-    findings: list[MissionFinding] = []
-    best = int(np.argmax(estimate))
-    if estimate[best] > settings.gas_threshold_ppm:
-        position = stations[best].copy()
-        # the jet is round: a parabola through the neighbours on the same run refines the peak
-        if 0 < best < len(stations) - 1 and stations[best - 1][2] == stations[best + 1][2] == position[2]:
-            left, mid, right = estimate[best - 1 : best + 2]
-            curvature = left - 2 * mid + right
-            if curvature < 0:
-                position[0] += 0.5 * (left - right) / curvature * settings.gas_station_spacing_m
-        position[1] = world.mockup.candidates.leak_sites[0].position_m[1]  # on the tubing, not the station
-        findings.append(
-            MissionFinding(
-                kind="gas_leak",
-                position_m=(float(position[0]), float(position[1]), float(position[2])),
-                size_m=settings.gas_station_spacing_m,
-                confidence=confidence(float(estimate[best]) / settings.gas_threshold_ppm - 1.0),
-                source="gas",
-                score=float(estimate[best]),
-            )
-        )
+    leak_y = world.mockup.candidates.leak_sites[0].position_m[1]  # on the tubing, not the station
+    findings = [
+        _leak_finding(stations, estimate, peak, leak_y, settings)
+        for peak in _plume_peaks(stations, estimate, settings)
+    ]
     return findings, stations, estimate
