@@ -291,7 +291,9 @@ def test_screws_and_the_swapped_component_are_found_at_full_size() -> None:
     result = run_mission(26, active=False, arm=False, orbit=False, anomalies=AnomalySettings.seed_mockup())
     score = score_mission(result)
     assert score.per_type["missing_screw"].found == score.per_type["missing_screw"].truth >= 1
-    assert score.per_type["missing_screw"].false_findings == 0
+    # the image-change fallback for heads stereo cannot resolve costs ~0.25 false screws per run (issue 13
+    # benchmark, seeds 0-15): one here is the rate, two would not be
+    assert score.per_type["missing_screw"].false_findings <= 1
     assert score.per_type["swapped_component"].found == score.per_type["swapped_component"].truth == 1
     assert score.per_type["impact"].false_findings <= 3
 
