@@ -26,6 +26,7 @@ from rsi.mission.views import (
     to_field,
     visible,
 )
+from rsi.sim.mockup import SCREW_HEIGHT_M
 
 if TYPE_CHECKING:
     from rsi.detection.detect import Flaw
@@ -130,7 +131,8 @@ def screw_checks(
     the reference's. Matched stereo resolves a 2 mm head only where its range noise is well under it:
     sigma_Z = Z^2 sigma_d / (f B) is ~1.4 mm per pixel for a 6 cm baseline at 0.5 m, and the matcher's
     window smooths a 5 mm head into its plate. So a relief change counts only when both reliefs were
-    measured and it exceeds ``settings.screw_relief_lost_m``. Otherwise the comparison with the reference
+    measured, the reference read the present head within half its height of the CAD's 2 mm, and the change
+    exceeds ``settings.screw_relief_lost_m``. Otherwise the comparison with the reference
     (seed §2.4): a head that is gone changes the image over its disc, and a dark-flaw score above the
     confirming threshold `confirm` there against *both* pristine visits (`pairs`: a head's relief renders
     differently at each viewpoint, and what one reference's sampling made is not new) is the screw's loss.
@@ -142,8 +144,11 @@ def screw_checks(
     seen = visible(view, np.asarray([s.position_m for s in screws])) if screws else np.zeros(0, bool)
     checked = [site for site, in_view in zip(screws, seen, strict=True) if in_view]
     for site in checked:
-        lost = reliefs.get(site.name, math.nan) - screw_relief_m(range_m, view, site)
-        if math.isfinite(lost) and lost > settings.screw_relief_lost_m:
+        before = reliefs.get(site.name, math.nan)
+        lost = before - screw_relief_m(range_m, view, site)
+        # the reference saw the head present: stereo that did not read it near its height cannot judge it
+        resolved = abs(before - SCREW_HEIGHT_M) < 0.5 * SCREW_HEIGHT_M
+        if resolved and math.isfinite(lost) and lost > settings.screw_relief_lost_m:
             margin, score = (lost - settings.screw_relief_lost_m) / 2e-4, lost
         elif (change := min(screw_change(pair, view, site) for pair in pairs)) > confirm:
             margin, score = change - confirm, change
@@ -185,20 +190,32 @@ _DENT_WINDOW_PX = 31
 _DENT_CLIP_M = 0.015
 
 
-def sinking_m(
+@dataclass(frozen=True)
+class Sinking:
+    """The most sunk ~2 cm patch of a component since the reference: how far beyond the rest of the
+    component it sank (metres; above the patches' median by more than their spread says), and where."""
+
+    depth_m: float
+    position_m: tuple[float, float, float] | None = None
+
+
+def sinking(
     view: Sensed, reference_m: NDArray[np.float32], shift_xy: tuple[float, float], site: Site
-) -> float:
-    """How far the component's surface sank since the reference, at its most sunk ~2 cm patch (seed §4).
+) -> Sinking:
+    """How far the component's surface sank since the reference at its most sunk ~2 cm patch (seed §4).
 
     The reference's range map is moved by the registered shift `shift_xy` (reference to inspection) and
     subtracted from this visit's over the component's pixels in the CAD projection, where both ranges were
     matched; a dent anywhere on the component (not only at its site) shows as a patch that moved away.
+    A dent is local: the patch must stand out from the component's other patches, so it is measured above
+    their median, less four robust sigmas of them (1.4826 MAD), which a component whose dark, plain skin the
+    matcher reads poorly (solar cells) raises instead of reporting its noise as a dent.
     """
     import cv2
 
     mask = view.capture.cad.components.get(site.name)
     if mask is None or mask.sum() < _DENT_WINDOW_PX**2:
-        return 0.0
+        return Sinking(0.0)
     rows, cols = reference_m.shape
     move = np.array([[1.0, 0.0, shift_xy[0]], [0.0, 1.0, shift_xy[1]]], dtype=np.float32)
     before = cv2.warpAffine(reference_m, move, (cols, rows), flags=cv2.INTER_NEAREST, borderValue=math.nan)
@@ -209,7 +226,14 @@ def sinking_m(
     share = cv2.blur(usable.astype(np.float32), window)
     mean = cv2.blur(clipped, window) / np.maximum(share, np.float32(1e-6))
     inside = cv2.erode(mask.astype(np.uint8), np.ones(window, np.uint8)).astype(bool) & (share > 0.5)
-    return float(mean[inside].max()) if inside.any() else 0.0
+    if inside.sum() < 2:
+        return Sinking(0.0)
+    patches = mean[inside]
+    centre = float(np.median(patches))
+    spread = 1.4826 * float(np.median(np.abs(patches - centre)))
+    row, col = np.unravel_index(int(np.argmax(np.where(inside, mean, -np.inf))), mean.shape)
+    depth = float(patches.max()) - centre - 4.0 * spread
+    return Sinking(depth, field_to_world(view, float(row), float(col)))
 
 
 def component_change(pair: PairResult, view: Sensed, site: Site, settings: MissionSettings) -> float:
@@ -306,7 +330,7 @@ def component_checks(
 
     A discoloured replacement changes the strobe image over the whole component, unless it fills the frame
     and the registration's gain absorbs it (then its raw brightness tells); a dent shows in the stereo range
-    map, sunk since the reference by millimetres somewhere on the component (:func:`sinking_m`). Each
+    map, sunk since the reference by millimetres somewhere on the component (:func:`sinking`). Each
     finding comes with the radius around it within which the difference image shows the swap itself (blobs
     there are not impacts, those elsewhere are); a discolouring changed only the component's own surface,
     which the view's CAD projection tells.
@@ -316,12 +340,12 @@ def component_checks(
     shift = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
     for site in seen_components(world, view):
         change = component_change(pair, view, site, settings)
-        sunk = sinking_m(view, reference_m, (shift[0], shift[1]), site)
-        if sunk > settings.dent_relief_min_m:
-            # the dent may be anywhere on the component: its crater's shading is explained over all of it
-            score, margin = sunk, (sunk - settings.dent_relief_min_m) / 2e-4
-            size = site.size_m
-            explained = Explanation(site.position_m, 0.5 * size + 0.02)
+        sunk = sinking(view, reference_m, (shift[0], shift[1]), site)
+        if sunk.depth_m > settings.dent_relief_min_m and sunk.position_m is not None:
+            # the dent may be anywhere on the component: its crater's shading is explained around it
+            score, margin = sunk.depth_m, (sunk.depth_m - settings.dent_relief_min_m) / 2e-4
+            size = min(site.size_m, 2 * settings.component_disc_m)
+            explained = Explanation(sunk.position_m, settings.component_disc_m + 0.02)
         elif change > settings.component_change_min:
             score, margin, size = change, (change - settings.component_change_min) / 0.01, site.size_m
             explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name)
