@@ -195,7 +195,7 @@ class Sinking:
     """The most sunk ~2 cm patch of a component since the reference: how far beyond the rest of the
     component it sank (metres; above the patches' median by more than their spread says), and where."""
 
-    depth_m: float
+    sunk_m: float
     position_m: tuple[float, float, float] | None = None
 
 
@@ -341,9 +341,9 @@ def component_checks(
     for site in seen_components(world, view):
         change = component_change(pair, view, site, settings)
         sunk = sinking(view, reference_m, (shift[0], shift[1]), site)
-        if sunk.depth_m > settings.dent_relief_min_m and sunk.position_m is not None:
+        if sunk.sunk_m > settings.dent_relief_min_m and sunk.position_m is not None:
             # the dent may be anywhere on the component: its crater's shading is explained around it
-            score, margin = sunk.depth_m, (sunk.depth_m - settings.dent_relief_min_m) / 2e-4
+            score, margin = sunk.sunk_m, (sunk.sunk_m - settings.dent_relief_min_m) / 2e-4
             size = min(site.size_m, 2 * settings.component_disc_m)
             explained = Explanation(sunk.position_m, settings.component_disc_m + 0.02)
         elif change > settings.component_change_min:
