@@ -74,7 +74,8 @@ def main() -> None:
             world.close()
     print(f"seeds 0..{args.seeds - 1}, every plan vista, {size[0]}x{size[1]}, reference state")
     print(
-        "| surface | pixels | holes | false matches (> 3 cm) | median abs error mm | sigma_Z(1 px) mm | ratio |"
+        "| surface | pixels | holes | false matches (> 3 cm) | median abs error mm "
+        "| sigma_Z(1 px) mm | ratio |"
     )
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for name, (pixels, holes, false, error, sigma, good) in sorted(totals.items()):
