@@ -82,6 +82,19 @@ def _unit3(value: object, name: str) -> Vector3:
     return (float(unit[0]), float(unit[1]), float(unit[2]))
 
 
+def _across(value: object, name: str, unit: Vector3, unit_name: str, hint: str) -> Vector3:
+    """The unit part of `value` perpendicular to the unit vector `unit` (refused when parallel to it)."""
+    raw = np.asarray(_vector3(value, name))
+    direction = np.asarray(unit)
+    part = raw - float(raw @ direction) * direction
+    if float(np.linalg.norm(part)) < 1e-9 * max(1.0, float(np.linalg.norm(raw))):
+        raise InputError(
+            f"{name} must not be parallel to {unit_name}; got {name}={value!r}, {unit_name}={unit!r}. "
+            f"Pass {hint}."
+        )
+    return _unit3(part, name)
+
+
 def _name(value: object, name: str) -> str:
     if not isinstance(value, str) or not value:
         raise InputError(f"{name} must be a non-empty string; got {value!r}.")
@@ -171,16 +184,14 @@ class Patch:
     def __post_init__(self) -> None:
         object.__setattr__(self, "name", _name(self.name, "name"))
         object.__setattr__(self, "centre_m", _vector3(self.centre_m, "centre_m"))
-        normal = np.asarray(_unit3(self.normal, "normal"))
-        raw_u = np.asarray(_vector3(self.u_axis, "u_axis"))
-        in_plane = raw_u - float(raw_u @ normal) * normal
-        if float(np.linalg.norm(in_plane)) < 1e-9 * max(1.0, float(np.linalg.norm(raw_u))):
-            raise InputError(
-                f"u_axis must not be parallel to normal; got u_axis={self.u_axis!r}, normal={self.normal!r}. "
-                "Pass a direction along one side of the rectangle."
-            )
-        object.__setattr__(self, "normal", _unit3(normal, "normal"))
-        object.__setattr__(self, "u_axis", _unit3(in_plane, "u_axis"))
+        normal = _unit3(self.normal, "normal")
+        in_plane = _across(
+            self.u_axis, "u_axis", normal, "normal", "a direction along one side of the rectangle"
+        )
+        object.__setattr__(
+            self, "normal", _unit3(normal, "normal")
+        )  # re-normalised: stored truth stays bit-identical
+        object.__setattr__(self, "u_axis", in_plane)
         half = self.half_extent_m
         if isinstance(half, str) or not isinstance(half, Sequence) or len(half) != 2:
             raise InputError(f"half_extent_m must be a (u, v) pair of lengths; got {half!r}.")
@@ -260,16 +271,12 @@ class CylinderPatch:
     def __post_init__(self) -> None:
         object.__setattr__(self, "name", _name(self.name, "name"))
         object.__setattr__(self, "centre_m", _vector3(self.centre_m, "centre_m"))
-        axis = np.asarray(_unit3(self.axis, "axis"))
-        raw = np.asarray(_vector3(self.front, "front"))
-        across = raw - float(raw @ axis) * axis
-        if float(np.linalg.norm(across)) < 1e-9 * max(1.0, float(np.linalg.norm(raw))):
-            raise InputError(
-                f"front must not be parallel to axis; got front={self.front!r}, axis={self.axis!r}. "
-                "Pass the outward direction at the window's middle."
-            )
-        object.__setattr__(self, "axis", _unit3(axis, "axis"))
-        object.__setattr__(self, "front", _unit3(across, "front"))
+        axis = _unit3(self.axis, "axis")
+        front = _across(self.front, "front", axis, "axis", "the outward direction at the window's middle")
+        object.__setattr__(
+            self, "axis", _unit3(axis, "axis")
+        )  # re-normalised: stored truth stays bit-identical
+        object.__setattr__(self, "front", front)
         for label in ("radius_m", "half_length_m"):
             object.__setattr__(
                 self, label, v.in_range(getattr(self, label), label, low=0.0, low_inclusive=False)
