@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -242,7 +244,7 @@ def _pair(strobe: np.ndarray, ambient: np.ndarray, seed: int = 0) -> tuple[Frame
     return odd, even
 
 
-def test_field_pair_gives_every_row_and_each_field_as_its_own_frame() -> None:
+def test_field_pair_gives_every_row_its_own_strobe_image() -> None:
     rows, cols = 40, 24
     # a one-row dark line on an even row: intra-frame compensation of the odd field cannot see it
     strobe = np.full((rows, cols), 0.2, np.float32)
@@ -250,13 +252,72 @@ def test_field_pair_gives_every_row_and_each_field_as_its_own_frame() -> None:
     ambient = np.full((rows, cols), 800.0, np.float32)
     odd, even = _pair(strobe, ambient)
     woven = compensate_field_pair(odd, even)
-    assert woven.image.shape == (rows, cols) and woven.row_step == 1
-    assert np.array_equal(woven.image[1::2], compensate_interlaced(odd).image)
-    assert np.array_equal(woven.image[0::2], compensate_interlaced(even).image)
-    assert np.array_equal(woven.variance[0::2], compensate_interlaced(even).variance)
+    assert woven.image.shape == (rows, cols) and woven.row_step == 1 and woven.valid.all()
     line, rest = woven.image[10].mean(), np.delete(woven.image, 10, axis=0).mean()
     assert line < 0.5 * rest  # the strobe-only contrast of the line, 0.05 vs 0.2
     assert compensate_interlaced(odd).image.mean(axis=1).min() > 0.8 * rest
+
+
+def _shadow_edge_pair(edge_row: int, rows: int = 40, cols: int = 400) -> tuple[Frame, Frame]:
+    """Sunlit above `edge_row`, black shadow from it on: a sharp edge along the rows (seed §2.2)."""
+    ambient = np.zeros((rows, cols), np.float32)
+    ambient[:edge_row] = 8000.0
+    return _pair(np.full((rows, cols), 2.0, np.float32), ambient, seed=edge_row)
+
+
+@pytest.mark.parametrize("edge_row", [20, 21])
+def test_field_pair_is_exact_at_a_shadow_edge_along_the_rows(edge_row: int) -> None:
+    odd, even = _shadow_edge_pair(edge_row)
+    woven = compensate_field_pair(odd, even)
+    strobe_dn = np.median(woven.image)
+    # the flat strobe everywhere: every row's mean within 1 DN of it (noise / sqrt(400) is ~0.1 DN)
+    assert np.abs(woven.image.mean(axis=1) - strobe_dn).max() < 1.0
+    # intra-frame interpolation misses by half the edge's ~100 DN contrast on the row beside it
+    field = compensate_interlaced(odd if edge_row % 2 else even).image
+    assert np.abs(field.mean(axis=1) - strobe_dn).max() > 20.0
+
+
+@pytest.mark.parametrize("edge_row", [20, 21])
+def test_field_pair_variance_predicts_the_error_at_and_away_from_the_edge(edge_row: int) -> None:
+    odd, even = _shadow_edge_pair(edge_row, rows=40, cols=4000)
+    woven = compensate_field_pair(odd, even)
+    error = woven.image - np.median(woven.image[edge_row + 4 :])
+    for row in (2, edge_row - 1, edge_row, 30):
+        measured, predicted = float(np.mean(error[row] ** 2)), float(np.mean(woven.variance[row]))
+        assert 0.8 < measured / predicted < 1.25, (row, measured, predicted)
+
+
+def test_field_pair_averages_both_ambient_estimates_where_the_ambient_is_smooth() -> None:
+    camera = CameraModel()
+    odd, even = _pair(np.full((20, 3), 2.0, np.float32), np.full((20, 3), 8000.0, np.float32))
+    woven = compensate_field_pair(odd, even)
+    lit_var, unlit_var = (
+        float(np.median(camera.noise_variance_dn(frame.raw[rows])))
+        for frame, rows in ((odd, slice(1, None, 2)), (odd, slice(0, None, 2)))
+    )
+    # weights 2/3 (mean of two rows, variance u/2) and 1/3 (one row, u): u (4/9 / 2 + 1/9) = u / 3
+    np.testing.assert_allclose(np.median(woven.variance[4:16]), lit_var + unlit_var / 3, rtol=0.05)
+
+
+def test_field_pair_falls_back_on_one_estimate_where_the_other_is_unusable() -> None:
+    odd, even = _pair(np.full((20, 8), 2.0, np.float32), np.full((20, 8), 8000.0, np.float32))
+    top = np.uint16(odd.camera.max_dn)
+    blind = replace(even, raw=even.raw.copy(), saturated=even.saturated.copy())
+    blind.raw[11] = top  # row 11 is unlit in the even-lit frame: its ambient reading is lost
+    blind.saturated[11] = True
+    woven = compensate_field_pair(odd, blind)
+    np.testing.assert_array_equal(woven.image[11], compensate_interlaced(odd).image[5])
+    assert woven.valid[11].all()
+    # a saturated unlit row of the odd-lit frame: its lit rows 9 and 11 take the even-lit frame's reading,
+    # and the even-lit frame's row 10 its own interpolation
+    deaf = replace(odd, raw=odd.raw.copy(), saturated=odd.saturated.copy())
+    deaf.raw[10] = top
+    deaf.saturated[10] = True
+    woven = compensate_field_pair(deaf, even)
+    expected = deaf.raw[9].astype(np.float32) - even.raw[9].astype(np.float32)
+    np.testing.assert_allclose(woven.image[9], expected)
+    np.testing.assert_array_equal(woven.image[10], compensate_interlaced(even).image[5])
+    assert woven.valid[9:12].all()
 
 
 def test_field_pair_rejects_wrong_fields_shapes_and_types() -> None:
@@ -272,3 +333,18 @@ def test_field_pair_rejects_wrong_fields_shapes_and_types() -> None:
     small_even = _pair(np.full((18, 8), 0.2, np.float32), np.zeros((18, 8), np.float32))[1]
     with pytest.raises(InputError, match="same shape"):
         compensate_field_pair(odd, small_even)
+
+
+def test_field_pair_keeps_a_sunlit_flaw_at_full_contrast_and_unhidden() -> None:
+    # a 1-pixel spot a quarter as reflective under both the sun and the strobe, on a lit row of each frame
+    strobe = np.full((40, 64), 2.0, np.float32)
+    ambient = np.full((40, 64), 8000.0, np.float32)
+    for row in (21, 22):
+        strobe[row, 30], ambient[row, 30] = 0.5, 2000.0
+    odd, even = _pair(strobe, ambient, seed=3)
+    woven = compensate_field_pair(odd, even)
+    level = float(np.median(woven.image))
+    # the spot loses three quarters of the strobe's DN; the unlit rows' spot does not leak into its ambient
+    np.testing.assert_allclose(woven.image[21:23, 30], 0.25 * level, atol=3.0)
+    # and its own variance stays that of its neighbours (no interpolation error claimed over it)
+    assert woven.variance[21:23, 30].max() < 1.5 * float(np.median(woven.variance))

@@ -38,6 +38,8 @@ _FIELD_PARITY = {"even": 0, "odd": 1}  # first lit row
 _MIN_INTERLACED_ROWS = 6
 # A curvature counts as real only beyond 3 noise sigmas: pure noise then adds < 1 % to the variance map.
 _NOISE_SIGMAS_SQUARED = np.float32(9.0)
+# A noise-free camera (variance 0 everywhere) would divide 0 by 0 in the estimates' weights.
+_TINY_VARIANCE = np.float32(1e-12)
 
 
 @dataclass(frozen=True)
@@ -203,7 +205,34 @@ def compensate_interlaced(
     that sensor noise alone hardly adds to it. Edge rows use the first difference instead.
     """
     parity = _FIELD_PARITY[_lit_field(frame, lit_field)]
-    sensed = _sense(frame, "frame", camera, saturation_dn, bad_pixels)
+    rows = _lit_rows(_sense(frame, "frame", camera, saturation_dn, bad_pixels), parity)
+    return Compensated(
+        image=rows.lit - rows.ambient,
+        valid=~(rows.lit_invalid | rows.ambient_invalid),
+        variance=rows.lit_variance + rows.ambient_variance + rows.interpolation,
+        interpolation_variance=rows.interpolation,
+        row_step=2,
+    )
+
+
+@dataclass(frozen=True)
+class _LitRows:
+    """One interlaced frame's lit rows and the ambient interpolated for them from its unlit rows (seed §2.2).
+
+    ``ambient_variance`` is the sensor noise of the interpolated ambient, ``interpolation`` the squared error
+    the interpolation is expected to make where the ambient bends (:func:`_interpolation_variance`).
+    """
+
+    lit: F32
+    lit_variance: F32
+    lit_invalid: BoolArray
+    ambient: F32
+    ambient_variance: F32
+    ambient_invalid: BoolArray
+    interpolation: F32
+
+
+def _lit_rows(sensed: _Sensed, parity: int) -> _LitRows:
     total_rows = sensed.image.shape[0]
     if total_rows < _MIN_INTERLACED_ROWS:
         raise InputError(
@@ -217,14 +246,16 @@ def compensate_interlaced(
     above, below = _neighbours(sensed.image[unlit], parity, rows)
     var_above, var_below = _neighbours(sensed.variance[unlit], parity, rows)
     bad_above, bad_below = _neighbours(sensed.invalid[unlit], parity, rows)
-    interpolation = _interpolation_variance(sensed.image[unlit], sensed.variance[unlit], parity, rows, edges)
-    sensor = sensed.variance[lit] + _ambient_variance(var_above, var_below, edges)
-    return Compensated(
-        image=sensed.image[lit] - np.float32(0.5) * (above + below),
-        valid=~(sensed.invalid[lit] | bad_above | bad_below),
-        variance=sensor + interpolation,
-        interpolation_variance=interpolation,
-        row_step=2,
+    return _LitRows(
+        lit=sensed.image[lit],
+        lit_variance=sensed.variance[lit],
+        lit_invalid=sensed.invalid[lit],
+        ambient=np.float32(0.5) * (above + below),
+        ambient_variance=_ambient_variance(var_above, var_below, edges),
+        ambient_invalid=bad_above | bad_below,
+        interpolation=_interpolation_variance(
+            sensed.image[unlit], sensed.variance[unlit], parity, rows, edges
+        ),
     )
 
 
@@ -263,20 +294,67 @@ def compensate_field_pair(odd_lit: Frame, even_lit: Frame) -> Compensated:
             "odd_lit and even_lit must have the same shape; "
             f"got {odd_lit.raw.shape} and {even_lit.raw.shape}."
         )
-    odd, even = compensate_interlaced(odd_lit), compensate_interlaced(even_lit)
+    odd, even = (
+        _sense(frame, name, None, None, None)
+        for frame, name in ((odd_lit, "odd_lit"), (even_lit, "even_lit"))
+    )
     rows = odd_lit.raw.shape[0]
+    odd_rows, even_rows = _with_other_frame(odd, even, parity=1), _with_other_frame(even, odd, parity=0)
 
-    def woven(odd_rows: NDArray[Any], even_rows: NDArray[Any]) -> NDArray[Any]:
-        out = np.empty((rows, *odd_rows.shape[1:]), dtype=odd_rows.dtype)
-        out[1::2] = odd_rows[: len(range(1, rows, 2))]
-        out[0::2] = even_rows[: len(range(0, rows, 2))]
+    def woven(odd_part: NDArray[Any], even_part: NDArray[Any]) -> NDArray[Any]:
+        out = np.empty((rows, *odd_part.shape[1:]), dtype=odd_part.dtype)
+        out[1::2] = odd_part[: len(range(1, rows, 2))]
+        out[0::2] = even_part[: len(range(0, rows, 2))]
         return out
 
     return Compensated(
-        image=woven(odd.image, even.image),
-        valid=woven(odd.valid, even.valid),
-        variance=woven(odd.variance, even.variance),
-        interpolation_variance=woven(odd.interpolation_variance, even.interpolation_variance),
+        image=woven(odd_rows.image, even_rows.image),
+        valid=woven(odd_rows.valid, even_rows.valid),
+        variance=woven(odd_rows.variance, even_rows.variance),
+        interpolation_variance=woven(odd_rows.interpolation_variance, even_rows.interpolation_variance),
+        row_step=1,
+    )
+
+
+def _with_other_frame(frame: _Sensed, other: _Sensed, *, parity: int) -> Compensated:
+    """`frame`'s lit rows less their ambient, estimated twice and weighted by what each estimate may miss.
+
+    Seed §2.2: the ambient of a lit row is interpolated from the unlit rows around it, which misses where
+    the ambient bends (a sun-shadow edge along the rows). The other frame, its strobe in the other field,
+    read the very same row under the ambient alone, 1/30 s later: exact while the camera holds still (the
+    interlaced fields already assume that for 1/60 s), at the cost of one row's noise instead of the mean of
+    two. Their difference measures the interpolation's error at each pixel (less both noises, floored at 0,
+    the larger of it and the unlit field's own estimate kept); each estimate is then weighted by the inverse
+    of its expected squared error. Where the ambient is smooth the two average (a third of one row's noise
+    variance); at a shadow edge the other frame's row takes over; each pass's own edges count, whatever sun
+    the other pass had. ``interpolation_variance`` is what remains of the interpolation error.
+    """
+    rows = _lit_rows(frame, parity)
+    count = rows.lit.shape[0]
+    row_of = slice(parity, parity + 2 * count, 2)
+    twin, twin_variance = other.image[row_of], other.variance[row_of]
+    twin_invalid = other.invalid[row_of]
+    missed = _excess_square(rows.ambient - twin, rows.ambient_variance + twin_variance)
+    error = np.maximum(rows.interpolation, missed)
+    interpolated = np.where(rows.ambient_invalid, np.float32(np.inf), rows.ambient_variance + error)
+    weight = np.where(
+        twin_invalid,
+        np.float32(1.0),
+        twin_variance / np.maximum(twin_variance + interpolated, _TINY_VARIANCE),
+    ).astype(np.float32)
+    weight = np.where(rows.ambient_invalid, np.float32(0.0), weight).astype(np.float32)
+    ambient = weight * np.where(rows.ambient_invalid, 0.0, rows.ambient) + (1 - weight) * np.where(
+        twin_invalid, 0.0, twin
+    )
+    residual = (weight * weight * np.where(rows.ambient_invalid, 0.0, error)).astype(np.float32)
+    noise = weight * weight * np.where(rows.ambient_invalid, 0.0, rows.ambient_variance) + (
+        1 - weight
+    ) ** 2 * np.where(twin_invalid, 0.0, twin_variance)
+    return Compensated(
+        image=(rows.lit - ambient).astype(np.float32),
+        valid=~(rows.lit_invalid | (rows.ambient_invalid & twin_invalid)),
+        variance=(rows.lit_variance + noise + residual).astype(np.float32),
+        interpolation_variance=residual,
         row_step=1,
     )
 
