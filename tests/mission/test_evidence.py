@@ -15,19 +15,19 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from rsi.detection.detect import Flaw
 from rsi.imaging.compensation import Compensated
 from rsi.mission import MissionFinding, MissionSettings
-from rsi.mission.evidence import Explanation, Look, discoloured_pixels, explained_by, screw_relief_m
-from rsi.mission.exposure import ambient_dn, metered_energy, metered_shutter
+from rsi.mission.evidence import Explanation, Look, contrast, discoloured_pixels, explained_by, screw_relief_m
+from rsi.mission.exposure import ambient_dn, metered_energy, metered_shutter, shortened
 from rsi.mission.visual import compare, fuse_findings
 
 SETTINGS = MissionSettings()
 SHAPE = (40, 60)
 
 
-def _image(values: np.ndarray) -> Compensated:
+def _image(values: np.ndarray, variance: float = 2.0) -> Compensated:
     return Compensated(
         image=values.astype(np.float32),
         valid=np.ones(values.shape, bool),
-        variance=np.full(values.shape, 2.0, np.float32),
+        variance=np.full(values.shape, variance, np.float32),
         interpolation_variance=np.zeros(values.shape, np.float32),
         row_step=1,
     )
@@ -37,11 +37,11 @@ def _look(
     position_m: tuple[float, float, float],
     area_m2: float,
     bbox: tuple[int, int, int, int],
-    darkening: float = 0.0,
+    contrast: float = 0.0,
 ) -> Look:
     row0, col0, row1, col1 = bbox
     flaw = Flaw((row0 + row1) / 2, (col0 + col1) / 2, bbox, (row1 - row0) * (col1 - col0), 9.0, "dark")
-    return Look(flaw, position_m, area_m2, 9.0, darkening=darkening)
+    return Look(flaw, position_m, area_m2, 9.0, contrast=contrast)
 
 
 def _finding(kind: str, x: float, score: float, source: str = "A_door") -> MissionFinding:
@@ -144,10 +144,10 @@ def test_a_discolouring_explains_only_blobs_on_its_own_pixels() -> None:
     assert not explained_by(far, view, explanation, SETTINGS)  # type: ignore[arg-type]
     dent = Explanation((0.0, 0.0, 0.0), 0.07)
     assert explained_by(beside, view, dent, SETTINGS)  # type: ignore[arg-type]
-    spot = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62), darkening=0.5)
+    spot = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62), contrast=0.5)
     assert not explained_by(spot, view, dent, SETTINGS)  # type: ignore[arg-type]  # an impact on the crater
-    faint = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62), darkening=0.3)
-    wide = _look((0.05, 0.0, 0.0), 5e-5, (20, 60, 30, 70), darkening=0.5)
+    faint = _look((0.05, 0.0, 0.0), 2e-6, (20, 60, 22, 62), contrast=0.3)
+    wide = _look((0.05, 0.0, 0.0), 5e-5, (20, 60, 30, 70), contrast=0.5)
     assert explained_by(faint, view, dent, SETTINGS) and explained_by(wide, view, dent, SETTINGS)  # type: ignore[arg-type]
     assert not explained_by(on_it, _with_components({}), explanation, SETTINGS)  # type: ignore[arg-type]
 
@@ -178,3 +178,52 @@ def test_a_found_discolouring_leaves_the_photometric_fit() -> None:
     assert pair.detection.score[spot].max() > max(8.0, 2 * whole.detection.score[spot].max())
     dent = [Explanation((0.0, 0.0, 0.0), 0.07)]
     assert discoloured_pixels(view, dent, SETTINGS) is None  # type: ignore[arg-type]  # a dent leaves the fit alone
+
+
+def _textured(seed: int = 5) -> np.ndarray:
+    """A gently textured surface: the misregistration floor then hardly shapes the noise model."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    texture = cv2.GaussianBlur(rng.standard_normal((120, 160)).astype(np.float32), (0, 0), 2.0)
+    return (80.0 + 5.0 * texture / texture.std()).astype(np.float32)
+
+
+@pytest.mark.parametrize("sign", [-1.0, 1.0])
+def test_the_comparison_finds_dark_and_bright_spots_and_their_contrast(sign: float) -> None:
+    rng = np.random.default_rng(6)
+    reference, inspection = (_textured() + rng.normal(0.0, 1.0, (120, 160)).astype(np.float32) for _ in "ab")
+    inspection[60:63, 80:83] *= np.float32(1.0 + sign * 0.4)  # tape (dark) or bared metal (bright), 3x3 px
+    pair = compare(_image(reference, 1.0), _image(inspection, 1.0), SETTINGS.p_false_alarm, SETTINGS)
+    assert len(pair.flaws) == 1
+    flaw = pair.flaws[0]
+    assert flaw.polarity == ("bright" if sign > 0 else "dark")
+    assert 59 <= flaw.row <= 63 and 79 <= flaw.col <= 83
+    # the 3x3 window on the spot changed by its 40 %; read with the other sign, only noise (< 0.03)
+    assert contrast(pair, flaw.bbox, flaw.polarity) == pytest.approx(0.4, abs=0.05)
+    assert contrast(pair, flaw.bbox, "dark" if sign > 0 else "bright") < 0.03
+
+
+def test_a_brighter_sun_shortens_the_inspection_shutter_and_leaves_the_strobe_image() -> None:
+    from rsi.mission.run import ORBIT_START_S
+    from rsi.mission.tour import Tour
+    from rsi.mission.views import inspection_region, sense, strobe_image
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=0, arm=True)
+    try:
+        tour = Tour(world, seed=0, size=(120, 160))
+        tour.start_pass("inspection", ORBIT_START_S[0])
+        door = sense(tour.visit("A_door", "A_door", state="inspection"))  # sunlit aluminium, seed's shutter
+        again, shutter = shortened(tour, door, SETTINGS, shutter=1.0, energy=1.0)
+        assert shutter < 1 / 1.5 and ambient_dn(again, SETTINGS) <= 1.05 * SETTINGS.ambient_target_dn
+        before, after = strobe_image(door), strobe_image(again)
+        both = before.valid & after.valid & inspection_region(door, SETTINGS)
+        # the ~20 us flash fits in any shutter (seed §2.1): the strobe image keeps its level
+        assert np.median(after.image[both]) == pytest.approx(np.median(before.image[both]), rel=0.05)
+        assert after.valid.sum() >= before.valid.sum()  # and fewer saturated pixels
+        panel = sense(tour.visit("C_panel", "C_panel", state="inspection"))  # in the truss's shadow
+        kept, same = shortened(tour, panel, SETTINGS, shutter=0.5, energy=1.0)
+        assert same == 0.5 and kept is panel  # a dimmer sun needs nothing
+    finally:
+        world.close()

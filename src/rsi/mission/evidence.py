@@ -1,6 +1,6 @@
-"""Evidence read from one visit's comparison (seed §2.4, §4 anomalies): dark blobs and how much they
-darkened, screw heads by their stereo relief, components by their change, dimming or dent, and what
-explains a blob that is no impact.
+"""Evidence read from one visit's comparison (seed §2.4, §4 anomalies): blobs and how much they
+darkened or brightened, screw heads by their stereo relief, components by their change, dimming or dent,
+and what explains a blob that is no impact.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def confidence(margin: float) -> float:
 
 @dataclass
 class Look:
-    """One dark blob of a visit (the detector's flaw, placed in the world), kept until it is classified;
+    """One blob of a visit (the detector's flaw, placed in the world), kept until it is classified;
     its score is revised by the other reference and a second look."""
 
     flaw: Flaw
@@ -52,7 +52,7 @@ class Look:
     area_m2: float
     score: float
     second_look: bool = False
-    darkening: float = 0.0
+    contrast: float = 0.0
 
     @property
     def bbox(self) -> tuple[int, int, int, int]:
@@ -60,8 +60,9 @@ class Look:
         return self.flaw.bbox
 
 
-def darkening(pair: PairResult, bbox: tuple[int, int, int, int]) -> float:
-    """Largest fraction of the reference's brightness a 3x3 window of the blob lost (0: none)."""
+def contrast(pair: PairResult, bbox: tuple[int, int, int, int], polarity: str) -> float:
+    """Largest fraction of the reference's brightness a 3x3 window of the blob lost (`polarity` "dark") or
+    gained ("bright"); 0 when it changed the other way."""
     import cv2
 
     detection = pair.detection
@@ -70,16 +71,17 @@ def darkening(pair: PairResult, bbox: tuple[int, int, int, int]) -> float:
     r1, c1 = min(row1 + 1, detection.difference.shape[0]), min(col1 + 1, detection.difference.shape[1])
     difference = np.where(detection.valid[r0:r1, c0:c1], detection.difference[r0:r1, c0:c1], 0.0)
     predicted = pair.inspection[r0:r1, c0:c1] - detection.difference[r0:r1, c0:c1]
-    lost = cv2.blur(-difference.astype(np.float32), (3, 3), borderType=cv2.BORDER_REPLICATE)
+    signed = difference if polarity == "bright" else -difference
+    change = cv2.blur(signed.astype(np.float32), (3, 3), borderType=cv2.BORDER_REPLICATE)
     bright = cv2.blur(np.maximum(predicted, 0.0).astype(np.float32), (3, 3), borderType=cv2.BORDER_REPLICATE)
-    fraction = lost / np.maximum(bright, np.float32(1.0))
-    return float(fraction.max()) if fraction.size else 0.0
+    fraction = change / np.maximum(bright, np.float32(1.0))
+    return max(float(fraction.max()), 0.0) if fraction.size else 0.0
 
 
 def blobs(pair: PairResult, view: Sensed) -> list[Look]:
-    """Each dark blob of the comparison as a look at its peak: the preliminary threshold grows a millimetre
-    spot's blob into the noise around it, and its centroid can leave the 5x5 window in which the other
-    reference's comparison and the second look are read (:func:`second_look_score`)."""
+    """Each blob of the comparison, of either sign, as a look at its peak: the preliminary threshold grows
+    a millimetre spot's blob into the noise around it, and its centroid can leave the 5x5 window in which
+    the other reference's comparison and the second look are read (:func:`second_look_score`)."""
     looks: list[Look] = []
     score = pair.detection.score
     for flaw in pair.flaws:
@@ -92,7 +94,9 @@ def blobs(pair: PairResult, view: Sensed) -> list[Look]:
             continue
         pixel = pixel_size_m(view, position)
         area_m2 = flaw.area_px * pixel * pixel
-        looks.append(Look(flaw, position, area_m2, flaw.score, darkening=darkening(pair, flaw.bbox)))
+        looks.append(
+            Look(flaw, position, area_m2, flaw.score, contrast=contrast(pair, flaw.bbox, flaw.polarity))
+        )
     return looks
 
 
@@ -133,7 +137,7 @@ def screw_checks(
     window smooths a 5 mm head into its plate. So a relief change counts only when both reliefs were
     measured, the reference read the present head within half its height of the CAD's 2 mm, and the change
     exceeds ``settings.screw_relief_lost_m``. Otherwise the comparison with the reference
-    (seed §2.4): a head that is gone changes the image over its disc, and a dark-flaw score above the
+    (seed §2.4): a head that is gone changes the image over its disc, and a flaw score above the
     confirming threshold `confirm` there against *both* pristine visits (`pairs`: a head's relief renders
     differently at each viewpoint, and what one reference's sampling made is not new) is the screw's loss.
 
@@ -168,7 +172,7 @@ def screw_checks(
 
 
 def screw_change(pair: PairResult, view: Sensed, site: Site) -> float:
-    """Peak dark-flaw score of the comparison over the screw head's disc and a pixel beyond (seed §2.4)."""
+    """Peak flaw score of the comparison over the screw head's disc and a pixel beyond (seed §2.4)."""
     detection = pair.detection
     head = disc(detection.score.shape, view, site.position_m, 0.5 * site.size_m)
     head = _widened(head) & detection.valid
@@ -304,9 +308,9 @@ def explained_by(look: Look, view: Sensed, explanation: Explanation, settings: M
     if distance > explanation.radius_m:
         return False
     if explanation.component is None:
-        # a dent's crater changes the image over centimetres: a millimetre spot much darker than the
-        # reference there is an impact on the dented face (seed §4 plants both independently)
-        return look.area_m2 > settings.spot_area_max_m2 or look.darkening < settings.dent_spot_darkening_min
+        # a dent's crater changes the image over centimetres: a millimetre spot of much more contrast
+        # than the crater's shading there is an impact on the dented face (seed §4 plants both independently)
+        return look.area_m2 > settings.spot_area_max_m2 or look.contrast < settings.dent_spot_contrast_min
     mask = view.capture.cad.components.get(explanation.component)
     if mask is None:
         return False
@@ -351,7 +355,9 @@ def component_checks(
             explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name)
         elif abs(dimming := component_dimming(pair, view, site, settings)) > settings.component_dimming_min:
             score, margin, size = dimming, (abs(dimming) - settings.component_dimming_min) / 0.01, site.size_m
-            explained = Explanation(site.position_m, 0.0)
+            # the gain absorbed the component's change, but not its contrast with what was not repainted
+            # (the panel's cell gaps and frame): those edges are the swap's, not impacts
+            explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name)
         else:
             continue
         finding = MissionFinding(

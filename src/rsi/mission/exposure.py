@@ -137,3 +137,29 @@ def metered(tour: Tour, sensed: Sensed, settings: MissionSettings) -> tuple[Sens
     if energy != 1.0 or shutter != taken_at:
         sensed = replace(sensed, capture=tour.reflash(strobe_energy=energy, shutter=shutter))
     return sensed, shutter, energy
+
+
+def shortened(
+    tour: Tour, sensed: Sensed, settings: MissionSettings, *, shutter: float, energy: float
+) -> tuple[Sensed, float]:
+    """A later visit taken again at a shorter shutter where its sun is brighter than the metered one's:
+    (visit, shutter).
+
+    The inspection pass keeps the reference's strobe energy, so that both passes' strobe images match
+    (seed §2.3 fits only a small gain). The shutter is free: the ~20 us flash fits in any shutter
+    (seed §2.1), so shortening it changes the ambient alone, and a sun that moved onto the surface since the
+    reference would otherwise saturate strobe and ambient together where an impact may be. Never longer
+    than `shutter`: a dimmer sun needs nothing.
+    """
+    from rsi.sim.world import MIN_SHUTTER
+
+    taken_at = shutter
+    for _ in range(_METER_TRIES):
+        shorter = min(metered_shutter(sensed, settings, taken_at), taken_at)
+        if shorter >= taken_at or taken_at <= MIN_SHUTTER:
+            break
+        sensed = replace(sensed, capture=tour.reflash(strobe_energy=energy, shutter=shorter))
+        taken_at = shorter
+        if not clipped(sensed, settings):
+            break
+    return sensed, taken_at

@@ -115,13 +115,13 @@ class VisitImages:
     difference : ndarray of shape (M, N), float32
         Inspection minus prediction.
     score : ndarray of shape (M, N), float32
-        The dark-flaw LRT score (noise sigmas).
+        The LRT score of either sign (noise sigmas).
     valid : ndarray of shape (M, N), bool
         Pixels the test covered.
     impact_truth : ndarray of shape (M, N), bool
         Field pixels of the visible impacts that count towards recall (ground truth, for the run's ROC).
     impact_strengths : tuple of float
-        Each of those impacts' strength: the difference at its darkest pixel in noise sigmas.
+        Each of those impacts' strength: the difference at its most changed pixel in noise sigmas.
     row_step : int
         Frame rows per image row: 1 for the mission's full-resolution images (two frames, strobes in
         opposite fields), 2 for an intra-frame field.
@@ -200,7 +200,7 @@ class MissionResult:
         ``reference``, ``inspection``, ``sensors``, ``total``, and ``transits`` (wall time of the arm's
         simulated transits, part of the passes).
     roc : tuple of RocCurve
-        The run's empirical ROC (every inspection visit's dark score against the visible impacts that
+        The run's empirical ROC (every inspection visit's score against the visible impacts that
         count) and the theoretical one for those impacts' measured strengths; empty when no counted impact
         was visible.
     overview_rgb : ndarray of shape (H, W, 3), uint8, or None

@@ -32,14 +32,13 @@ from rsi.mission.score import run_roc
 from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, MissionSettings
 from rsi.mission.surveys import gas_pass, pyrometer_pass
 from rsi.mission.truth import with_truth
-from rsi.mission.views import Sensed, seen_screws, sense, strobe_image
+from rsi.mission.views import seen_screws, sense, strobe_image
 from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit
 from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.orbit import orbital_period_s
 
 if TYPE_CHECKING:
     from rsi.archive import Archive
-    from rsi.imaging.compensation import Compensated
     from rsi.mission.tour import Tour
     from rsi.sim.world import World
 
@@ -192,11 +191,11 @@ def _reference_pass(
         # kept for this point's later visits, inspection pass included
         world.set_shutter(shutter)
         world.set_strobe_energy(energy)
-        reference = _with_shadow_edges(strobe_image(view), view, settings)
+        reference = strobe_image(view)
         depth = view.range_m
         reliefs = {site.name: screw_relief_m(depth, view, site) for site in seen_screws(world, view)}
         again = sense(tour.visit(point.name, point.vista, state="reference", truth=False))
-        second = _with_shadow_edges(strobe_image(again), again, settings)
+        second = strobe_image(again)
         scale = nuisance_scale(
             reference,
             second,
@@ -209,20 +208,6 @@ def _reference_pass(
         stored[point.name] = StoredView(reference, second, scale, depth, reliefs, energy, shutter)
         report(f"reference {point.name}")
     return stored
-
-
-def _with_shadow_edges(image: Compensated, view: Sensed, settings: MissionSettings) -> Compensated:
-    """The image with the compensation error of its frame's sharp ambient edges at another visit added."""
-    from rsi.detection.nuisance import shadow_edge_variance
-
-    frame = view.capture.frames[0]
-    return shadow_edge_variance(
-        image,
-        frame.raw,
-        lit_field=frame.lit_field,
-        edge_dn_px=settings.shadow_edge_dn_px,
-        jag_px=settings.shadow_jag_px,
-    )
 
 
 def _inspection_pass(

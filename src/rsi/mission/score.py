@@ -200,9 +200,10 @@ def run_roc(visits: tuple[VisitRecord, ...], settings: MissionSettings) -> tuple
 
     Seed §2.4: P_D against P_F. The visits' score maps are stacked (a guard band keeps flaws of one from
     the next); the theory averages the model's P_D over the counted impacts' measured strengths (the
-    difference at each impact's darkest pixel over the local noise sigma).
+    difference at each impact's most changed pixel over the local noise sigma), both signs tested.
     """
     from rsi.detection.roc import RocCurve, empirical_roc, theoretical_roc
+    from rsi.mission.visual import IMPACT_POLARITY
 
     _check_visits(visits)
     instance_of(settings, "settings", MissionSettings, none_allowed=False)
@@ -222,6 +223,7 @@ def run_roc(visits: tuple[VisitRecord, ...], settings: MissionSettings) -> tuple
             strength_sigma=strength,
             p_false_alarm=p_false_alarm,
             size=settings.flaw_size_px,
+            polarity=IMPACT_POLARITY,
         )
         for strength in strengths
     ]

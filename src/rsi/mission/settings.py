@@ -41,19 +41,20 @@ class MissionSettings:
         Averaging box and dilation of the two-visit excess (:func:`rsi.detection.nuisance.pair_excess`):
         the box holds ~80 samples of z^2 (relative error ~0.16); the spread covers the next visit's pose
         error (lab: up to ~4 px).
-    impact_darkening_min : float
-        A small dark blob must lose this fraction of the reference's brightness over a 3x3 window to be an
-        impact: the seed's impacts are black tape on the surface (seed §4), which a 3x3 window of 0.66 mm
-        pixels sees as >= 0.08 for a 1 mm impact on the dark solar cells; brightening residues lose nothing.
+    impact_contrast_min : float
+        A small blob must lose (dark) or gain (bright) this fraction of the reference's brightness over a
+        3x3 window to be an impact: the seed's impacts are black tape on the surface (seed §4), which a 3x3
+        window of 0.66 mm pixels sees as >= 0.08 for a 1 mm impact on the dark solar cells, and a bright
+        spall gains ``(1 - r) c / r`` of a surface of reflectance r (>= 0.1 for aluminium's 0.63 at c = 0.2).
     surround_px : int
         Ring around a blob read as the surface it lies on (the blob's own pixels may be a decal).
     discoloured_margin_px : int
         A found discolouring's CAD pixels leave the photometric fit with this margin (the pose error).
     spot_area_max_m2 : float
         A spot on a dent: 4.4 mm across, a 3 mm impact and 2 px of blur.
-    dent_spot_darkening_min : float
+    dent_spot_contrast_min : float
         A crater's slopes shade compact patches down by up to 0.35 (measured, seeds 5, 12, 13): a spot
-        inside a dent's disc must lose more to be an impact.
+        inside a dent's disc must lose (or gain) more to be an impact.
     inspection_guard_px, depth_jump_m : int, float
         Guard band around the truss and around depth jumps larger than 2 cm (seed §2.3: one registration
         cannot align surfaces at different depths; parallax over 2 cm at 0.5 m exceeds a pixel for the
@@ -77,9 +78,6 @@ class MissionSettings:
     impact_merge_m, screw_match_m : float
         Two views' sightings of one impact, or a blob and a screw site, closer than this are one thing:
         their localisation errors are a few mm.
-    shadow_edge_dn_px, shadow_jag_px : float
-        Ambient gradient of a sun-shadow edge (brushed and grained skins stay below 10 DN/px) and its
-        sampling jitter between visits (:func:`rsi.detection.nuisance.shadow_edge_variance`).
     strobe_target_dn, meter_percentile : float
         Metering: the brightest 0.5 % of the surface lifted this far up the 8-bit range (seed §2.2: the
         sensor must not saturate under strobe plus ambient).
@@ -110,11 +108,11 @@ class MissionSettings:
     misregistration_std_px: float = 0.3
     nuisance_window_px: int = 9
     nuisance_spread_px: int = 9
-    impact_darkening_min: float = 0.05
+    impact_contrast_min: float = 0.05
     surround_px: int = 3
     discoloured_margin_px: int = 4
     spot_area_max_m2: float = 1.5e-5
-    dent_spot_darkening_min: float = 0.4
+    dent_spot_contrast_min: float = 0.4
     inspection_guard_px: int = 2
     depth_jump_m: float = 0.02
     component_area_m2: float = 1.0e-4
@@ -126,8 +124,6 @@ class MissionSettings:
     stereo_disparity_noise_px: float = 0.1
     impact_merge_m: float = 0.008
     screw_match_m: float = 0.008
-    shadow_edge_dn_px: float = 10.0
-    shadow_jag_px: float = 0.5
     strobe_target_dn: float = 180.0
     meter_percentile: float = 99.5
     ambient_target_dn: float = 40.0
@@ -152,7 +148,7 @@ class MissionSettings:
                 )
             elif not _finite(value):  # an int beyond the float range included
                 raise InputError(f"{item.name} must be a finite number; got {_shown(value)}.")
-            elif value <= 0 and item.name != "impact_darkening_min":
+            elif value <= 0 and item.name != "impact_contrast_min":
                 raise InputError(f"{item.name} must be > 0; got {value!r}. The default is {item.default!r}.")
         for name in ("p_false_alarm", "p_preliminary"):
             if not getattr(self, name) < 0.5:

@@ -49,7 +49,8 @@ def visit_images(pair: PairResult, view: View, truth: AnomalySet) -> VisitImages
 
 
 def impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[float, ...]:
-    """Each truth impact's strength: the difference at its darkest pixel over that pixel's noise sigma."""
+    """Each truth impact's strength: the difference at its most changed pixel (either sign: the mission
+    tests both) over that pixel's noise sigma."""
     import cv2
 
     count, labels = cv2.connectedComponents(truth.astype(np.uint8), connectivity=8)
@@ -58,7 +59,7 @@ def impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[fl
         inside = (labels == label) & detection.valid
         if not inside.any():
             continue
-        darkest = int(np.argmin(np.where(inside, detection.difference, np.inf)))
-        sigma = float(detection.sigma.flat[darkest])
-        strengths.append(max(-float(detection.difference.flat[darkest]), 0.0) / max(sigma, 1e-6))
+        peak = int(np.argmax(np.where(inside, np.abs(detection.difference), -np.inf)))
+        sigma = float(detection.sigma.flat[peak])
+        strengths.append(abs(float(detection.difference.flat[peak])) / max(sigma, 1e-6))
     return tuple(strengths)

@@ -7,7 +7,7 @@ A visit's steps, in order:
 2. the comparison with the reference, the parallax of the registered shift counted as noise (seed §2.3);
 3. the stereo range map: screws by their relief, components by their change, dimming or dent (seed §4);
 4. a discoloured component's pixels leave the photometric fit;
-5. dark blobs that nothing explains, kept only if new against *both* pristine references;
+5. blobs, darker or brighter, that nothing explains, kept only if new against *both* pristine references;
 6. doubtful blobs get a second look (seed §2.5 active inspection);
 7. what is still above the confirming threshold becomes an impact or a swapped-component finding.
 """
@@ -32,6 +32,7 @@ from rsi.mission.evidence import (
     second_look_score,
     unexplained,
 )
+from rsi.mission.exposure import shortened
 from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
 from rsi.mission.settings import MissionSettings
 from rsi.mission.views import Sensed, inspection_region, sense, strobe_image
@@ -46,6 +47,11 @@ if TYPE_CHECKING:
     from rsi.sim.world import World
 
 
+# Seed §4's impacts are black tape, but a micrometeoroid spalls paint off and bares brighter metal: the
+# comparison tests both signs (its thresholds count both tails, seed §2.4)
+IMPACT_POLARITY = "both"
+
+
 @dataclass(frozen=True)
 class StoredView:
     """What the reference pass kept of one plan point for its inspection visits.
@@ -53,7 +59,7 @@ class StoredView:
     Attributes
     ----------
     reference, second : Compensated
-        The two pristine visits' full-resolution strobe images, shadow-edge variance included.
+        The two pristine visits' full-resolution strobe images, each with its own compensation error.
     scale : ndarray of shape (M, N), float32
         Their nuisance factor on the variance (:func:`rsi.detection.nuisance.nuisance_scale`).
     range_m : ndarray of shape (M, N), float32
@@ -113,11 +119,12 @@ def compare(
     settings: MissionSettings,
     scale: NDArray[np.float32] | None = None,
 ) -> PairResult:
-    """Register `reference` onto `inspection` and test for dark flaws, the variance times `scale`."""
-    from rsi.detection.nuisance import shared_interpolation
+    """Register `reference` onto `inspection`, test for flaws of either sign, the variance times `scale`."""
     from rsi.detection.pair import inspect_pair
 
-    ref, insp = shared_interpolation(reference, inspection)
+    # seed §2.2: each pass's variance holds its own compensation error (rsi.imaging.compensate_field_pair),
+    # whatever sun the other pass had: under a moved sun the reference's shadow edges say nothing of these
+    ref, insp = reference, inspection
     if scale is not None:
         ref = replace(ref, variance=(ref.variance * scale).astype(np.float32))
         insp = replace(insp, variance=(insp.variance * scale).astype(np.float32))
@@ -127,7 +134,7 @@ def compare(
         flaw_model=settings.flaw_model,
         size=settings.flaw_size_px,
         p_false_alarm=p_false_alarm,
-        polarity="dark",
+        polarity=IMPACT_POLARITY,
         misregistration_std_px=settings.misregistration_std_px,
     )
 
@@ -139,7 +146,9 @@ def thresholds(settings: MissionSettings) -> Thresholds:
 
     weights = flaw_kernel(settings.flaw_model, size=settings.flaw_size_px)
     probabilities = np.array([settings.p_false_alarm, settings.p_preliminary])
-    confirm, preliminary = roc_thresholds(probabilities, polarity="dark", method="lrt", weights=weights)
+    confirm, preliminary = roc_thresholds(
+        probabilities, polarity=IMPACT_POLARITY, method="lrt", weights=weights
+    )
     return Thresholds(float(confirm), float(preliminary))
 
 
@@ -154,7 +163,14 @@ def inspect_visit(
     tour: Tour,
 ) -> Visit:
     """One visit: compare with the references, read the evidence, take second looks (seed §2.3-2.5)."""
-    view = sense(tour.visit(point.name, point.vista, state="inspection"))
+    view, shutter = shortened(
+        tour,
+        sense(tour.visit(point.name, point.vista, state="inspection")),
+        settings,
+        shutter=stored.shutter,
+        energy=stored.strobe_energy,
+    )
+    world.set_shutter(shutter)  # the second looks' frames too
     inspection = _restricted(strobe_image(view), inspection_region(view, settings))
     p_first = settings.p_preliminary if active else settings.p_false_alarm
     comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
@@ -182,9 +198,7 @@ def inspect_visit(
     explanations = [explanation for _, explanation in checks]
     comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
 
-    looks = _new_dark_blobs(
-        comparison, view, world, explanations, active=active, limits=limits, settings=settings
-    )
+    looks = _new_blobs(comparison, view, world, explanations, active=active, limits=limits, settings=settings)
     counts = (
         _second_looks(comparison, looks, point, world, limits=limits, settings=settings, tour=tour)
         if active
@@ -250,7 +264,7 @@ def _without_discoloured(
     return _Comparison(reference, second, inspection, comparison.scale, pair)
 
 
-def _new_dark_blobs(
+def _new_blobs(
     comparison: _Comparison,
     view: Sensed,
     world: World,
@@ -260,7 +274,7 @@ def _new_dark_blobs(
     limits: Thresholds,
     settings: MissionSettings,
 ) -> list[Look]:
-    """Dark blobs that no screw or swap explains, new against *both* pristine visits, that darkened enough.
+    """Blobs that no screw or swap explains, new against *both* pristine visits, of enough contrast.
 
     A blob that one reference's sampling made (aliasing, a compensation artefact of that visit) is not new:
     the weaker of the two comparisons is kept.
@@ -279,7 +293,7 @@ def _new_dark_blobs(
         look
         for look in looks
         if look.score > floor
-        and (look.area_m2 > settings.component_area_m2 or look.darkening >= settings.impact_darkening_min)
+        and (look.area_m2 > settings.component_area_m2 or look.contrast >= settings.impact_contrast_min)
     ]
 
 
