@@ -292,6 +292,8 @@ def _preimage_inside(
     """Pixels of an image of `shape` whose preimage under `inverse` lies inside `source_shape` (M, N)."""
     if is_translation(inverse):
         return _shifted_inside(inverse[0, 2], inverse[1, 2], shape, source_shape)
+    if inverse[2, 0] == 0.0 and inverse[2, 1] == 0.0:
+        return _affine_inside(inverse, shape, source_shape)
     cols = np.arange(shape[1], dtype=np.float64)[None, :]
     rows = np.arange(shape[0], dtype=np.float64)[:, None]
     denominator = inverse[2, 0] * cols + inverse[2, 1] * rows + inverse[2, 2]
@@ -301,6 +303,60 @@ def _preimage_inside(
         high = source_shape[1 - axis] - 1 + _EDGE_TOLERANCE_PX
         valid &= (coordinate >= -_EDGE_TOLERANCE_PX) & (coordinate <= high)
     return valid
+
+
+def _affine_inside(
+    inverse: Matrix, shape: tuple[int, int], source_shape: tuple[int, ...]
+) -> NDArray[np.bool_]:
+    """`_preimage_inside` for an affine map: one run of columns per row, its ends found by bisection.
+
+    Along a row the preimage coordinate ``(a * col + b * row + t) / i`` is monotonic in the column, in
+    floating point too (each rounding is monotonic), so the pixels whose preimage lies inside are one run.
+    Bisecting for its ends with the general path's own expression gives that path's mask bit for bit (a test
+    checks it) from about 40 evaluations per row instead of one per pixel; the page faults of the general
+    path's five full-size float64 temporaries made it a sixth of ``detect`` on a 640 x 640 pair.
+    """
+    if not inverse[2, 2] > 0:
+        return np.zeros(shape, dtype=bool)  # the general path's denominator > 0 fails everywhere
+    rows = np.arange(shape[0], dtype=np.float64)
+    start = np.zeros(shape[0], dtype=np.int64)
+    stop = np.full(shape[0], shape[1], dtype=np.int64)
+    for axis in (0, 1):
+        low, high = -_EDGE_TOLERANCE_PX, source_shape[1 - axis] - 1 + _EDGE_TOLERANCE_PX
+
+        def coordinate(cols: NDArray[np.int64], axis: int = axis) -> NDArray[np.float64]:
+            # The general path's expression, at one column per row.
+            mapped = inverse[axis, 0] * cols.astype(np.float64) + inverse[axis, 1] * rows + inverse[axis, 2]
+            return np.asarray(mapped / inverse[2, 2], dtype=np.float64)
+
+        if inverse[axis, 0] >= 0:  # non-decreasing along the row (constant included)
+            first = _first_true(lambda cols, low=low: coordinate(cols) >= low, shape)
+            end = _first_true(lambda cols, high=high: coordinate(cols) > high, shape)
+        else:
+            first = _first_true(lambda cols, high=high: coordinate(cols) <= high, shape)
+            end = _first_true(lambda cols, low=low: coordinate(cols) < low, shape)
+        start, stop = np.maximum(start, first), np.minimum(stop, end)
+    cols = np.arange(shape[1], dtype=np.int64)[None, :]
+    return np.asarray((cols >= start[:, None]) & (cols < stop[:, None]), dtype=bool)
+
+
+def _first_true(
+    predicate: Callable[[NDArray[np.int64]], NDArray[np.bool_]], shape: tuple[int, int]
+) -> NDArray[np.int64]:
+    """Per row, the first column where `predicate` holds (shape[1] where none), by bisection.
+
+    `predicate(cols)` is evaluated at one column per row, and must be false, then true, along each row.
+    """
+    low = np.zeros(shape[0], dtype=np.int64)
+    high = np.full(shape[0], shape[1], dtype=np.int64)
+    while np.any(low < high):
+        middle = (low + high) // 2
+        # Rows already settled (low == high) probe a column inside the image and keep their answer.
+        holds = predicate(np.minimum(middle, shape[1] - 1))
+        open_rows = low < high
+        high = np.where(open_rows & holds, middle, high)
+        low = np.where(open_rows & ~holds, middle + 1, low)
+    return low
 
 
 def _shifted_inside(
