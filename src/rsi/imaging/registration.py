@@ -151,8 +151,10 @@ class Registration:
             valid = _preimage_inside(inverse, shape, image.shape)
         else:
             warped, valid = _warp_local(image, self.matrix, self.local, (int(shape[0]), int(shape[1])))
+        # warped is this call's own array: the photometric map and the mask are applied in place.
         if photometric:
-            warped = (warped * np.float32(self.gain) + np.float32(self.bias)).astype(np.float32)
+            np.multiply(warped, np.float32(self.gain), out=warped)
+            np.add(warped, np.float32(self.bias), out=warped)
         warped[~valid] = 0.0
         return warped, valid
 
