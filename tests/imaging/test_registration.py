@@ -326,6 +326,8 @@ def test_affine_validity_runs_equal_mapping_every_pixel() -> None:
         affine[:2, :2] += rng.uniform(-0.3, 0.3, (2, 2)) if trial % 3 else rng.uniform(-2.0, 2.0, (2, 2))
         affine[:2, 2] = rng.uniform(-40, 40, 2)
         affine[2, 2] = rng.choice([1.0, 0.5, 1.7, -1.0, 0.0])
+        if trial % 5 == 0:
+            affine[int(rng.integers(0, 2)), int(rng.integers(0, 2))] = 0.0  # constant along the rows
         shape = (int(rng.integers(1, 60)), int(rng.integers(1, 60)))
         source = (int(rng.integers(1, 60)), int(rng.integers(1, 60)))
         not_affine = affine.copy()
