@@ -37,7 +37,7 @@ from rsi._validate import (
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
-from rsi.imaging._components import occupied
+from rsi.imaging._components import labelled, labelled_with_stats, occupied
 from rsi.imaging.registration import REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
@@ -352,7 +352,7 @@ def group_defects(
         # Dilating by half the gap joins pieces at most the gap apart; the labels are read at mask pixels.
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
         joined = cv2.dilate(joined, disk)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
+    count, labels, stats, _ = labelled_with_stats(joined, 8)
     stats[:, cv2.CC_STAT_LEFT] += left
     stats[:, cv2.CC_STAT_TOP] += top
     rows, cols = np.nonzero(pixels[top:bottom, left:right])
@@ -438,7 +438,7 @@ def _grown(seeds: BoolArray, extent: BoolArray) -> BoolArray:
     # Only the box holding the pixels is labelled: the components, hence the pixels kept, are the same.
     top, left, bottom, right = occupied(union)
     inside = (slice(top, bottom), slice(left, right))
-    count, labels = cv2.connectedComponents(np.ascontiguousarray(union[inside]), connectivity=8)
+    count, labels = labelled(np.ascontiguousarray(union[inside]), 8)
     keep = np.zeros(count, dtype=bool)
     keep[labels[seeds[inside]]] = True
     keep[0] = False
