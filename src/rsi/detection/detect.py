@@ -377,6 +377,14 @@ _POLARITY_SCORE: dict[str, Callable[[Float32Array, Float32Array], Float32Array]]
 }
 
 
+def _signed(bright: Float32Array, dark: Float32Array, valid: BoolArray) -> Float32Array:
+    """``bright`` where it is the larger score, else ``-dark``; 0 where invalid (one new array, not four)."""
+    signed = np.negative(dark)
+    np.copyto(signed, bright, where=bright >= dark)
+    signed[~valid] = 0.0
+    return np.asarray(signed, dtype=np.float32)
+
+
 def _peaks(labels: NDArray[np.int32], mask: BoolArray, score: Float32Array) -> dict[int, int]:
     """Flat index of the highest-scoring pixel of each component, from the mask pixels only (few)."""
     pixels = np.flatnonzero(mask)
@@ -522,7 +530,7 @@ def detect(
             statistic = (statistic * np.float32(1.0 / scale)).astype(np.float32, copy=False)
     bright, dark, valid = _METHOD_SCORES[chosen_method](statistic, valid, weights)
     score = np.where(valid, _POLARITY_SCORE[chosen_polarity](bright, dark), np.float32(0.0))
-    signed = np.where(valid, np.where(bright >= dark, bright, -dark), np.float32(0.0))
+    signed = _signed(bright, dark, valid)
     threshold = float(
         thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method, weights=weights)[
             0
