@@ -49,14 +49,22 @@ def as_image(image: object, name: str, *, allow_nan: bool = False) -> FloatArray
             f"{name} has dtype={image.dtype}, which is not supported. "
             "Try 'float32', 'float64', an unsigned integer or bool image."
         )
+    if not allow_nan:
+        _finite_range(result, name)
+    return result
+
+
+def _finite_range(image: FloatArray, name: str) -> tuple[float, float]:
+    """(min, max) of `image`, or raise if it holds NaN or inf."""
     # min and max propagate NaN and reach +-inf without a full-size temporary (page faults on hot paths).
-    if not allow_nan and not (np.isfinite(result.min()) and np.isfinite(result.max())):
-        bad = int(np.count_nonzero(~np.isfinite(result)))
+    low, high = float(image.min()), float(image.max())
+    if not (math.isfinite(low) and math.isfinite(high)):
+        bad = int(np.count_nonzero(~np.isfinite(image)))
         raise InputError(
             f"{name} contains {bad} NaN or inf pixel(s). Replace them (e.g. np.nan_to_num) "
             "or mark them invalid with a mask."
         )
-    return result
+    return low, high
 
 
 MAX_INTENSITY = 1e15
@@ -66,8 +74,10 @@ intensities and their sums over the image, so 1e15 keeps every sum finite (any c
 
 def as_intensity_image(image: object, name: str) -> FloatArray:
     """:func:`as_image`, and every pixel's magnitude at most :data:`MAX_INTENSITY`."""
-    result = as_image(image, name)
-    peak = max(abs(float(result.min())), abs(float(result.max())))
+    result = as_image(image, name, allow_nan=True)
+    # One min and one max serve both checks (this runs several times per image on the detection path).
+    low, high = _finite_range(result, name)
+    peak = max(abs(low), abs(high))
     if peak > MAX_INTENSITY:
         raise InputError(
             f"{name} holds a pixel of magnitude {peak:.3g}, over {MAX_INTENSITY:g}: registration and "

@@ -10,10 +10,12 @@ import pytest
 
 from rsi.datasets.deeppcb import DEFECT_TYPES, DeepPcbPair
 from rsi.datasets.evaluate import PcbDetections
+from rsi.datasets.pcb_classes import classify_defects
 from rsi.datasets.pcb_learn import (
     FEATURES,
     defect_features,
     fit_classifier,
+    rule_classes,
     train_classifier,
     training_labels,
 )
@@ -33,6 +35,21 @@ def test_features_have_one_row_per_box(drawn_defect: Drawn) -> None:
     assert rows.shape == (1, FEATURES) and np.isfinite(rows).all()
     empty = defect_features(*drawn_defect("open"), np.empty((0, 4)), np.empty(0), np.empty(0))
     assert empty.shape == (0, FEATURES)
+
+
+def test_the_features_hold_the_rules_naming_of_each_box(drawn_defect: Drawn) -> None:
+    # name_defects reads the rules' classes from the features instead of naming every box twice: they must
+    # be classify_defects' own, for every class and for boxes of several sizes (clipped at the border).
+    boxes = np.array([[8, 8, 31, 31], [0, 0, 39, 39], [15, 10, 25, 20], [30, 2, 39, 12]])
+    for name in DEFECT_TYPES.values():
+        template, test = drawn_defect(name)
+        features = defect_features(template, test, boxes, np.ones(len(boxes)), np.ones(len(boxes)))
+        classes, confidences = rule_classes(features)
+        expected_classes, expected_confidences = classify_defects(template, test, boxes)
+        np.testing.assert_array_equal(classes, expected_classes)
+        np.testing.assert_array_equal(confidences, expected_confidences)
+    with pytest.raises(InputError, match="features"):
+        rule_classes(np.zeros((1, 3)))
 
 
 def test_a_classifier_learns_the_six_hand_drawn_classes(drawn_defect: Drawn) -> None:

@@ -315,6 +315,28 @@ def test_shift_validity_rectangle_equals_mapping_every_pixel() -> None:
         np.testing.assert_array_equal(module._preimage_inside(shift, shape, source), general)
 
 
+def test_affine_validity_runs_equal_mapping_every_pixel() -> None:
+    # The affine fast path bisects each row for its run of valid columns; it must give the general
+    # per-pixel preimage test's mask bit for bit, mirrored and sheared maps and empty rows included.
+    from rsi.imaging import registration as module
+
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        affine = np.eye(3)
+        affine[:2, :2] += rng.uniform(-0.3, 0.3, (2, 2)) if trial % 3 else rng.uniform(-2.0, 2.0, (2, 2))
+        affine[:2, 2] = rng.uniform(-40, 40, 2)
+        affine[2, 2] = rng.choice([1.0, 0.5, 1.7, -1.0, 0.0])
+        if trial % 5 == 0:
+            affine[int(rng.integers(0, 2)), int(rng.integers(0, 2))] = 0.0  # constant along the rows
+        shape = (int(rng.integers(1, 60)), int(rng.integers(1, 60)))
+        source = (int(rng.integers(1, 60)), int(rng.integers(1, 60)))
+        not_affine = affine.copy()
+        not_affine[2, 0] = 1e-300  # forces the general per-pixel path (1e-300 * col is lost in rounding)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            general = module._preimage_inside(not_affine, shape, source)
+        np.testing.assert_array_equal(module._preimage_inside(affine, shape, source), general)
+
+
 @pytest.mark.parametrize(
     "matrix",
     [

@@ -35,9 +35,9 @@ from rsi._validate import (
     same_shape,
 )
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
-from rsi.datasets.pcb_classes import classify_defects
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
+from rsi.imaging._components import labelled, labelled_with_stats, occupied
 from rsi.imaging.registration import REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
@@ -344,14 +344,20 @@ def group_defects(
     if pixels.ndim != 2:
         raise InputError(f"mask must be 2-D (rows, cols); got shape {pixels.shape}. Pass one image's mask.")
     radius = (positive_int(merge_gap_px, "merge_gap_px", minimum=0) + 1) // 2
-    joined: NDArray[Any] = pixels
+    # Only the box holding the mask's pixels and their dilation is labelled (a few defects on a large
+    # image); it starts on an even row and column, so the labels come in the whole frame's order.
+    top, left, bottom, right = occupied(pixels, radius)
+    joined: NDArray[Any] = np.ascontiguousarray(pixels[top:bottom, left:right])
     if radius:
         # Dilating by half the gap joins pieces at most the gap apart; the labels are read at mask pixels.
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
-        joined = cv2.dilate(pixels, disk)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
-    rows, cols = np.nonzero(pixels)
+        joined = cv2.dilate(joined, disk)
+    count, labels, stats, _ = labelled_with_stats(joined, 8)
+    stats[:, cv2.CC_STAT_LEFT] += left
+    stats[:, cv2.CC_STAT_TOP] += top
+    rows, cols = np.nonzero(pixels[top:bottom, left:right])
     owner = labels[rows, cols]
+    rows, cols = rows + top, cols + left
     area = np.bincount(owner, minlength=count).astype(np.float64)
     keep = (np.arange(count) > 0) & (area >= positive_int(min_area_px, "min_area_px"))
     safe_area = np.maximum(area, 1.0)
@@ -428,11 +434,16 @@ def register_pair(
 
 def _grown(seeds: BoolArray, extent: BoolArray) -> BoolArray:
     """Pixels of `extent` 8-connected to a seed (morphological reconstruction by labelling)."""
-    count, labels = cv2.connectedComponents((extent | seeds).view(np.uint8), connectivity=8)
+    union = (extent | seeds).view(np.uint8)
+    # Only the box holding the pixels is labelled: the components, hence the pixels kept, are the same.
+    top, left, bottom, right = occupied(union)
+    inside = (slice(top, bottom), slice(left, right))
+    count, labels = labelled(np.ascontiguousarray(union[inside]), 8)
     keep = np.zeros(count, dtype=bool)
-    keep[labels[seeds]] = True
+    keep[labels[seeds[inside]]] = True
     keep[0] = False
-    grown: BoolArray = keep[labels]
+    grown: BoolArray = np.zeros(seeds.shape, dtype=bool)
+    grown[inside] = keep[labels]
     return grown
 
 
@@ -524,7 +535,7 @@ def name_defects(
     classifier: DefectClassifier | None = None,
 ) -> PcbDetections:
     """`found` with its topology features, classes and confidences (the classifier's, or the rules')."""
-    from rsi.datasets.pcb_learn import DefectClassifier, defect_features
+    from rsi.datasets.pcb_learn import DefectClassifier, defect_features, rule_classes
 
     instance_of(found, "found", PcbDetections, none_allowed=False)
     if classifier is not None:
@@ -533,7 +544,8 @@ def name_defects(
         raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
     features = defect_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
     if classifier is None:
-        classes, confidences = classify_defects(template, test, found.boxes_xyxy)
+        # The features hold the rules' naming of each box (classify_defects), counted once.
+        classes, confidences = rule_classes(features)
     else:
         classes, confidences = classifier.predict(features)
     return dataclasses.replace(found, classes=classes, confidences=confidences, features=features)

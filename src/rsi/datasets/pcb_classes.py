@@ -100,13 +100,27 @@ def classify_window(template: NDArray[np.floating], test: NDArray[np.floating]) 
     before = (_window(template, "template") < COPPER_BELOW_DN).astype(np.uint8)
     after = (_window(test, "test") < COPPER_BELOW_DN).astype(np.uint8)
     same_shape(before, after, ("template", "test"))
+    return classify_copper(before, after, _copper_pieces(before), _copper_pieces(after))
+
+
+def classify_copper(
+    before: NDArray[np.uint8],
+    after: NDArray[np.uint8],
+    pieces_before: tuple[int, int],
+    pieces_after: tuple[int, int],
+) -> tuple[int, float]:
+    """:func:`classify_window` from the windows' copper (1) and their (pieces, holes) already counted.
+
+    For callers that count the pieces anyway (:mod:`rsi.datasets.pcb_learn`): the connected components
+    are most of the time of naming a defect.
+    """
     added = int(cv2.morphologyEx(after & (1 - before), cv2.MORPH_OPEN, _OPENING).sum())
     removed = int(cv2.morphologyEx(before & (1 - after), cv2.MORPH_OPEN, _OPENING).sum())
     if added == removed == 0:
         # Nothing survives the opening: decide on the raw difference (a thin defect).
         added, removed = int((after & (1 - before)).sum()), int((before & (1 - after)).sum())
     core = float(cv2.erode(before ^ after, _CORE).sum())
-    return _name(added > removed, _copper_pieces(before), _copper_pieces(after)), core
+    return _name(added > removed, pieces_before, pieces_after), core
 
 
 def _name(grown: bool, before: tuple[int, int], after: tuple[int, int]) -> int:

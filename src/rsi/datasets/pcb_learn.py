@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from rsi._validate import as_float_array, as_image, instance_of, instance_or_default, same_shape
 from rsi.datasets.deeppcb import DeepPcbPair, read_pair
 from rsi.datasets.evaluate import OFFICIAL_IOU, DeepPcbSettings, PcbDetections, box_iou, detect_defects
-from rsi.datasets.pcb_classes import COPPER_BELOW_DN, _boxes_inside, _copper_pieces, classify_window
+from rsi.datasets.pcb_classes import COPPER_BELOW_DN, _boxes_inside, _copper_pieces, classify_copper
 from rsi.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -33,15 +33,21 @@ _SQUARE = np.ones((3, 3), np.uint8)
 _WINDOW_GROWTH_PX = (-7, 0, 10)
 _MIN_WINDOW_PX = 2
 FEATURES = 45  # columns of defect_features
+# Columns 32 and 33: the topology rules' class and confidence on the box itself (classify_window), after the
+# box size, strength and area (4), the shrunk window's 11 and the box window's 11 and 6 surroundings.
+_RULE_COLUMN = 32
 
 
-def _window_features(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[float]:
-    """Changed copper (raw and after a 3x3 opening) and the pieces and holes before and after."""
+def _window_features(
+    before: NDArray[np.uint8],
+    after: NDArray[np.uint8],
+    pieces: tuple[tuple[int, int], tuple[int, int]],
+) -> list[float]:
+    """Changed copper (raw and after a 3x3 opening) and the (pieces, holes) before and after."""
     added, removed = after & (1 - before), before & (1 - after)
     opened_added = cv2.morphologyEx(added, cv2.MORPH_OPEN, _SQUARE)
     opened_removed = cv2.morphologyEx(removed, cv2.MORPH_OPEN, _SQUARE)
-    pieces_before, holes_before = _copper_pieces(before)
-    pieces_after, holes_after = _copper_pieces(after)
+    (pieces_before, holes_before), (pieces_after, holes_after) = pieces
     return [
         float(added.sum()),
         float(removed.sum()),
@@ -93,10 +99,12 @@ def _box_features(
         window = (slice(top, bottom), slice(left, right))
         before = (template[window] < COPPER_BELOW_DN).astype(np.uint8)
         after = (test[window] < COPPER_BELOW_DN).astype(np.uint8)
-        features += _window_features(before, after)
+        pieces = (_copper_pieces(before), _copper_pieces(after))
+        features += _window_features(before, after, pieces)
         if growth == 0:
             features += _surroundings(before, after)
-            rule, core = classify_window(template[window], test[window])
+            # The rules' class on the same window and pieces (classify_window, without counting again).
+            rule, core = classify_copper(before, after, *pieces)
             features += [float(rule), core]
     return features
 
@@ -139,6 +147,16 @@ def defect_features(
         for box, strength, area in zip(boxes, strength_values, area_values, strict=True)
     ]
     return np.array(rows, dtype=np.float64).reshape(len(boxes), FEATURES)
+
+
+def rule_classes(features: object) -> tuple[IntArray, FloatArray]:
+    """The topology rules' classes and confidences, read from :func:`defect_features`' columns.
+
+    They equal :func:`rsi.datasets.pcb_classes.classify_defects` on the same boxes (the features hold
+    its :func:`~rsi.datasets.pcb_classes.classify_window` of each box), without naming every box again.
+    """
+    table = _as_features(features, "features")
+    return table[:, _RULE_COLUMN].astype(np.int64), table[:, _RULE_COLUMN + 1].copy()
 
 
 def _as_features(features: object, name: str) -> FloatArray:

@@ -35,6 +35,7 @@ from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
 from rsi.errors import InputError
+from rsi.imaging._components import components_with_stats
 from rsi.imaging.compensation import Compensated
 from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
 
@@ -273,9 +274,45 @@ def _local_prediction_errors(
     return unit_x * np.maximum(std[..., 0], floor), unit_y * np.maximum(std[..., 1], floor), curvature
 
 
-def _correlate(image: Float32Array, weights: NDArray[np.float64]) -> Float32Array:
+def _variances(
+    variance: Float32Array | np.floating[Any], valid: BoolArray, invalid: BoolArray
+) -> tuple[Float32Array | np.float32, Float32Array]:
+    """The floored noise variance of ``d`` and its inverse, 0 where invalid.
+
+    A variance that is one number (a known sensor sigma, no Compensated images) stays one number: a single
+    division instead of one per pixel, and no full-size copy; the values are those of the per-pixel path.
+    """
+    floored = np.maximum(variance, _VARIANCE_FLOOR)
+    if np.ndim(floored) == 0:
+        level = np.float32(floored)
+        return level, np.where(valid, np.float32(1.0) / level, np.float32(0.0))
+    per_pixel = np.broadcast_to(floored, valid.shape).astype(np.float32)
+    inverse = np.divide(np.float32(1.0), per_pixel, dtype=np.float32)
+    inverse[invalid] = 0.0
+    return per_pixel, inverse
+
+
+def _sigma(
+    variance: Float32Array | np.float32, errors: tuple[Float32Array, ...], valid: BoolArray
+) -> Float32Array:
+    """Noise std of ``d`` with the coherent errors' squares added, 0 where invalid (accumulated in place)."""
+    if not errors:
+        return np.where(valid, np.sqrt(variance), np.float32(0.0)).astype(np.float32, copy=False)
+    total = np.multiply(errors[0], errors[0])
+    for error in errors[1:]:
+        total += error * error
+    total += variance
+    np.sqrt(total, out=total)
+    total[~valid] = 0.0
+    return np.asarray(total, dtype=np.float32)
+
+
+def _correlate(image: Float32Array, weights: NDArray[np.float64], *, own: bool = False) -> Float32Array:
+    """Correlate with `weights` (zero outside the image); `own`: `image` is a temporary that may be reused."""
     if weights.shape == (1, 1):
-        scaled: Float32Array = image * np.float32(weights[0, 0])
+        if own and weights[0, 0] == 1.0:
+            return image  # x * 1 is x: the pixel-wise tests' weight costs no pass
+        scaled: Float32Array = np.multiply(image, np.float32(weights[0, 0]), out=image if own else None)
         return scaled
     result = cv2.filter2D(image, -1, weights.astype(np.float32), borderType=cv2.BORDER_CONSTANT)
     return np.asarray(result, dtype=np.float32)
@@ -290,13 +327,15 @@ def _lrt(
     # seed §2.4: for Gaussian noise the log-likelihood ratio of "flaw s*w here" is linear in d: a weighted
     # sum over the window, normalised to unit variance under H0. Coherent prediction errors add the square
     # of their own weighted sum to that variance.
-    numerator = _correlate(difference * inverse_variance, weights)
+    # In place where the operands are this function's own temporaries: the same arithmetic in the same
+    # order, without a fresh full-size array (and its page faults) per step.
+    numerator = _correlate(difference * inverse_variance, weights, own=True)
     denominator = _correlate(inverse_variance, weights * weights)
     for error in errors:
-        coherent = _correlate(error * inverse_variance, weights)
-        denominator += coherent * coherent
-    statistic = numerator / np.sqrt(np.maximum(denominator, _VARIANCE_FLOOR))
-    return np.asarray(statistic, dtype=np.float32)
+        coherent = _correlate(error * inverse_variance, weights, own=True)
+        denominator += np.multiply(coherent, coherent, out=coherent)
+    root = np.sqrt(np.maximum(denominator, _VARIANCE_FLOOR, out=denominator), out=denominator)
+    return np.asarray(np.divide(numerator, root, out=numerator), dtype=np.float32)
 
 
 def _lrt_scores(
@@ -338,6 +377,14 @@ _POLARITY_SCORE: dict[str, Callable[[Float32Array, Float32Array], Float32Array]]
 }
 
 
+def _signed(bright: Float32Array, dark: Float32Array, valid: BoolArray) -> Float32Array:
+    """``bright`` where it is the larger score, else ``-dark``; 0 where invalid (one new array, not four)."""
+    signed = np.negative(dark)
+    np.copyto(signed, bright, where=bright >= dark)
+    signed[~valid] = 0.0
+    return np.asarray(signed, dtype=np.float32)
+
+
 def _peaks(labels: NDArray[np.int32], mask: BoolArray, score: Float32Array) -> dict[int, int]:
     """Flat index of the highest-scoring pixel of each component, from the mask pixels only (few)."""
     pixels = np.flatnonzero(mask)
@@ -349,8 +396,16 @@ def _peaks(labels: NDArray[np.int32], mask: BoolArray, score: Float32Array) -> d
 def _flaws(
     mask: BoolArray, score: Float32Array, statistic: Float32Array, min_area_px: int
 ) -> tuple[Flaw, ...]:
-    count, labels, stats, centroids = cv2.connectedComponentsWithStats(mask.view(np.uint8), connectivity=8)
-    peaks = _peaks(np.asarray(labels, dtype=np.int32), mask, score)
+    # Labelled on the box holding the mask's pixels (a few flaws on a large image), as on the whole frame.
+    count, labels, stats, centroids, box = components_with_stats(mask.view(np.uint8), connectivity=8)
+    top, left, bottom, right = box
+    inside = (slice(top, bottom), slice(left, right))
+    peaks_in_box = _peaks(labels, mask[inside], np.ascontiguousarray(score[inside]))
+    width = right - left
+    peaks = {
+        label: (top + index // width) * mask.shape[1] + left + index % width
+        for label, index in peaks_in_box.items()
+    }
     found = []
     for label in range(1, count):
         x, y, width, height, area = (int(value) for value in stats[label])
@@ -456,15 +511,15 @@ def detect(
     aligned = _align(reference_in, inspection_in, used_registration)
     valid = aligned.valid if inspection_in.valid is None else aligned.valid & inspection_in.valid
 
+    invalid = ~valid
     difference = inspection_in.image - aligned.predicted
-    difference[~valid] = 0.0
+    difference[invalid] = 0.0
     variance_inspection, variance_reference = _sensor_variances(inspection_in, aligned, difference, valid)
     test_weights = _TEST_WEIGHTS[chosen_method](weights)
     factor = _factor(test_weights, aligned.fraction_xy)
-    variance = variance_inspection + np.float32(aligned.gain**2 * factor) * variance_reference
-    variance = np.maximum(np.broadcast_to(variance, difference.shape), _VARIANCE_FLOOR).astype(np.float32)
-    inverse_variance = (np.float32(1.0) / variance).astype(np.float32, copy=False)
-    inverse_variance[~valid] = 0.0
+    variance, inverse_variance = _variances(
+        variance_inspection + np.float32(aligned.gain**2 * factor) * variance_reference, valid, invalid
+    )
     errors = _prediction_errors(aligned, used_registration, shift_floor)
 
     statistic = _lrt(difference, inverse_variance, test_weights, errors)
@@ -475,15 +530,14 @@ def detect(
             statistic = (statistic * np.float32(1.0 / scale)).astype(np.float32, copy=False)
     bright, dark, valid = _METHOD_SCORES[chosen_method](statistic, valid, weights)
     score = np.where(valid, _POLARITY_SCORE[chosen_polarity](bright, dark), np.float32(0.0))
-    signed = np.where(valid, np.where(bright >= dark, bright, -dark), np.float32(0.0))
+    signed = _signed(bright, dark, valid)
     threshold = float(
         thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method, weights=weights)[
             0
         ]
     )
     mask = (score > threshold) & valid
-    total = variance + sum(error * error for error in errors)
-    sigma = np.where(valid, np.sqrt(total), np.float32(0.0)).astype(np.float32, copy=False)
+    sigma = _sigma(variance, errors, valid)
     return Detection(
         score=score,
         statistic=signed,

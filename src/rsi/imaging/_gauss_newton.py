@@ -176,7 +176,10 @@ def reference_terms(
     if n_params > 2:
         u = (np.arange(cols) * from_pixels[0, 0] + from_pixels[0, 2]).astype(np.float32)
         v = (np.arange(0, rows, row_step) * from_pixels[1, 1] + from_pixels[1, 2]).astype(np.float32)
-        jacobian[2:n_params] = model.descent(jacobian[0], jacobian[1], u[None, :], v[:, None])[2:]
+        planes = model.descent(jacobian[0], jacobian[1], u[None, :], v[:, None])[2:]
+        # Plane by plane: assigning the list at once first stacks it into a temporary copy.
+        for index, plane in enumerate(planes, start=2):
+            jacobian[index] = plane
     if photometric:
         jacobian[n_params] = reference[::row_step]
         jacobian[n_params + 1] = 1.0
