@@ -69,12 +69,12 @@ if TYPE_CHECKING:
 METHODS = ("field pair", "intra-frame")
 CLASSES = ("shadow edge", "other edge", "rest")
 STEP_BANDS_DN = (0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
-_SHARED_FRACTION = 0.25
+# issue 14's offsets: the same sun, ~19 deg and ~58 deg later, and the Earth's shadow (1300-3460 s)
 DEFAULT_OFFSETS_S = (0.0, 300.0, 900.0, 2000.0)
-EDGE_STEP_DN = 8.0
-_TOP_SIGMAS = (
-    3.0  # a noise-free reading this many sigmas under the top is clipped less than 0.2 % of the time
-)
+EDGE_STEP_DN = 8.0  # see the module notes: a 4 DN half-step is over 2 noise sigmas
+_SHARED_FRACTION = 0.25  # an ambient edge whose strobe step is under this fraction of it is a shadow's
+# a noise-free reading this many sigmas under the top is clipped less than 0.2 % of the time
+_TOP_SIGMAS = 3.0
 _BOOTSTRAP = 2000
 _FORMAT = "rsi-bench-compensation-error/1"
 
