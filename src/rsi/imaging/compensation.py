@@ -1,10 +1,13 @@
 """Seed §2.2: ambient-light compensation, subtracting the ambient-lit data from the strobe-lit data.
 
-Two ways, both returning a :class:`Compensated` image that looks as if only the strobe had lit the scene:
+Three ways, each returning a :class:`Compensated` image that looks as if only the strobe had lit the scene:
 
 - :func:`compensate_interlaced` (intra-frame): only one field of an interlaced frame is strobe-lit; the
   ambient in each lit row is the mean of the unlit rows above and below. Costs half the vertical resolution
   and adds interpolation errors where the ambient bends (sharp shadow edges), reported as variance.
+- :func:`compensate_field_pair`: two interlaced frames, the strobe in the odd then the even field. Every
+  row is lit in one of them and unlit in the other, so each lit row's ambient is both interpolated and read,
+  and the two estimates are weighed by what each may miss: full resolution, exact at shadow edges.
 - :func:`compensate_two_frames`: a flash frame minus an ambient-only frame.
 
 The subtraction is valid because the camera is linear (seed §2.1); it nearly doubles the noise power
