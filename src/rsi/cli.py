@@ -387,7 +387,7 @@ def _print_mission(
     from rich import box
     from rich.table import Table
 
-    from rsi.report.mission import finding_records
+    from rsi.report.mission import finding_records, sun_separation_deg
 
     console = _stdout()
     records = finding_records(result, score)
@@ -415,6 +415,10 @@ def _print_mission(
         f"{len(records)} findings, {score.false_findings} false; mission {result.timings_s['total']:.1f} s, "
         f"all {elapsed_s:.1f} s. Run {result.run_id} in {files['report.html'].parent / 'archive.db'}."
     )
+    separation = sun_separation_deg(result)
+    if separation is not None:
+        inspection = f"{separation[0]:.1f} deg from the reference's (--sun-offset-s sets it)"
+        console.print(f"Suns: the inspection's is {inspection}.")
     console.print(f"Report: {files['report.html']} (this run's copy: {run_folder / 'report.html'})")
 
 
