@@ -845,12 +845,19 @@ def _visit_class(setting: SunSetting) -> str:
 
 def sun_png(result: MissionResult) -> bytes:
     """Left: each visit's sun on the orbit (angle from noon; hollow in the Earth's shadow), one ring per
-    pass. Right: the lamp's direction error at each visit of each pass."""
+    pass, the angle between the passes written between them. Right: the lamp's direction error at each
+    plan point of each pass."""
     from matplotlib.figure import Figure
 
-    figure = Figure(figsize=(9.0, 3.8), dpi=100, layout="constrained")
-    orbit: Any = figure.add_subplot(1, 2, 1, projection="polar")  # a PolarAxes
-    errors = figure.add_subplot(1, 2, 2)
+    figure = Figure(figsize=(9.0, 4.2), dpi=100, layout="constrained")
+    _draw_orbit(figure.add_subplot(1, 2, 1, projection="polar"), result)
+    _draw_direction_errors(figure.add_subplot(1, 2, 2), result)
+    return figure_png(figure)
+
+
+def _draw_orbit(orbit: Any, result: MissionResult) -> None:
+    """On a PolarAxes: noon up, the sun setting behind the station (+90 deg) to the right."""
+    firsts = []
     for stage, colour, radius in _PASS_STYLE:
         suns = _of_pass(result.suns, stage)
         if not suns:
@@ -861,10 +868,14 @@ def sun_png(result: MissionResult) -> bytes:
         orbit.scatter(theta[~lit], np.full((~lit).sum(), radius), s=24, facecolors="none", edgecolors=colour)
         orbit.annotate("", xy=(theta[0], radius), xytext=(0.0, 0.0),
                        arrowprops={"arrowstyle": "->", "color": colour})  # fmt: skip
-        error_deg = [math.degrees(s.direction_error_rad) if s.sunlit else math.nan for s in suns]
-        errors.plot(range(1, len(suns) + 1), error_deg, "o-", color=colour, markersize=4, label=stage)
+        firsts.append(theta[0])
+    separation = sun_separation_deg(result)
+    if separation is not None and len(firsts) == 2:
+        between = math.atan2(sum(math.sin(t) for t in firsts), sum(math.cos(t) for t in firsts))
+        orbit.text(between, 0.3, f"{separation[0]:.1f} deg", ha="center", va="center", fontsize=9,
+                   bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})  # fmt: skip
     orbit.set_theta_zero_location("N")
-    orbit.set_theta_direction(-1)  # +90 deg (where the sun sets behind the station) to the right
+    orbit.set_theta_direction(-1)
     orbit.set_xticks(np.radians([0, 90, 180, 270]), ["noon", "+90\n(sets)", "midnight", "-90\n(rises)"],
                      fontsize=8)  # fmt: skip
     orbit.set_yticks([])
@@ -872,15 +883,24 @@ def sun_png(result: MissionResult) -> bytes:
     orbit.set_title("The sun on the orbit at each visit\n(arrow: first visit; hollow: Earth's shadow)",
                     fontsize=9)  # fmt: skip
     orbit.legend(fontsize="small", loc="lower left", bbox_to_anchor=(-0.25, -0.12))
-    errors.set(xlabel="visit of the pass", ylabel="lamp direction error, deg",
-               title="Lamp's light against the sun (0: reproduced exactly)")  # fmt: skip
-    errors.title.set_fontsize(9)
+
+
+def _draw_direction_errors(axes: Any, result: MissionResult) -> None:
+    """The lamp's error per visit against its plan point (both passes on one axis; none in the shadow)."""
+    labels = list(dict.fromkeys(setting.label for setting in result.suns))
+    for stage, colour, _ in _PASS_STYLE:
+        suns = _of_pass(result.suns, stage)
+        where = [labels.index(setting.label) for setting in suns]
+        error_deg = [math.degrees(s.direction_error_rad) if s.sunlit else math.nan for s in suns]
+        axes.plot(where, error_deg, "o", color=colour, markersize=5, alpha=0.8, label=stage)
+    axes.set_xticks(range(len(labels)), labels, rotation=40, ha="right", fontsize=7)
+    axes.set(ylabel="lamp direction error, deg")
+    axes.set_title("Lamp's light against the sun (0: reproduced exactly)", fontsize=9)
     # at least 1 deg tall: a reproduced sun's rounding noise (1e-14 deg) is drawn as the zero it is
-    drawn = [np.nanmax(line.get_ydata(), initial=0.0) for line in errors.lines]
-    errors.set_ylim(0.0, max(1.0, 1.15 * max(drawn, default=0.0)))
-    errors.grid(True, alpha=0.3)
-    errors.legend(fontsize="small", loc="best")
-    return figure_png(figure)
+    drawn = [np.nanmax(line.get_ydata(), initial=0.0) for line in axes.lines]
+    axes.set_ylim(0.0, max(1.0, 1.15 * max(drawn, default=0.0)))
+    axes.grid(True, alpha=0.3)
+    axes.legend(fontsize="small", loc="best")
 
 
 # ----------------------------------------------------------------------------------------------- ROC
