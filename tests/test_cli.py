@@ -404,6 +404,53 @@ def test_demo_passes_the_anomaly_draw_to_the_mission(tmp_path: Path) -> None:
     assert seen["anomalies"] == AnomalySettings.seed_mockup()
 
 
+def _demo_orbit_start(tmp_path: Path, *options: str) -> tuple[Result, Any]:
+    """`rsi demo` stopped where it calls run_mission: the result and the orbit_start_s it passed."""
+    import rsi.mission.run
+    from rsi.errors import InputError
+
+    seen: dict[str, Any] = {}
+
+    def stop(seed: int, **kwargs: Any) -> None:
+        seen.update(kwargs)
+        raise InputError("stopped after the settings were passed")
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(rsi.mission.run, "run_mission", stop)
+        result = invoke("demo", *options, "--out", tmp_path / "out")
+    return result, seen.get("orbit_start_s")
+
+
+@pytest.mark.parametrize(("options", "offset_s"), [((), 300.0), (("--sun-offset-s", "0"), 0.0),
+                                                   (("--sun-offset-s", "2000.5"), 2000.5)])  # fmt: skip
+def test_demo_inspects_under_another_sun_by_default(
+    options: tuple[str, ...], offset_s: float, tmp_path: Path
+) -> None:
+    from rsi.mission.run import ORBIT_START_S
+
+    result, orbit_start_s = _demo_orbit_start(tmp_path, *options)
+    assert result.exit_code == cli.EXIT_INVALID_VALUE and "stopped after" in result.stderr
+    # issue 14: the reference where run_mission puts it, the inspection one orbit later plus the offset
+    assert orbit_start_s == (ORBIT_START_S[0], ORBIT_START_S[1] + offset_s)
+
+
+def test_demo_sun_offset_default_is_the_missions() -> None:
+    from rsi.mission.run import SUN_OFFSET_S
+
+    assert cli.DEMO_SUN_OFFSET_S == SUN_OFFSET_S
+    assert "--sun-offset-s" in invoke("demo", "--help").stdout
+
+
+@pytest.mark.parametrize("value", ["-1", "nan", "inf", "-inf"])
+def test_bad_sun_offset_is_refused_by_name_before_any_work(value: str, tmp_path: Path) -> None:
+    result, orbit_start_s = _demo_orbit_start(tmp_path, "--sun-offset-s", value)
+    assert result.exit_code == cli.EXIT_INVALID_VALUE, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("rsi: error: --sun-offset-s must be a finite number")
+    assert "Pass e.g. --sun-offset-s 300" in lines[0]
+    assert orbit_start_s is None and not (tmp_path / "out").exists()
+
+
 def test_anomaly_draw_choices_follow_the_presets() -> None:
     from rsi.sim.anomalies import ANOMALY_PRESETS
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from enum import Enum
@@ -135,6 +136,34 @@ AnomaliesJsonOption = Annotated[
         'e.g. {"impact_count_range": [2, 4], "impact_bright_probability": 0.5}.',
     ),
 ]
+
+
+# `rsi demo` inspects under another sun than the reference's (issue 14): rsi.mission.run.SUN_OFFSET_S, kept
+# in step by a test (importing it here would load numpy and the simulator on `rsi --help`).
+DEMO_SUN_OFFSET_S = 300.0
+SunOffsetOption = Annotated[
+    float,
+    typer.Option(
+        "--sun-offset-s",
+        help="Start the inspection pass this many seconds later in the orbit than one orbit after the "
+        "reference's, under another sun: 300 s is about 19 deg on the 400 km orbit, 0 the reference's sun; "
+        "about 1300-3400 s puts the pass in the Earth's shadow (lamp off).",
+    ),
+]
+
+
+def _orbit_start_s(sun_offset_s: float) -> tuple[float, float]:
+    """The passes' orbit times for ``--sun-offset-s``: the reference at ``ORBIT_START_S[0]``, the inspection
+    one orbit later plus the offset (raises InputError for a negative or non-finite offset)."""
+    if not math.isfinite(sun_offset_s) or sun_offset_s < 0.0:
+        raise InputError(
+            f"--sun-offset-s must be a finite number of seconds >= 0; got {sun_offset_s!r}. Pass e.g. "
+            f"--sun-offset-s {DEMO_SUN_OFFSET_S:g} (about 19 deg of sun, the default) or 0 (the reference's "
+            "sun)."
+        )
+    from rsi.mission.run import ORBIT_START_S
+
+    return (ORBIT_START_S[0], ORBIT_START_S[1] + float(sun_offset_s))
 
 
 def _anomaly_settings(draw: AnomalyDraw, json_path: Path | None) -> AnomalySettings:
@@ -288,13 +317,16 @@ def demo(
     ] = DEFAULT_OUT,
     anomalies: AnomaliesOption = AnomalyDraw.wide,
     anomalies_json: AnomaliesJsonOption = None,
+    sun_offset_s: SunOffsetOption = DEMO_SUN_OFFSET_S,
 ) -> None:
     """The whole inspection mission over the simulated truss mock-up, scored, archived and reported.
-    Reference pass, anomalies, inspection pass with active second looks, pyrometer and gas surveys (seed
-    §2-4); findings scored against the world's ground truth; everything stored in OUT/archive.db; the run's
-    self-contained HTML report in OUT/report.html (a copy per run under OUT/runs/).
+    Reference pass, anomalies, inspection pass with active second looks under another sun (--sun-offset-s),
+    pyrometer and gas surveys (seed §2-4); findings scored against the world's ground truth; everything
+    stored in OUT/archive.db; the run's self-contained HTML report in OUT/report.html (a copy per run under
+    OUT/runs/), with both passes' suns and the lamp settings that reproduced them.
     """
     with _errors():
+        orbit_start_s = _orbit_start_s(sun_offset_s)
         _out_folder(out)
         settings = _anomaly_settings(anomalies, anomalies_json)
         import time
@@ -307,7 +339,9 @@ def demo(
         _results_folder(out)
         with Archive.open(out / "archive.db") as archive, _progress_bar("mission") as update:
             stages = _FinalStage(update, "report")
-            result = run_mission(seed, archive=archive, progress=stages.update, anomalies=settings)
+            result = run_mission(
+                seed, archive=archive, progress=stages.update, anomalies=settings, orbit_start_s=orbit_start_s
+            )
             scoring_s = time.perf_counter()
             score = score_mission(result)
             scoring_s = time.perf_counter() - scoring_s
@@ -353,7 +387,7 @@ def _print_mission(
     from rich import box
     from rich.table import Table
 
-    from rsi.report.mission import finding_records
+    from rsi.report.mission import finding_records, sun_separation_deg
 
     console = _stdout()
     records = finding_records(result, score)
@@ -381,6 +415,10 @@ def _print_mission(
         f"{len(records)} findings, {score.false_findings} false; mission {result.timings_s['total']:.1f} s, "
         f"all {elapsed_s:.1f} s. Run {result.run_id} in {files['report.html'].parent / 'archive.db'}."
     )
+    separation = sun_separation_deg(result)
+    if separation is not None:
+        inspection = f"{separation[0]:.1f} deg from the reference's (--sun-offset-s sets it)"
+        console.print(f"Suns: the inspection's is {inspection}.")
     console.print(f"Report: {files['report.html']} (this run's copy: {run_folder / 'report.html'})")
 
 

@@ -7,8 +7,10 @@ import base64
 import csv
 import dataclasses
 import json
+import math
 import os
 import re
+import types
 from dataclasses import dataclass
 from html.parser import HTMLParser
 from pathlib import Path
@@ -21,17 +23,25 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.errors import InputError
-from rsi.mission import MissionResult, MissionScore, run_mission, score_mission
+from rsi.mission import ORBIT_START_S, SUN_OFFSET_S, MissionResult, MissionScore, run_mission, score_mission
+from rsi.mission.sun import sun_setting
 from rsi.report import figures
 from rsi.report.mission import (
     FINDING_COLUMNS,
     REPORT_FILE,
     crop_window,
+    header_section,
     mission_html,
     proximity_section,
     roc_section,
+    sun_png,
+    sun_separation_deg,
+    suns_section,
     write_mission_report,
 )
+from rsi.sim.anomalies import AnomalySet
+from rsi.sim.mockup import A_FACE_Y_M, BAY_M, TRUSS_Z0_M
+from rsi.sim.orbit import orbital_period_s
 
 SEED = 0
 SMALL = (240, 320)
@@ -93,6 +103,7 @@ def test_every_image_is_a_png_that_decodes(report: Report) -> None:
     boxed = sum(finding.bbox is not None for finding in report.result.findings)
     assert boxed > 0
     plots = 2 + (1 if report.result.transits else 0) + (1 if report.result.roc else 0)
+    plots += 1 if report.result.suns else 0  # the passes' suns (issue 14)
     assert len(sources) == 1 + 4 * boxed + plots
     for source in sources:
         data = base64.b64decode(source.removeprefix(DATA_URI), validate=True)
@@ -185,6 +196,116 @@ def test_roc_section_says_when_the_run_has_no_roc(report: Report) -> None:
     empty = dataclasses.replace(report.result, roc=())
     section = roc_section(empty)
     assert not _images(section) and "no empirical ROC" in section
+
+
+# ---------------------------------------------------------------------------------- the passes' suns
+
+PERIOD_S = orbital_period_s()
+SPOT_A_M = (0.0, A_FACE_Y_M, TRUSS_Z0_M + BAY_M / 2)  # ORU A's face: the lamp gives a beta = 0 sun exactly
+VISITS = 6
+
+
+def _sun_result(inspection_start_s: float, *, visits: int = VISITS) -> MissionResult:
+    """A mission's record of its suns alone: the same plan points 6 s apart on both passes (no rendering)."""
+    suns = [
+        sun_setting(SPOT_A_M, start_s + 6.0 * number, label=f"P{number}", stage=stage)
+        for stage, start_s in (("reference", ORBIT_START_S[0]), ("inspection", inspection_start_s))
+        for number in range(visits)
+    ]
+    empty = np.zeros((0, 3))
+    return MissionResult(0, "lab", True, SMALL, (), (), (), AnomalySet(), {}, np.zeros(0), empty, None,
+                         suns=tuple(suns))  # fmt: skip
+
+
+def _cells(section: str, table: int) -> list[list[str]]:
+    body = section.split("<tbody>")[table + 1].split("</tbody>", maxsplit=1)[0]
+    return [re.findall(r"<td[^>]*>(.*?)</td>", row) for row in body.split("</tr>") if "<td" in row]
+
+
+@pytest.mark.parametrize("offset_s", [0.0, SUN_OFFSET_S, 900.0])
+def test_suns_section_states_the_angle_the_orbit_turned_between_the_passes(offset_s: float) -> None:
+    # beta = 0: the sun stays in the orbit plane, so at the same point of each pass the suns are the orbit's
+    # turn apart, 360 deg x offset / period (19.4 deg at 300 s, 58.3 deg at 900 s)
+    result = _sun_result(ORBIT_START_S[1] + offset_s)
+    expected_deg = 360.0 * offset_s / PERIOD_S
+    median, least, most = sun_separation_deg(result) or (math.nan,) * 3
+    assert median == pytest.approx(expected_deg, abs=1e-6)
+    assert least == pytest.approx(most, abs=1e-6)
+    section = suns_section(result)
+    assert "<h2>The sun on each pass</h2>" in section
+    words = f"the inspection&#x27;s sun is {expected_deg:.1f} deg from the reference&#x27;s"
+    assert words in section
+    assert ("(the same sun)" in section) == (offset_s == 0.0)
+    passes = _cells(section, 0)
+    assert [row[0] for row in passes] == ["reference", "inspection"]
+    noon_deg = [
+        math.degrees(2 * math.pi * (start % PERIOD_S) / PERIOD_S) for start in (400.0, 400.0 + offset_s)
+    ]
+    for row, start_deg, stage in zip(passes, noon_deg, ("reference", "inspection"), strict=True):
+        assert row[3].startswith(f"{start_deg:.1f} to ")
+        exact = sum(setting.reachable for setting in result.suns if setting.stage == stage)
+        assert row[5] == "sunlit" and row[6].startswith(f"{exact}/{VISITS} sunlit visits")
+        # seed §4.1: the rail gives ORU A the sun from noon to about 71 deg past it; at 84 deg it cannot
+        assert exact == (VISITS if start_deg < 71.0 else 0)
+
+
+def test_suns_section_lists_each_visits_lamp_setting() -> None:
+    result = _sun_result(ORBIT_START_S[1] + SUN_OFFSET_S)
+    rows = _cells(suns_section(result), 1)
+    assert len(rows) == len(result.suns) == 2 * VISITS
+    for row, setting in zip(rows, result.suns, strict=True):
+        lamp = setting.lamp
+        assert row[:2] == [setting.stage, setting.label]
+        assert float(row[5]) == pytest.approx(math.degrees(lamp.theta_rad), abs=0.05)
+        assert float(row[6]) == pytest.approx(math.degrees(lamp.phi_rad), abs=0.05)
+        assert float(row[7]) == pytest.approx(lamp.lambda_m, abs=5e-4)
+        assert float(row[8]) == pytest.approx(1000.0 * lamp.gamma_m, abs=0.05)
+        # seed §4.1: the lamp holds the lab's 1.5 % of sunlight at the spot, and gives ORU A's sun exactly
+        assert row[9] == "1950" and float(row[10]) == 0.0 and row[11] == "yes"
+
+
+def test_suns_section_says_when_the_inspection_is_in_the_earths_shadow() -> None:
+    midnight_s = ORBIT_START_S[1] - 400.0 + PERIOD_S / 2  # orbit midnight, the eclipse's centre
+    result = _sun_result(midnight_s)
+    section = suns_section(result)
+    passes = _cells(section, 0)
+    assert passes[1][5] == "in the Earth&#x27;s shadow (lamp off)" and passes[1][6] == "lamp off"
+    shadow = _cells(section, 1)[VISITS:]
+    assert all(row[4] == "shadow: lamp off" and row[9] == "0" and row[11] == "lamp off" for row in shadow)
+    assert section.count('<tr class="shadow">') == VISITS
+    assert "the strobe alone lights its frames" in section
+    assert (sun_separation_deg(result) or (0.0,))[0] == pytest.approx(
+        180.0 - 360.0 * 400.0 / PERIOD_S, abs=1e-6
+    )
+
+
+def test_suns_section_draws_one_plot_and_the_header_names_the_angle() -> None:
+    result = _sun_result(ORBIT_START_S[1] + SUN_OFFSET_S)
+    sources = _images(suns_section(result))
+    assert len(sources) == 1
+    decoded = cv2.imdecode(np.frombuffer(sun_png(result), np.uint8), cv2.IMREAD_UNCHANGED)
+    assert decoded is not None and min(decoded.shape[:2]) >= 200
+    header = header_section(result, score_mission(result))
+    assert f"{360.0 * SUN_OFFSET_S / PERIOD_S:.1f} deg apart" in header
+
+
+def test_suns_section_without_the_orbit_or_a_common_plan_point() -> None:
+    without = dataclasses.replace(_sun_result(ORBIT_START_S[1]), suns=())
+    assert "No sun in this run" in suns_section(without) and not _images(suns_section(without))
+    assert sun_separation_deg(without) is None
+    reference_only = _sun_result(ORBIT_START_S[1])
+    reference_only = dataclasses.replace(reference_only, suns=reference_only.suns[:VISITS])
+    section = suns_section(reference_only)
+    assert "no angle between their suns" in section and len(_cells(section, 0)) == 1
+
+
+def test_pass_start_is_the_first_transits_clock_when_the_arm_moved() -> None:
+    result = _sun_result(ORBIT_START_S[1])
+    transits = (types.SimpleNamespace(stage="reference", start_clock_s=400.0),
+                types.SimpleNamespace(stage="inspection", start_clock_s=ORBIT_START_S[1]))  # fmt: skip
+    passes = _cells(suns_section(dataclasses.replace(result, transits=transits)), 0)
+    assert [row[1] for row in passes] == ["400.0", f"{ORBIT_START_S[1]:.1f}"]
+    assert _cells(suns_section(result), 0)[0][1] == "400.0 (first visit)"
 
 
 @pytest.mark.parametrize(

@@ -48,7 +48,7 @@ from rsi.mission.tally import (
 if TYPE_CHECKING:
     from rsi.detection.pair import PairResult, Score, inspect_pair, score_flaws
     from rsi.mission.plan import PLAN, plan_vistas
-    from rsi.mission.run import ORBIT_START_S, run_mission
+    from rsi.mission.run import ORBIT_START_S, SUN_OFFSET_S, run_mission
     from rsi.mission.score import Miss, MissionScore, TypeScore, score_mission
 
 # the names that load the simulator or the image libraries, resolved on first use (PEP 562)
@@ -60,6 +60,7 @@ _LAZY = {
     "PLAN": "rsi.mission.plan",
     "plan_vistas": "rsi.mission.plan",
     "ORBIT_START_S": "rsi.mission.run",
+    "SUN_OFFSET_S": "rsi.mission.run",
     "run_mission": "rsi.mission.run",
     "Miss": "rsi.mission.score",
     "MissionScore": "rsi.mission.score",
@@ -77,6 +78,7 @@ __all__ = [
     "ORBIT_START_S",
     "PLAN",
     "SCORED_TYPES",
+    "SUN_OFFSET_S",
     "AnomalyFree",
     "Miss",
     "MissionFinding",

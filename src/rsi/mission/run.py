@@ -47,6 +47,11 @@ ProgressFn = Callable[[str, int, int], None]
 # The reference pass begins 26 deg past orbit noon, the inspection pass one orbit later at the same phase:
 # a sun 20 deg apart between the passes raised false impacts 4 -> 15 on seed 0 (docs/mission.md).
 ORBIT_START_S = (400.0, 400.0 + orbital_period_s())
+# `rsi demo` takes its inspection pass this much later than ORBIT_START_S[1], under another sun: a real
+# station is never inspected under the same sun twice (seed §2: lighting variation, the first challenge;
+# issue 14). The sun turns 360 deg per orbital_period_s() (5553.6 s at the default 400 km), so 300 s is
+# 360 * 300 / 5553.6 = 19.4 deg. run_mission's own default stays ORBIT_START_S.
+SUN_OFFSET_S = 300.0
 
 
 def run_mission(

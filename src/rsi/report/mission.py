@@ -29,6 +29,7 @@ from rsi.report.writers import atomic_write_text, csv_text, to_json, write_files
 if TYPE_CHECKING:
     from rsi.mission.records import MissionFinding, MissionResult, VisitImages
     from rsi.mission.score import MissionScore
+    from rsi.mission.sun import SunSetting
     from rsi.sim.anomalies import Anomaly
 
 REPORT_FILE = "report.html"
@@ -86,6 +87,8 @@ td.text, th.text { text-align: left; }
 tr.false td { background: #fde0e0; }
 tr.found td { background: #e2f5e2; }
 tr.missed td { background: #fff1d6; }
+tr.unreachable td { background: #fff1d6; }
+tr.shadow td { background: #e4e4ee; }
 .met { color: #176b17; font-weight: bold; }
 .unmet { color: #b00000; font-weight: bold; }
 .crops { display: flex; flex-wrap: wrap; gap: 0.6em; margin: 0.4em 0 1.2em; }
@@ -193,6 +196,7 @@ def mission_html(
         overview_section(result, score),
         findings_section(result, score),
         truth_section(result, score),
+        suns_section(result),
         crops_section(result, score),
         sensors_section(result),
         proximity_section(result),
@@ -267,6 +271,9 @@ def header_section(result: MissionResult, score: MissionScore) -> str:
         ("findings", len(result.findings)),
         ("false findings", score.false_findings),
     ]
+    separation = sun_separation_deg(result)
+    if separation is not None:
+        settings.append(("passes' suns", f"{separation[0]:.1f} deg apart (see 'The sun on each pass')"))
     items = "".join(
         f"<tr><th class='text'>{_e(k)}</th><td class='text'>{_e(v)}</td></tr>" for k, v in settings
     )
@@ -710,6 +717,192 @@ def proximity_png(transits: Sequence[Any]) -> bytes:
     return figure_png(figure)
 
 
+# ----------------------------------------------------------------------------------------------- suns
+
+# (pass, colour, radius on the polar plot): the passes drawn on two rings so that the same sun stays visible
+_PASS_STYLE = (("reference", "C0", 1.0), ("inspection", "C1", 0.8))
+
+
+def suns_section(result: MissionResult) -> str:
+    """Each pass's sun and, per visit, the lamp setting that reproduced it (seed §2: lighting variation;
+    seed §4.1: the solar simulator), with the angle between the passes' suns in words."""
+    if not result.suns:
+        return "<h2>The sun on each pass</h2>\n<p>No sun in this run: the mission ran without the orbit.</p>"
+    passes = _table(
+        ("pass", "start s", "visits", "orbit angle from noon, deg", "sun direction (lab, first visit)",
+         "light", "lamp gave the sun exactly"),
+        [_pass_row(result, stage) for stage, _, _ in _PASS_STYLE if _of_pass(result.suns, stage)],
+        text_columns=(0, 3, 4, 5, 6),
+    )  # fmt: skip
+    visits = _table(
+        ("pass", "plan point", "clock s", "orbit angle deg", "light", "theta deg", "phi deg", "lambda m",
+         "gamma mm", "intensity lux", "direction error deg", "reachable"),
+        [_visit_row(setting) for setting in result.suns],
+        row_classes=[_visit_class(setting) for setting in result.suns],
+        text_columns=(0, 1, 4, 11),
+    )  # fmt: skip
+    return (
+        "<h2>The sun on each pass</h2>\n"
+        f"<p id='sun-separation'>{_e(_separation_words(result))}</p>\n{passes}\n"
+        + _img(sun_png(result), "the sun's orbit angle on both passes and the lamp's direction error")
+        + "\n<p class='note'>Per visit, the solar simulator's lamp (seed §4.1) as set to reproduce the "
+        "orbit's sun on the vista's target: pan theta and tilt phi of the beam, lambda its travel along the "
+        "rail, gamma the focus carriage; the intensity at the spot (0 in the Earth's shadow, lamp off); "
+        "the angle between the lamp's light and the sun (a direction the rail cannot give is replaced by "
+        "the nearest, marked not reachable).</p>\n" + visits
+    )
+
+
+def sun_separation_deg(result: MissionResult) -> tuple[float, float, float] | None:
+    """Angle between the inspection's sun and the reference's at each plan point both passes lit, degrees:
+    (median, least, most) over those plan points (each pass's first visit to a point); None unless both
+    passes have one in common."""
+    first: dict[tuple[str, str], tuple[float, float, float]] = {}
+    for setting in result.suns:
+        first.setdefault((setting.stage, setting.label), setting.sun_world)
+    angles = [
+        _angle_deg(first["reference", label], sun)
+        for (stage, label), sun in first.items()
+        if stage == "inspection" and ("reference", label) in first
+    ]
+    if not angles:
+        return None
+    return (float(np.median(angles)), min(angles), max(angles))
+
+
+def _separation_words(result: MissionResult) -> str:
+    separation = sun_separation_deg(result)
+    if separation is None:
+        return "The passes visited no plan point in common: no angle between their suns."
+    median, least, most = separation
+    spread = f" ({least:.1f}-{most:.1f} deg over the plan points)" if most - least >= 0.05 else ""
+    same = " (the same sun)" if median < 0.05 else ""
+    inspection = _of_pass(result.suns, "inspection")
+    dark = (" The inspection pass is in the Earth's shadow: the lamp is off and the strobe alone lights "
+            "its frames.") if not any(setting.sunlit for setting in inspection) else ""  # fmt: skip
+    return (
+        f"At the same plan point the inspection's sun is {median:.1f} deg from the reference's{same}"
+        f"{spread}: ambient compensation (seed §2.2) has to hold across that change.{dark}"
+    )
+
+
+def _angle_deg(first: Sequence[float], second: Sequence[float]) -> float:
+    a, b = np.asarray(first, dtype=np.float64), np.asarray(second, dtype=np.float64)
+    return math.degrees(math.atan2(float(np.linalg.norm(np.cross(a, b))), float(np.dot(a, b))))
+
+
+def _noon_deg(angle_rad: float) -> float:
+    """Orbit angle from noon in (-180, 180] degrees (the record's is unwrapped: each orbit adds 360)."""
+    degrees = math.degrees(angle_rad) % 360.0
+    return degrees - 360.0 if degrees > 180.0 else degrees
+
+
+def _of_pass(suns: Sequence[SunSetting], stage: str) -> list[SunSetting]:
+    return [setting for setting in suns if setting.stage == stage]
+
+
+def _pass_row(result: MissionResult, stage: str) -> tuple[object, ...]:
+    suns = _of_pass(result.suns, stage)
+    starts = [transit.start_clock_s for transit in result.transits if transit.stage == stage]
+    # the pass starts at its first transit; without the arm only the first visit's time is recorded
+    start = f"{min(starts):.1f}" if starts else f"{suns[0].time_s:.1f} (first visit)"
+    angles = f"{_noon_deg(suns[0].orbit_angle_rad):.1f} to {_noon_deg(suns[-1].orbit_angle_rad):.1f}"
+    direction = "(" + ", ".join(f"{value:.3f}" for value in suns[0].sun_world) + ")"
+    dark = sum(not setting.sunlit for setting in suns)
+    light = {0: "sunlit", len(suns): "in the Earth's shadow (lamp off)"}.get(
+        dark, f"sunlit at {len(suns) - dark} visits, in the Earth's shadow (lamp off) at {dark}"
+    )
+    lit = [setting for setting in suns if setting.sunlit]  # in the shadow the lamp is off: nothing to give
+    exact = sum(setting.reachable for setting in lit)
+    worst = max((math.degrees(setting.direction_error_rad) for setting in lit), default=0.0)
+    given = f"{exact}/{len(lit)} sunlit visits (largest error {worst:.1f} deg)" if lit else "lamp off"
+    return (stage, start, len(suns), angles, direction, light, given)
+
+
+def _visit_row(setting: SunSetting) -> tuple[object, ...]:
+    lamp = setting.lamp
+    return (
+        setting.stage,
+        setting.label,
+        f"{setting.time_s:.1f}",
+        f"{_noon_deg(setting.orbit_angle_rad):.1f}",
+        "sunlit" if setting.sunlit else "shadow: lamp off",
+        f"{math.degrees(lamp.theta_rad):.1f}",
+        f"{math.degrees(lamp.phi_rad):.1f}",
+        f"{lamp.lambda_m:.3f}",
+        f"{1000.0 * lamp.gamma_m:.1f}",
+        f"{setting.intensity_lux:.0f}",
+        f"{math.degrees(setting.direction_error_rad):.2f}" if setting.sunlit else "",
+        ("yes" if setting.reachable else "no: nearest") if setting.sunlit else "lamp off",
+    )
+
+
+def _visit_class(setting: SunSetting) -> str:
+    if not setting.sunlit:
+        return "shadow"
+    return "" if setting.reachable else "unreachable"
+
+
+def sun_png(result: MissionResult) -> bytes:
+    """Left: each visit's sun on the orbit (angle from noon; hollow in the Earth's shadow), one ring per
+    pass, the angle between the passes written between them. Right: the lamp's direction error at each
+    plan point of each pass."""
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(9.0, 4.2), dpi=100, layout="constrained")
+    _draw_orbit(figure.add_subplot(1, 2, 1, projection="polar"), result)
+    _draw_direction_errors(figure.add_subplot(1, 2, 2), result)
+    return figure_png(figure)
+
+
+def _draw_orbit(orbit: Any, result: MissionResult) -> None:
+    """On a PolarAxes: noon up, the sun setting behind the station (+90 deg) to the right."""
+    firsts = []
+    for stage, colour, radius in _PASS_STYLE:
+        suns = _of_pass(result.suns, stage)
+        if not suns:
+            continue
+        theta = np.radians([_noon_deg(setting.orbit_angle_rad) for setting in suns])
+        lit = np.array([setting.sunlit for setting in suns])
+        orbit.scatter(theta[lit], np.full(lit.sum(), radius), s=24, color=colour, label=stage)
+        orbit.scatter(theta[~lit], np.full((~lit).sum(), radius), s=24, facecolors="none", edgecolors=colour)
+        orbit.annotate("", xy=(theta[0], radius), xytext=(0.0, 0.0),
+                       arrowprops={"arrowstyle": "->", "color": colour})  # fmt: skip
+        firsts.append(theta[0])
+    separation = sun_separation_deg(result)
+    if separation is not None and len(firsts) == 2:
+        between = math.atan2(sum(math.sin(t) for t in firsts), sum(math.cos(t) for t in firsts))
+        orbit.text(between, 0.3, f"{separation[0]:.1f} deg", ha="center", va="center", fontsize=9,
+                   bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})  # fmt: skip
+    orbit.set_theta_zero_location("N")
+    orbit.set_theta_direction(-1)
+    orbit.set_xticks(np.radians([0, 90, 180, 270]), ["noon", "+90\n(sets)", "midnight", "-90\n(rises)"],
+                     fontsize=8)  # fmt: skip
+    orbit.set_yticks([])
+    orbit.set_ylim(0.0, 1.1)
+    orbit.set_title("The sun on the orbit at each visit\n(arrow: first visit; hollow: Earth's shadow)",
+                    fontsize=9)  # fmt: skip
+    orbit.legend(fontsize="small", loc="lower left", bbox_to_anchor=(-0.25, -0.12))
+
+
+def _draw_direction_errors(axes: Any, result: MissionResult) -> None:
+    """The lamp's error per visit against its plan point (both passes on one axis; none in the shadow)."""
+    labels = list(dict.fromkeys(setting.label for setting in result.suns))
+    for stage, colour, _ in _PASS_STYLE:
+        suns = _of_pass(result.suns, stage)
+        where = [labels.index(setting.label) for setting in suns]
+        error_deg = [math.degrees(s.direction_error_rad) if s.sunlit else math.nan for s in suns]
+        axes.plot(where, error_deg, "o", color=colour, markersize=5, alpha=0.8, label=stage)
+    axes.set_xticks(range(len(labels)), labels, rotation=40, ha="right", fontsize=7)
+    axes.set(ylabel="lamp direction error, deg")
+    axes.set_title("Lamp's light against the sun (0: reproduced exactly)", fontsize=9)
+    # at least 1 deg tall: a reproduced sun's rounding noise (1e-14 deg) is drawn as the zero it is
+    drawn = [np.nanmax(line.get_ydata(), initial=0.0) for line in axes.lines]
+    axes.set_ylim(0.0, max(1.0, 1.15 * max(drawn, default=0.0)))
+    axes.grid(True, alpha=0.3)
+    axes.legend(fontsize="small", loc="best")
+
+
 # ----------------------------------------------------------------------------------------------- ROC
 
 
@@ -734,5 +927,8 @@ __all__ = [
     "crop_window",
     "finding_records",
     "mission_html",
+    "sun_png",
+    "sun_separation_deg",
+    "suns_section",
     "write_mission_report",
 ]
