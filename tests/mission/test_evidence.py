@@ -227,3 +227,43 @@ def test_a_brighter_sun_shortens_the_inspection_shutter_and_leaves_the_strobe_im
         assert same == 0.5 and kept is panel  # a dimmer sun needs nothing
     finally:
         world.close()
+
+
+def _edge_pair(shift_px: float, spot: bool) -> Any:
+    """A vertical step edge a pixel off in the inspection (taken as aligned), maybe a dark spot beside it."""
+    from rsi.detection.detect import detect
+    from rsi.detection.pair import PairResult
+
+    cols = np.arange(160, dtype=np.float64)
+    profile = np.where(cols < 80.0, 40.0, 120.0)
+    profile[80] = 80.0
+    rng = np.random.default_rng(8)
+    reference, inspection = (
+        np.tile(np.interp(cols - shift, cols, profile), (120, 1)).astype(np.float32)
+        + rng.normal(0.0, 1.0, (120, 160)).astype(np.float32)
+        for shift in (0.0, shift_px)
+    )
+    if spot:
+        inspection[60:63, 84:87] -= 40.0
+    found = detect(
+        _image(reference, 1.0),
+        _image(inspection, 1.0),
+        registration=None,
+        p_false_alarm=1e-4,
+        polarity="both",
+    )
+    return PairResult(reference, inspection, found, 0.0)
+
+
+def test_a_local_shift_explains_an_edge_left_off_but_not_a_spot_beside_it() -> None:
+    from rsi.mission.evidence import shift_explained
+
+    edge = _edge_pair(1.0, spot=False)
+    assert edge.flaws  # the edge left a pixel off scores as a flaw
+    for flaw in edge.flaws:
+        look = Look(flaw, (0.0, 0.0, 0.0), 1e-6, flaw.score)
+        assert shift_explained(edge, look, 4.0, max_shift_px=1.5)
+        assert not shift_explained(edge, look, 4.0, max_shift_px=0.25)  # a pixel needs a pixel
+    spotted = _edge_pair(1.0, spot=True)
+    spot = next(f for f in spotted.flaws if 59 <= f.row <= 63 and 83 <= f.col <= 87)
+    assert not shift_explained(spotted, Look(spot, (0.0, 0.0, 0.0), 1e-6, spot.score), 4.0, max_shift_px=1.5)

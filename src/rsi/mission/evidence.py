@@ -100,6 +100,54 @@ def blobs(pair: PairResult, view: Sensed) -> list[Look]:
     return looks
 
 
+def shift_explained(pair: PairResult, look: Look, threshold: float, max_shift_px: float) -> bool:
+    """Whether a translation of the prediction by at most `max_shift_px` around the blob takes its score
+    under `threshold`: an edge left mis-registered, not a flaw (seed §2.3).
+
+    Seed §2.3: small mis-registrations "may be locally approximated as a translational mis-registration".
+    One registration per frame leaves surfaces off its plane (a tank's silhouette, the open door's edge)
+    shifted by parallax, and an edge shifted by a pixel scores as a dark and a bright crescent. A flaw is
+    no shifted edge: no translation of the reference makes it or removes it. The blob's box, a few pixels
+    wider, is scored again with the 3x3 uniform flaw model (seed §2.4) after each shift of a grid of
+    quarter pixels; the best shift's peak, scaled by the look's score over the unshifted peak (the
+    detector's own noise calibration), is compared with `threshold`.
+    """
+    import cv2
+
+    detection = pair.detection
+    pad = math.ceil(max_shift_px) + 2
+    row0, col0, row1, col1 = look.bbox
+    rows, cols = detection.difference.shape
+    r0, c0, r1, c1 = max(row0 - pad, 0), max(col0 - pad, 0), min(row1 + pad, rows), min(col1 + pad, cols)
+    inspection = pair.inspection[r0:r1, c0:c1].astype(np.float32)
+    predicted = inspection - detection.difference[r0:r1, c0:c1]
+    valid = detection.valid[r0:r1, c0:c1]
+    variance = np.where(valid, detection.sigma[r0:r1, c0:c1] ** 2, np.float32(0.0)).astype(np.float32)
+    spread = np.sqrt(np.maximum(cv2.boxFilter(variance, -1, (3, 3), normalize=False), np.float32(1e-6)))
+    inner = np.zeros_like(valid)
+    inner[max(row0 - r0 - 1, 0) : row1 - r0 + 1, max(col0 - c0 - 1, 0) : col1 - c0 + 1] = True
+    inner &= valid
+
+    def peak(shift: tuple[float, float]) -> float:
+        moved = cv2.warpAffine(
+            predicted,
+            np.float32([[1, 0, shift[1]], [0, 1, shift[0]]]),
+            (predicted.shape[1], predicted.shape[0]),
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
+        residual = np.where(valid, inspection - moved, np.float32(0.0))
+        score = np.abs(cv2.boxFilter(residual, -1, (3, 3), normalize=False)) / spread
+        return float(score[inner].max()) if inner.any() else 0.0
+
+    unshifted = peak((0.0, 0.0))
+    if unshifted <= 0.0:
+        return False
+    steps = np.arange(-max_shift_px, max_shift_px + 1e-9, 0.25)
+    best = min(peak((dy, dx)) for dy in steps for dx in steps)
+    return best * look.score / unshifted <= threshold
+
+
 def screw_relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:
     """Height of the screw head above the plate around it in the stereo range map (seed §3, §4 screws).
 

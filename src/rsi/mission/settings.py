@@ -46,6 +46,10 @@ class MissionSettings:
         3x3 window to be an impact: the seed's impacts are black tape on the surface (seed §4), which a 3x3
         window of 0.66 mm pixels sees as >= 0.08 for a 1 mm impact on the dark solar cells, and a bright
         spall gains ``(1 - r) c / r`` of a surface of reflectance r (>= 0.1 for aluminium's 0.63 at c = 0.2).
+    local_shift_px : float
+        Largest translation of the prediction around a small blob that may explain it as a mis-registered
+        edge (:func:`rsi.mission.evidence.shift_explained`): the lab's ~1 mm repeatability is 1.5 pixels of
+        0.66 mm, the most a surface off the registered plane stays shifted after registration.
     surround_px : int
         Ring around a blob read as the surface it lies on (the blob's own pixels may be a decal).
     discoloured_margin_px : int
@@ -109,6 +113,7 @@ class MissionSettings:
     nuisance_window_px: int = 9
     nuisance_spread_px: int = 9
     impact_contrast_min: float = 0.05
+    local_shift_px: float = 1.5
     surround_px: int = 3
     discoloured_margin_px: int = 4
     spot_area_max_m2: float = 1.5e-5

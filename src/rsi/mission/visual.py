@@ -30,6 +30,7 @@ from rsi.mission.evidence import (
     discoloured_pixels,
     screw_checks,
     second_look_score,
+    shift_explained,
     unexplained,
 )
 from rsi.mission.exposure import shortened
@@ -293,7 +294,13 @@ def _new_blobs(
         look
         for look in looks
         if look.score > floor
-        and (look.area_m2 > settings.component_area_m2 or look.contrast >= settings.impact_contrast_min)
+        and (
+            look.area_m2 > settings.component_area_m2
+            or (
+                look.contrast >= settings.impact_contrast_min
+                and not shift_explained(comparison.pair, look, floor, settings.local_shift_px)
+            )
+        )
     ]
 
 
