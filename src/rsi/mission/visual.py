@@ -295,13 +295,25 @@ def _new_blobs(
         for look in looks
         if look.score > floor
         and (
-            look.area_m2 > settings.component_area_m2
+            (look.area_m2 > settings.component_area_m2 and _broad(look, settings))
             or (
-                look.contrast >= settings.impact_contrast_min
+                look.area_m2 <= settings.component_area_m2
+                and look.contrast >= settings.impact_contrast_min
                 and not shift_explained(comparison.pair, look, floor, settings.local_shift_px)
             )
         )
     ]
+
+
+def _broad(look: Look, settings: MissionSettings) -> bool:
+    """Whether a large blob is as wide as the flaw model at least (its area over its longer side).
+
+    A swapped component changes its whole surface (seed §4); a line a pixel or two wide and centimetres long
+    is a silhouette left mis-registered (the arm's own edge, which the CAD projection from the believed
+    pose places to a few pixels), whatever its area.
+    """
+    row0, col0, row1, col1 = look.bbox
+    return look.flaw.area_px / max(row1 - row0, col1 - col0, 1) >= settings.flaw_size_px
 
 
 def _second_looks(
