@@ -131,7 +131,7 @@ def shift_explained(pair: PairResult, look: Look, threshold: float, max_shift_px
     def peak(shift: tuple[float, float]) -> float:
         moved = cv2.warpAffine(
             predicted,
-            np.float32([[1, 0, shift[1]], [0, 1, shift[0]]]),
+            np.array([[1.0, 0.0, shift[1]], [0.0, 1.0, shift[0]]], dtype=np.float32),
             (predicted.shape[1], predicted.shape[0]),
             flags=cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_REPLICATE,
