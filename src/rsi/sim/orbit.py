@@ -360,10 +360,7 @@ def compensating_exposure(
 
 
 def _rotation(matrix: object, name: str) -> FloatArray:
-    try:
-        rotation = np.asarray(matrix, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a 3x3 rotation matrix; got {matrix!r}.") from None
+    rotation = v.as_float_array(matrix, name)  # an int beyond the float range, text, a ragged list
     if rotation.shape != (3, 3) or not np.isfinite(rotation).all():
         raise InputError(f"{name} must be a finite 3x3 rotation matrix; got shape {rotation.shape}.")
     if (
