@@ -25,6 +25,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import rsi.sim
+from rsi.errors import InputError
 from rsi.mission import run_mission, score_mission
 from rsi.mission.sun import (
     lab_world_from_lvlh,
@@ -471,7 +472,11 @@ def _refused_arguments(function: Callable[..., Any]) -> st.SearchStrategy[dict[s
     def any_value(name: str) -> st.SearchStrategy[Any]:
         default = defaults[name]
         valid = st.just(0) if name == "seed" else st.just(default)
-        return st.one_of(HOSTILE_FAST, valid) if default is not inspect.Parameter.empty or name == "seed" else HOSTILE_FAST
+        return (
+            st.one_of(HOSTILE_FAST, valid)
+            if default is not inspect.Parameter.empty or name == "seed"
+            else HOSTILE_FAST
+        )
 
     return st.sampled_from(names).flatmap(
         lambda refused: st.fixed_dictionaries(
@@ -506,3 +511,109 @@ def test_load_and_run_mission_refuse_bad_arguments_before_any_work(function: Cal
 @pytest.mark.filterwarnings("ignore::hypothesis.errors.HypothesisWarning")
 def test_score_mission_lets_only_named_errors_escape() -> None:
     _fuzz(score_mission, "score_mission", {})
+
+
+# ------------------------------------------------------------- each check added for this suite, by hand
+
+
+def _raises(call: Callable[[], object], match: str) -> None:
+    with pytest.raises(InputError, match=match):
+        call()
+
+
+def test_the_world_checks_its_camera_placement_and_sensors(world: World, view: Any) -> None:
+    _raises(lambda: world.place_camera(10**400, (0, 1, 0)), r"position_m must be a number")
+    _raises(lambda: world.place_camera((0, 0, 1), (0, 0, 0)), r"forward must be a non-zero direction")
+    _raises(lambda: world.place_camera((0, 0, 1), (0, 1, 0), None), r"up must be three finite numbers")
+    _raises(
+        lambda: world.place_camera((0, 0, 1), (0, 0, 1), (0, 0, 2)), r"up=\(0, 0, 2\) is parallel to forward"
+    )
+    site, good = (
+        world.mockup.candidates.peltier_sites[0],
+        {"pyrometer": Pyrometer(), "rng": np.random.default_rng(0)},
+    )
+    _raises(lambda: world.read_pyrometer(None, standoff_m=0.3, **good), r"site must be a Site")
+    _raises(
+        lambda: world.read_pyrometer(site, standoff_m=-1.0, **good), r"standoff_m must be in \[0.0, inf\]"
+    )
+    _raises(
+        lambda: world.read_pyrometer(site, standoff_m=0.3, pyrometer=1, rng=good["rng"]),
+        r"pyrometer must be a Pyrometer",
+    )
+    _raises(
+        lambda: world.read_pyrometer(site, standoff_m=0.3, pyrometer=Pyrometer(), rng=0),
+        r"rng must be a Generator",
+    )
+    _raises(
+        lambda: world.gas_concentration_ppm(np.zeros((1, 3)), 10**400), r"time_s must be a number or an array"
+    )
+    before = Renders.count
+    _raises(
+        lambda: world.render_from_tool(size=SIZE, unsensed_offset_m=(1.0,)), r"unsensed_offset_m must be two"
+    )
+    assert Renders.count == before  # refused before any frame
+    _raises(lambda: view.believed_pose.project(np.zeros(3)), r"points_m must have shape \(K, 3\)")
+
+
+def test_a_world_is_built_from_checked_parts(world: World) -> None:
+    _raises(lambda: rsi.sim.load("truss", seed=0, camera="ccd"), r"camera must be a CameraModel")
+    _raises(lambda: World(None, world.anomalies, seed=0), r"mockup must be a Mockup")  # type: ignore[arg-type]
+    _raises(lambda: World(world.mockup, None, seed=0), r"anomalies must be a AnomalySet")  # type: ignore[arg-type]
+    _raises(lambda: Tour(None, seed=0, size=SIZE), r"world must be a World")  # type: ignore[arg-type]
+    _raises(lambda: Tour(world, seed=0, size=(8, 8)), r"size must be an integer >= 16")
+
+
+def test_the_arm_checks_its_arguments(world: World) -> None:
+    arm = world.arm
+    _raises(lambda: arm.reset("home"), r"joint_positions must be a number or an array")
+    _raises(lambda: arm.random_configuration("x"), r"rng must be a numpy Generator")
+    _raises(lambda: arm.random_configuration(0, margin=0.5), r"margin must be in \[0.0, 0.5\)")
+    _raises(lambda: arm.site_position_m(np.zeros(1)), r"name must be one of")
+    _raises(lambda: arm.step_velocity("fast", 0.02), r"twist_or_velocity must be a number or an array")
+    _raises(lambda: Arm(obstacles=None), r"obstacles must be a tuple of Wall")  # type: ignore[arg-type]
+    _raises(lambda: arm_spec(obstacles=Wall(0.3)), r"obstacles must be a tuple of Wall")  # type: ignore[arg-type]
+    _raises(lambda: Arm(settings=1), r"settings must be a RedundancySettings")  # type: ignore[arg-type]
+    _raises(lambda: Arm.bind(None, world.data), r"model must be a mujoco.MjModel")
+    _raises(lambda: Arm.bind(world.model, None), r"data must be the mujoco.MjData of model")
+    _raises(lambda: add_obstacle(None, Wall(0.3)), r"spec must be a mujoco.MjSpec")
+    _raises(lambda: add_obstacle(arm_spec(), Wall(0.3), name=1), r"name must be a str")  # type: ignore[arg-type]
+    _raises(
+        lambda: attach_arm(arm_spec(), home_tool_tip_m=(0, 0), prefix="a_"), r"home_tool_tip_m must be three"
+    )
+    _raises(lambda: attach_arm(arm_spec(), home_tool_tip_m=(0, 0, 0), prefix=1), r"prefix must be a str")  # type: ignore[arg-type]
+    _raises(
+        lambda: attach_arm(arm_spec(), home_tool_tip_m=(0, 0, 0), prefix=""),
+        r"prefix='' gives the arm a name",
+    )
+    world.arm.reset()
+
+
+def test_track_path_refuses_a_run_of_hours() -> None:
+    _raises(lambda: track_path(rate_hz=2**63), r"rate_hz must be in \(0.0, 1000.0\]")
+    _raises(lambda: track_path(speed_m_s=1e-300), r"ask for .* control steps, over 100000")
+
+
+def test_the_renderer_checks_its_model_size_and_lights(world: World) -> None:
+    _raises(lambda: SceneRenderer(None, *SIZE), r"model must be a mujoco.MjModel")
+    _raises(lambda: SceneRenderer(world.model, 0, 32), r"height must be an integer in \[1, 2048\]")
+    _raises(lambda: SceneRenderer(world.model, 24, 10**400), r"width must be an integer in \[1, 2048\]")
+    _raises(lambda: SceneRenderer(world.model, *SIZE, fast=None), r"fast must be True or False")  # type: ignore[arg-type]
+    renderer = SceneRenderer(world.model, *SIZE, fast=True)
+    try:
+        _raises(lambda: renderer.rgb(None, "isee"), r"data must be the mujoco.MjData")
+        _raises(lambda: renderer.rgb(world.data, "isee", state="dusk"), r"state='dusk' is not known")
+        _raises(
+            lambda: renderer.rgb(world.data, "isee", lights=(99,)), r"lights must be a tuple of light ids"
+        )
+    finally:
+        renderer.close()
+
+
+def test_the_sun_functions_check_their_arguments(world: World) -> None:
+    _raises(lambda: sun_setting(SPOT_M, 10**400), r"time_s must be finite")
+    _raises(lambda: sun_setting(SPOT_M, 0.0, world_from_lvlh=10**400), r"world_from_lvlh must be a number")
+    _raises(lambda: lab_world_from_lvlh(True), r"mount must be a LampMount")  # type: ignore[arg-type]
+    _raises(lambda: light_by_sun(None, sun_setting(SPOT_M, 0.0)), r"world must be a World")  # type: ignore[arg-type]
+    _raises(lambda: lamp_light_direction(world, "up"), r"spot_world_m must be a number")
+    _raises(lambda: lamp_move_s(None, world.lamp), r"first must be a LampConfiguration")  # type: ignore[arg-type]
+    _raises(lambda: lamp_move_s(world.lamp, world.lamp, rates=1), r"rates must be a RateLimits")  # type: ignore[arg-type]

@@ -286,7 +286,9 @@ def _check_model(model: object, data: object) -> None:
     if not isinstance(model, mujoco.MjModel):
         raise InputError(f"model must be a mujoco.MjModel; got {type(model).__name__}. Compile a spec first.")
     if not isinstance(data, mujoco.MjData) or data.qpos.size != model.nq:
-        raise InputError(f"data must be the mujoco.MjData of model; got {type(data).__name__}: mujoco.MjData(model).")
+        raise InputError(
+            f"data must be the mujoco.MjData of model; got {type(data).__name__}: mujoco.MjData(model)."
+        )
 
 
 def _check_spec(spec: object) -> None:

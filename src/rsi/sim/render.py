@@ -220,7 +220,9 @@ class SceneRenderer:
     def _update(self, data: Any, camera: str, state: str, lights: tuple[int, ...] | None) -> None:
         mujoco = self._mujoco
         if not isinstance(data, mujoco.MjData) or data.qpos.size != self._model.nq:
-            raise InputError(f"data must be the mujoco.MjData of the renderer's model; got {type(data).__name__}.")
+            raise InputError(
+                f"data must be the mujoco.MjData of the renderer's model; got {type(data).__name__}."
+            )
         if not isinstance(state, str) or state not in STATES:
             raise InputError(f"state={state!r} is not known. Choose one of {', '.join(map(repr, STATES))}.")
         if lights is not None:
