@@ -444,7 +444,9 @@ def attach_arm(spec: Any, *, home_tool_tip_m: object, prefix: str = WORLD_ARM_PR
         Prefix of every name the arm brings.
     """
     _check_spec(spec)
-    target = np.array(v.vector3(home_tool_tip_m, "home_tool_tip_m"))
+    target = v.as_float_array(home_tool_tip_m, "home_tool_tip_m")
+    if target.shape != (3,) or not np.all(np.isfinite(target)):
+        raise InputError(f"home_tool_tip_m must be 3 finite numbers (x, y, z m); got {home_tool_tip_m!r}.")
     if not isinstance(prefix, str):
         raise InputError(f"prefix must be a str; got {prefix!r}.")
     child = arm_spec()
