@@ -578,7 +578,8 @@ def test_the_arm_checks_its_arguments(world: World) -> None:
     _raises(lambda: add_obstacle(None, Wall(0.3)), r"spec must be a mujoco.MjSpec")
     _raises(lambda: add_obstacle(arm_spec(), Wall(0.3), name=1), r"name must be a str")  # type: ignore[arg-type]
     _raises(
-        lambda: attach_arm(arm_spec(), home_tool_tip_m=(0, 0), prefix="a_"), r"home_tool_tip_m must be three"
+        lambda: attach_arm(arm_spec(), home_tool_tip_m=(0, 0), prefix="a_"),
+        r"home_tool_tip_m must be 3 finite numbers",
     )
     _raises(lambda: attach_arm(arm_spec(), home_tool_tip_m=(0, 0, 0), prefix=1), r"prefix must be a str")  # type: ignore[arg-type]
     _raises(
