@@ -38,7 +38,7 @@ def lab_world_from_lvlh(mount: LampMount | None = None) -> FloatArray:
     """
     from rsi.sim.mockup import A_FACE_Y_M, BAY_M, TRUSS_Z0_M
 
-    rail = LampMount() if mount is None else mount
+    rail = v.instance_or_default(mount, "mount", LampMount)
     origin = np.asarray(rail.rail_origin_world_m)
     face = np.array([0.0, A_FACE_Y_M, TRUSS_Z0_M + BAY_M / 2])
     toward = origin - face
@@ -120,8 +120,7 @@ def sun_setting(
     pointed at the spot, the focus holding 1.5 % of sunlight. `world_from_lvlh` defaults to
     :func:`lab_world_from_lvlh`. Raises InputError for a bad time (negative, NaN), spot or orbit.
     """
-    if isinstance(time_s, bool) or not isinstance(time_s, (int, float, np.floating, np.integer)):
-        raise InputError(f"time_s must be a number of seconds >= 0; got {time_s!r}.")
+    time_s = v.in_range(time_s, "time_s", low=0.0)
     rotation = lab_world_from_lvlh() if world_from_lvlh is None else world_from_lvlh
     path = orbits.sun_path(
         orbit,
@@ -149,15 +148,23 @@ def sun_setting(
 
 def light_by_sun(world: World, setting: SunSetting) -> None:
     """Pose the world's lamp as `setting` says and switch it off in the Earth's shadow."""
+    _check_world(world)
     if not isinstance(setting, SunSetting):
         raise InputError(f"setting must be a SunSetting from sun_setting(...); got {type(setting).__name__}.")
     world.set_lamp(setting.lamp)
     world.switch_lamp(setting.sunlit)
 
 
+def _check_world(world: object) -> None:
+    from rsi.sim.world import World
+
+    v.instance_of(world, "world", World, none_allowed=False)
+
+
 def lamp_light_direction(world: World, spot_world_m: object) -> FloatArray:
     """Unit vector from a spot toward the world's lamp as it stands (to check a setting independently)."""
-    spot = np.asarray(spot_world_m, dtype=np.float64)
+    _check_world(world)
+    spot = np.array(v.vector3(spot_world_m, "spot_world_m"))
     toward: FloatArray = np.asarray(lamp_pose(world.lamp).position_world_m) - spot
     return toward / np.linalg.norm(toward)
 
@@ -166,7 +173,9 @@ def lamp_move_s(
     first: LampConfiguration, second: LampConfiguration, rates: RateLimits | None = None
 ) -> float:
     """Time the lamp needs between two configurations at its joint rate limits (seed §4.1)."""
-    limits = RateLimits() if rates is None else rates
+    for name, configuration in (("first", first), ("second", second)):
+        v.instance_of(configuration, name, LampConfiguration, none_allowed=False)
+    limits = v.instance_or_default(rates, "rates", RateLimits)
     joints = np.array(
         [[c.theta_rad, c.phi_rad, c.lambda_m, c.gamma_m] for c in (first, second)], dtype=np.float64
     )

@@ -55,6 +55,10 @@ class Tour:
     def __init__(
         self, world: World, *, seed: SeedLike, size: tuple[int, int], arm: bool = True, orbit: bool = True
     ) -> None:
+        from rsi.sim.world import World, frame_size
+
+        v.instance_of(world, "world", World, none_allowed=False)
+        size = frame_size(size)
         for name, flag in (("arm", arm), ("orbit", orbit)):
             if not isinstance(flag, bool):
                 raise InputError(f"{name} must be True or False; got {flag!r}.")

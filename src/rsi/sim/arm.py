@@ -250,6 +250,9 @@ def add_obstacle(spec: Any, obstacle: Obstacle, *, name: str = "obstacle") -> No
         Prefix of the geom names.
     """
     mujoco: Any = import_mujoco()
+    _check_spec(spec)
+    if not isinstance(name, str):
+        raise InputError(f"name must be a str (the geoms' name prefix); got {name!r}.")
     if not isinstance(obstacle, Wall | SteppedSurface | CurvedSurface):
         raise InputError(
             f"obstacle must be a Wall, SteppedSurface or CurvedSurface; got {type(obstacle).__name__}."
@@ -274,6 +277,24 @@ def add_obstacle(spec: Any, obstacle: Obstacle, *, name: str = "obstacle") -> No
 
 
 # -------------------------------------------------------------------------------------------- MJCF
+
+
+def _check_model(model: object, data: object) -> None:
+    """Raise unless `model` is a mujoco.MjModel and `data` a mujoco.MjData of it (MuJoCo's own errors say
+    neither which argument nor how to fix it)."""
+    mujoco: Any = import_mujoco()
+    if not isinstance(model, mujoco.MjModel):
+        raise InputError(f"model must be a mujoco.MjModel; got {type(model).__name__}. Compile a spec first.")
+    if not isinstance(data, mujoco.MjData) or data.qpos.size != model.nq:
+        raise InputError(
+            f"data must be the mujoco.MjData of model; got {type(data).__name__}: mujoco.MjData(model)."
+        )
+
+
+def _check_spec(spec: object) -> None:
+    mujoco: Any = import_mujoco()
+    if not isinstance(spec, mujoco.MjSpec):
+        raise InputError(f"spec must be a mujoco.MjSpec; got {type(spec).__name__}. Start from arm_spec().")
 
 
 def _fmt(values: Sequence[float] | FloatArray) -> str:
@@ -394,6 +415,10 @@ def arm_mjcf() -> str:
 def arm_spec(obstacles: Sequence[Obstacle] = ()) -> Any:
     """The arm's model spec (``mujoco.MjSpec``) with the obstacles added; compile it or pass it to Arm."""
     mujoco: Any = import_mujoco()
+    if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, (tuple, list)):
+        raise InputError(
+            f"obstacles must be a tuple of Wall, SteppedSurface or CurvedSurface; got {obstacles!r}."
+        )
     spec = mujoco.MjSpec.from_string(arm_mjcf())
     for index, obstacle in enumerate(obstacles):
         add_obstacle(spec, obstacle, name=f"obstacle{index}")
@@ -418,15 +443,23 @@ def attach_arm(spec: Any, *, home_tool_tip_m: object, prefix: str = WORLD_ARM_PR
     prefix : str
         Prefix of every name the arm brings.
     """
-    target = np.asarray(home_tool_tip_m, dtype=np.float64)
+    _check_spec(spec)
+    target = v.as_float_array(home_tool_tip_m, "home_tool_tip_m")
     if target.shape != (3,) or not np.all(np.isfinite(target)):
         raise InputError(f"home_tool_tip_m must be 3 finite numbers (x, y, z m); got {home_tool_tip_m!r}.")
+    if not isinstance(prefix, str):
+        raise InputError(f"prefix must be a str; got {prefix!r}.")
     child = arm_spec()
     spec.option.integrator = child.option.integrator
     spec.option.timestep = child.option.timestep
     frame = spec.worldbody.add_frame()
     frame.pos = target - _home_tool_frame()[0]
-    spec.attach(child, frame=frame, prefix=prefix)
+    try:
+        spec.attach(child, frame=frame, prefix=prefix)
+    except ValueError as error:  # MuJoCo refuses a name the host already has ("repeated name ...")
+        raise InputError(
+            f"prefix={prefix!r} gives the arm a name spec already has ({error}); choose another prefix."
+        ) from None
     for kind, names in _STANDALONE_ONLY.items():
         for name in names:
             spec.delete(getattr(spec, kind)(prefix + name))
@@ -495,6 +528,10 @@ class Arm:
     ) -> None:
         self._mujoco: Any = import_mujoco()
         v.choice(mode, "mode", MODES)
+        if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, (tuple, list)):
+            raise InputError(
+                f"obstacles must be a tuple of Wall, SteppedSurface or CurvedSurface; got {obstacles!r}."
+            )
         self.obstacles = tuple(obstacles)
         model = arm_spec(self.obstacles).compile()
         self._bind(
@@ -542,6 +579,7 @@ class Arm:
         v.choice(mode, "mode", MODES)
         if not isinstance(prefix, str):
             raise InputError(f"prefix must be a str; got {prefix!r}.")
+        _check_model(model, data)
         arm.obstacles = ()
         arm._bind(
             model,
@@ -570,7 +608,11 @@ class Arm:
         self.data: Any = data
         self.prefix = prefix
         self._owns_data = owns_data
-        self.settings = settings or RedundancySettings(joint_weights=np.array([4.0, 1, 1, 1, 1, 1, 1, 1]))
+        self.settings = (
+            RedundancySettings(joint_weights=np.array([4.0, 1, 1, 1, 1, 1, 1, 1]))
+            if settings is None
+            else v.instance_of(settings, "settings", RedundancySettings)
+        )
         default_gain = 1.0 if self.mode == "kinematic" else 0.5
         self.position_gain = v.in_range(
             default_gain if position_gain is None else position_gain,
@@ -622,7 +664,7 @@ class Arm:
 
         Also re-anchors the Cartesian, orientation and arm-angle references of :meth:`step_velocity`.
         """
-        q = HOME_Q if joint_positions is None else np.asarray(joint_positions, dtype=np.float64)
+        q = HOME_Q if joint_positions is None else v.as_float_array(joint_positions, "joint_positions")
         if q.shape != (8,) or not np.all(np.isfinite(q)):
             raise InputError(f"joint_positions must be 8 finite numbers (rail m, 7 joints rad); got {q!r}.")
         if np.any(q < LIMITS.lower) or np.any(q > LIMITS.upper):
@@ -656,7 +698,8 @@ class Arm:
         self, rng: np.random.Generator | int | None, *, margin: float = 0.2
     ) -> FloatArray:
         """Joint positions drawn uniformly from the inner ``1 - 2 margin`` of each range (seeded)."""
-        gen = np.random.default_rng(rng)
+        gen = v.as_rng(rng)
+        margin = v.in_range(margin, "margin", low=0.0, high=0.5, high_inclusive=False)
         span = LIMITS.upper - LIMITS.lower
         result: FloatArray = gen.uniform(LIMITS.lower + margin * span, LIMITS.upper - margin * span)
         return result
@@ -686,7 +729,7 @@ class Arm:
 
     def site_position_m(self, name: str) -> FloatArray:
         """World position of a named site (tool, shoulder, elbow, wrist, ft, range_left, range_right)."""
-        if name not in self._site:
+        if not isinstance(name, str) or name not in self._site:
             raise InputError(f"name must be one of {sorted(self._site)}; got {name!r}.")
         result: FloatArray = self.data.site_xpos[self._site[name]].copy()
         return result
@@ -772,7 +815,7 @@ class Arm:
         integration errors do not accumulate. References are held within 2 mm / 0.02 rad of the actual
         pose, so a command blocked by a limit does not wind up.
         """
-        command = np.asarray(twist_or_velocity, dtype=np.float64)
+        command = v.as_float_array(twist_or_velocity, "twist_or_velocity")
         if command.shape not in ((3,), (6,)) or not np.all(np.isfinite(command)):
             raise InputError(
                 f"twist_or_velocity must be 3 (v, m/s) or 6 (v m/s, omega rad/s) finite numbers; "
@@ -898,6 +941,8 @@ class TrackingResult:
 
 
 PATHS = ("line", "circle")
+MAX_RATE_HZ = 1000.0  # a joint servo's bandwidth; seed §3.1 runs the proximity loop at 44 Hz
+MAX_TRACK_STEPS = 100_000  # ~40 min of path at 44 Hz: far beyond any path of track_path
 
 
 def _path_point(path: str, s_m: float, start: FloatArray) -> FloatArray:
@@ -941,7 +986,13 @@ def track_path(
     """
     name = v.choice(path, "path", PATHS)
     speed = v.in_range(speed_m_s, "speed_m_s", low=0.0, low_inclusive=False)
-    hz = v.in_range(rate_hz, "rate_hz", low=0.0, low_inclusive=False)
+    hz = v.in_range(rate_hz, "rate_hz", low=0.0, high=MAX_RATE_HZ, low_inclusive=False)
+    length = 0.3 if name == "line" else 2 * np.pi * 0.1
+    if length / speed * hz > MAX_TRACK_STEPS:  # a slow path at a fast rate is a run of hours
+        raise InputError(
+            f"speed_m_s={speed_m_s!r} and rate_hz={rate_hz!r} ask for {length / speed * hz:.3g} control "
+            f"steps, over {MAX_TRACK_STEPS}: raise speed_m_s or lower rate_hz."
+        )
     arm = Arm(mode=mode)
     dt = 1.0 / hz
     if arm_angle_set_rad is not None:
@@ -955,7 +1006,6 @@ def track_path(
     psi_set = arm.arm_angle_rad()
     arm.reset(arm.joint_positions)
     start, rotation0 = arm.tool_pose()
-    length = 0.3 if name == "line" else 2 * np.pi * 0.1
     steps = int(np.ceil(length / speed * hz))
     worst_position = worst_angle = worst_orientation = worst_rate = 0.0
     for k in range(steps):

@@ -272,10 +272,7 @@ class RoundJet:
 
 def _as_times_s(time_s: object, count: int) -> FloatArray:
     """`time_s` as a finite, >= 0 array broadcast to (count,), or raise naming it."""
-    try:
-        times = np.asarray(time_s, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise InputError(f"time_s must be a number or an array of shape (K,); got {time_s!r}.") from error
+    times = v.as_float_array(time_s, "time_s")  # an int beyond the float range overflowed numpy's cast
     if times.ndim > 1 or (times.ndim == 1 and times.shape[0] not in (1, count)):
         raise InputError(
             f"time_s must be a number or have shape ({count},) (one per point); got shape {times.shape}."

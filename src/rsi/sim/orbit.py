@@ -360,10 +360,10 @@ def compensating_exposure(
 
 
 def _rotation(matrix: object, name: str) -> FloatArray:
-    try:
-        rotation = np.asarray(matrix, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a 3x3 rotation matrix; got {matrix!r}.") from None
+    try:  # an int beyond the float range, text, a ragged list
+        rotation = v.as_float_array(matrix, name)
+    except InputError:
+        raise InputError(f"{name} must be a 3x3 rotation matrix; got {matrix!r:.80}.") from None
     if rotation.shape != (3, 3) or not np.isfinite(rotation).all():
         raise InputError(f"{name} must be a finite 3x3 rotation matrix; got shape {rotation.shape}.")
     if (

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi._validate import as_float_array
 from rsi.errors import InputError, RsiError
 
 F32 = NDArray[np.float32]
@@ -96,6 +97,29 @@ def _gl_context(width: int, height: int) -> Any:
         ) from error
 
 
+def _check_size(model: object, height: object, width: object) -> None:
+    """Raise unless `model` is an MjModel and the image fits its offscreen buffer (MuJoCo would abort)."""
+    mujoco = import_mujoco()
+    if not isinstance(model, mujoco.MjModel):
+        raise InputError(f"model must be a mujoco.MjModel; got {type(model).__name__}.")
+    limits = {"height": model.vis.global_.offheight, "width": model.vis.global_.offwidth}
+    for name, side in (("height", height), ("width", width)):
+        if isinstance(side, bool) or not isinstance(side, (int, np.integer)) or not 1 <= side <= limits[name]:
+            raise InputError(
+                f"{name} must be an integer in [1, {limits[name]}] (the model's offscreen buffer); got "
+                f"{str(side)[:40]}."
+            )
+
+
+def _check_lights(lights: object, count: int) -> None:
+    """Raise unless `lights` is a tuple of the model's light ids."""
+    if not isinstance(lights, tuple) or not all(
+        isinstance(light, (int, np.integer)) and not isinstance(light, bool) and 0 <= light < count
+        for light in lights
+    ):
+        raise InputError(f"lights must be a tuple of light ids in [0, {count}); got {str(lights)[:80]}.")
+
+
 @dataclass(frozen=True)
 class CameraPose:
     """Where a frame was taken from: a pinhole camera looking along `forward`.
@@ -135,7 +159,10 @@ class CameraPose:
         depth_m : ndarray of shape (K,)
             Distance along the viewing direction (negative behind the camera).
         """
-        local = (np.asarray(points_m, dtype=np.float64) - self.position_m) @ self.rotation
+        points = as_float_array(points_m, "points_m")
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise InputError(f"points_m must have shape (K, 3); got shape {points.shape}.")
+        local = (points - self.position_m) @ self.rotation
         depth = -local[:, 2]
         with np.errstate(divide="ignore", invalid="ignore"):
             x = (self.shape[1] - 1) / 2 + self.focal_px * local[:, 0] / depth
@@ -163,6 +190,10 @@ class SceneRenderer:
         self, model: Any, height: int, width: int, *, show_rangefinders: bool = False, fast: bool = False
     ) -> None:
         mujoco = import_mujoco()
+        _check_size(model, height, width)
+        for name, flag in (("show_rangefinders", show_rangefinders), ("fast", fast)):
+            if not isinstance(flag, bool):
+                raise InputError(f"{name} must be True or False; got {flag!r}.")
         self._mujoco = mujoco
         self._model = model
         self._context = _gl_context(width, height)
@@ -188,6 +219,14 @@ class SceneRenderer:
 
     def _update(self, data: Any, camera: str, state: str, lights: tuple[int, ...] | None) -> None:
         mujoco = self._mujoco
+        if not isinstance(data, mujoco.MjData) or data.qpos.size != self._model.nq:
+            raise InputError(
+                f"data must be the mujoco.MjData of the renderer's model; got {type(data).__name__}."
+            )
+        if not isinstance(state, str) or state not in STATES:
+            raise InputError(f"state={state!r} is not known. Choose one of {', '.join(map(repr, STATES))}.")
+        if lights is not None:
+            _check_lights(lights, self._model.nlight)
         camera_id = -1
         if isinstance(camera, str):
             camera_id = mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, camera)

@@ -201,8 +201,9 @@ class World:
         arm: bool = False,
     ) -> None:
         self._mujoco: Any = import_mujoco()
-        if not isinstance(arm, bool):
-            raise InputError(f"arm must be True or False; got {arm!r}.")
+        _check_build(repeatability, camera, arm)
+        v.instance_of(mockup, "mockup", Mockup, none_allowed=False)
+        v.instance_of(anomalies, "anomalies", AnomalySet, none_allowed=False)
         self.mockup = mockup
         self.anomalies = anomalies
         self.repeatability = v.choice(repeatability, "repeatability", REPEATABILITY_PX)
@@ -397,9 +398,13 @@ class World:
 
     def place_camera(self, position_m: object, forward: object, up: object = (0.0, 0.0, 1.0)) -> None:
         """Move the end-effector camera (with its strobe and lamps) and update the read-outs."""
-        rotation = _rotation(np.asarray(forward, dtype=np.float64), np.asarray(up, dtype=np.float64))
+        position = np.array(v.vector3(position_m, "position_m"))
+        look, top = v.direction3(forward, "forward"), v.direction3(up, "up")
+        if np.linalg.norm(np.cross(look, top)) < 1e-9:  # no image 'right' from two parallel directions
+            raise InputError(f"up={up!r} is parallel to forward={forward!r}; give an up across the view.")
+        rotation = _rotation(look, top)
         mocap = int(self.model.body_mocapid[self._id("body", "isee")])
-        self.data.mocap_pos[mocap] = np.asarray(position_m, dtype=np.float64)
+        self.data.mocap_pos[mocap] = position
         self._mujoco.mju_mat2Quat(self.data.mocap_quat[mocap], rotation.ravel())
         self._mujoco.mj_forward(self.model, self.data)
 
@@ -436,8 +441,13 @@ class World:
         know it), and the optics average the radiance over the spot: one reading of its mean temperature
         and emissivity, through the instrument's model (:func:`rsi.sensors.pyrometer.read_pyrometer`).
         """
-        from rsi.sensors.pyrometer import read_pyrometer
+        from rsi.sensors.pyrometer import Pyrometer, read_pyrometer
+        from rsi.sim.anomalies import Site
 
+        v.instance_of(site, "site", Site, none_allowed=False)
+        v.instance_of(pyrometer, "pyrometer", Pyrometer, none_allowed=False)
+        v.instance_of(rng, "rng", np.random.Generator, none_allowed=False)
+        standoff = v.in_range(standoff_m, "standoff_m", low=0.0)
         low, high = _PYROMETER_MISS_M[self.repeatability]
         normal = np.asarray(site.normal)
         u = np.cross(normal, (0.0, 0.0, 1.0))
@@ -445,7 +455,7 @@ class World:
         w = np.cross(normal, u)
         miss, angle = rng.uniform(low, high), rng.uniform(0.0, 2 * math.pi)
         centre = np.asarray(site.position_m) + miss * (math.cos(angle) * u + math.sin(angle) * w)
-        radius = 0.5 * float(pyrometer.spot_diameter_m(standoff_m))
+        radius = 0.5 * float(pyrometer.spot_diameter_m(standoff))
         radii, angles = np.meshgrid(np.linspace(0.0, radius, 4), np.linspace(0, 2 * math.pi, 8))
         points = centre + radii.reshape(-1, 1) * (
             np.cos(angles).reshape(-1, 1) * u + np.sin(angles).reshape(-1, 1) * w
@@ -485,7 +495,7 @@ class World:
         self, camera: str = "isee", *, size: tuple[int, int] = DEFAULT_SIZE, state: str = "inspection"
     ) -> dict[str, F32]:
         """Luminance of each light group alone (render units 0..255, float32) from the current camera pose."""
-        renderer = self._renderer(_size(size))
+        renderer = self._renderer(frame_size(size))
         return {
             group: renderer.luminance(self.data, camera, state=state, lights=tuple(ids))
             for group, ids in self._lights.items()
@@ -494,7 +504,7 @@ class World:
     def render_all_lights(self, camera: str = "isee", *, size: tuple[int, int] = DEFAULT_SIZE) -> F32:
         """Luminance with every light group on at once (to check that the basis images add up)."""
         ids = tuple(i for group in self._lights.values() for i in group)
-        return self._renderer(_size(size)).luminance(self.data, camera, state="inspection", lights=ids)
+        return self._renderer(frame_size(size)).luminance(self.data, camera, state="inspection", lights=ids)
 
     def render(
         self,
@@ -591,6 +601,12 @@ class World:
         """
         arm = self.arm
         shape, settings = self._shot_settings(size, state, lit_field, exposure_s, truth)
+        offset = v.as_float_array(unsensed_offset_m, "unsensed_offset_m")
+        if offset.shape != (2,) or not np.isfinite(offset).all():
+            raise InputError(
+                "unsensed_offset_m must be two finite numbers (right, up) in metres; "
+                f"got {unsensed_offset_m!r}."
+            )
         left, rotation = arm.camera_pose("left")
         forward, up = -rotation[:, 2], rotation[:, 1]
         # the ISEE's calibrated lamps, strobe and view-axis rangefinder ride the camera body, placed on the
@@ -599,12 +615,6 @@ class World:
         pose = CameraPose(left, _rotation(forward, up), math.radians(CAMERA_FOVY_DEG), shape)
         cameras = (arm.camera_name("left"), arm.camera_name("left"), arm.camera_name("right"))
         view = self._view(TOOL_VIEW, pose, cameras, (0.0, 0.0), stereo=stereo, truth=truth, **settings)
-        offset = v.as_float_array(unsensed_offset_m, "unsensed_offset_m")
-        if offset.shape != (2,) or not np.isfinite(offset).all():
-            raise InputError(
-                "unsensed_offset_m must be two finite numbers (right, up) in metres; "
-                f"got {unsensed_offset_m!r}."
-            )
         sensed = replace(pose, position_m=pose.position_m - pose.rotation[:, :2] @ offset)
         return replace(view, believed_pose=self._through_encoders(sensed))
 
@@ -681,7 +691,7 @@ class World:
         self, size: object, state: str, lit_field: str, exposure_s: float | None, truth: object
     ) -> tuple[tuple[int, int], dict[str, Any]]:
         """Validated frame size and the settings of :meth:`_frame` (render units, lamp intensity, shutter)."""
-        shape = _size(size)
+        shape = frame_size(size)
         v.choice(state, "state", STATES)
         v.choice(lit_field, "lit_field", ("odd", "even"))
         if not isinstance(truth, bool):
@@ -819,7 +829,7 @@ class World:
         Unmarked, in the inspection state (anomalies present), lit by the sun lamp and a lit room for people
         to see the whole mock-up by; the pose projects world points (findings, truth) into the picture.
         """
-        shape = _size(size)
+        shape = frame_size(size)
         point = self.vista("overview")
         self.place_camera(point.position_m, point.forward, point.up)
         renderer = self._renderer(shape)
@@ -872,7 +882,15 @@ class World:
         self._renderers.clear()
 
 
-def _size(size: object) -> tuple[int, int]:
+def _check_build(repeatability: object, camera: object, arm: object) -> None:
+    v.choice(repeatability, "repeatability", REPEATABILITY_PX)
+    v.instance_of(camera, "camera", CameraModel, none_allowed=False)
+    if not isinstance(arm, bool):
+        raise InputError(f"arm must be True or False; got {arm!r}.")
+
+
+def frame_size(size: object) -> tuple[int, int]:
+    """`size` checked as a frame's (rows, cols): a tuple of two integers, each 16..MAX_RENDER_PX."""
     if not isinstance(size, tuple) or len(size) != 2:
         raise InputError(f"size must be a (rows, cols) tuple; got {size!r}. Try size=(480, 640).")
     rows, cols = (v.positive_int(side, "size", minimum=16) for side in size)
@@ -916,6 +934,7 @@ def load(
     World
     """
     v.choice(scene, "scene", SCENES)
+    _check_build(repeatability, camera, arm)  # before the anomalies are drawn and the model is built
     # one stream draws the anomalies, the other is the world's (poses, noise): spawned, never re-derived
     anomaly_stream, world_stream = seed_sequence(seed).spawn(2)
     mockup = truss_mockup()
