@@ -47,6 +47,7 @@ from rsi.datasets.evaluate import (
     match_counts,
     name_defects,
     register_pair,
+    sparse_above,
 )
 from rsi.datasets.official import OfficialTally
 from rsi.datasets.pcb_learn import DefectClassifier, fit_classifier, training_labels
@@ -209,6 +210,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
             noise_sigma=settings.noise_sigma,
             registration=fit,
             misregistration_std_px=settings.misregistration_std_px,
+            sparse_above=sparse_above(settings),
         )
         lap("detect")
         found = group_detection(detection, settings)
@@ -275,10 +277,15 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="registration_finest_level (default: DeepPcbSettings()'s); 0 refines at full resolution",
     )
+    parser.add_argument(
+        "--whole-frame", action="store_true", help="sparse=False: the detector's maps on the whole frame"
+    )
     args = parser.parse_args(argv)
     default = DeepPcbSettings()
     if args.finest_level is not None:
         default = dataclasses.replace(default, registration_finest_level=args.finest_level)
+    if args.whole_frame:
+        default = dataclasses.replace(default, sparse=False)
     if not (args.root / "PCBData").is_dir():
         print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
         return 1
