@@ -47,6 +47,7 @@ from rsi.datasets.evaluate import (
     match_counts,
     name_defects,
     register_pair,
+    sparse_above,
 )
 from rsi.datasets.official import OfficialTally
 from rsi.datasets.pcb_learn import DefectClassifier, fit_classifier, training_labels
@@ -102,11 +103,11 @@ def _class_table(result: EvaluationResult) -> None:
         print(f"| {name} | " + " | ".join(str(value) for value in row) + " |")
 
 
-def _settings(spec: str) -> DeepPcbSettings:
-    """ "affine:3" -> DeepPcbSettings(registration_model="affine", misregistration_std_px=3)."""
+def _settings(spec: str, base: DeepPcbSettings | None = None) -> DeepPcbSettings:
+    """ "affine:3" -> `base` (default DeepPcbSettings()) with registration_model="affine" and a 3 px floor."""
     model, floor = spec.split(":")
     return dataclasses.replace(
-        DeepPcbSettings(), registration_model=model, misregistration_std_px=float(floor)
+        base or DeepPcbSettings(), registration_model=model, misregistration_std_px=float(floor)
     )
 
 
@@ -139,13 +140,15 @@ def _fit(found: Found) -> DefectClassifier:
     return fit_classifier(features, labels)
 
 
-def logo(pairs: Sequence[DeepPcbPair], grid: list[str], final_group: str) -> None:
+def logo(
+    pairs: Sequence[DeepPcbPair], grid: list[str], final_group: str, base: DeepPcbSettings | None = None
+) -> None:
     """Leave-one-group-out over the board groups; see the module docstring."""
     groups = sorted({group_of(pair) for pair in pairs})
     runs: dict[str, dict[str, Found]] = {}
     counts: dict[str, dict[str, MatchCounts]] = {}
     for spec in grid:
-        found = _run(pairs, _settings(spec))
+        found = _run(pairs, _settings(spec, base))
         runs[spec] = {group: [item for item in found if group_of(item[0]) == group] for group in groups}
         counts[spec] = {
             group: sum((match_counts(*item) for item in runs[spec][group]), MatchCounts()) for group in groups
@@ -193,7 +196,9 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
         start = clock[0]
         reference, inspection = read_pair(pair)
         lap("read")
-        fit = register_pair(reference, inspection, settings.registration_model)
+        fit = register_pair(
+            reference, inspection, settings.registration_model, settings.registration_finest_level
+        )
         lap("register")
         detection = detect(
             reference,
@@ -205,6 +210,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
             noise_sigma=settings.noise_sigma,
             registration=fit,
             misregistration_std_px=settings.misregistration_std_px,
+            sparse_above=sparse_above(settings),
         )
         lap("detect")
         found = group_detection(detection, settings)
@@ -265,13 +271,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--profile", default=None, help="model:floor_px: CPU time of each stage, one thread (no scoring)"
     )
+    parser.add_argument(
+        "--finest-level",
+        type=int,
+        default=None,
+        help="registration_finest_level (default: DeepPcbSettings()'s); 0 refines at full resolution",
+    )
+    parser.add_argument(
+        "--whole-frame", action="store_true", help="sparse=False: the detector's maps on the whole frame"
+    )
     args = parser.parse_args(argv)
+    default = DeepPcbSettings()
+    if args.finest_level is not None:
+        default = dataclasses.replace(default, registration_finest_level=args.finest_level)
+    if args.whole_frame:
+        default = dataclasses.replace(default, sparse=False)
     if not (args.root / "PCBData").is_dir():
         print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
         return 1
     pairs = load_split(args.root, args.split)[:: args.every]
     if args.profile:
-        profile(pairs, _settings(args.profile))
+        profile(pairs, _settings(args.profile, default))
         return 0
     print(
         f"DeepPCB {args.split}: {len(pairs)} pairs; centre-in-box rule for recall/precision/F1/FA, "
@@ -283,9 +303,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     print("| --- |" + " ---: |" * 13)
     if args.logo:
-        logo(pairs, args.grid.split(","), args.final_group)
+        logo(pairs, args.grid.split(","), args.final_group, default)
         return 0
-    default = DeepPcbSettings()
     stds = (
         [default.misregistration_std_px]
         if args.misregistration_std_px is None

@@ -135,6 +135,7 @@ def test_group_defects_rejects_non_2d_mask() -> None:
         ("p_false_alarm", 0.5),
         ("noise_sigma", 0.0),
         ("misregistration_std_px", -1.0),
+        ("registration_finest_level", -1),
         ("merge_gap_px", -2),
         ("min_area_px", 0),
         ("border_px", -1),

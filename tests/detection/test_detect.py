@@ -6,10 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-from scipy import optimize
+from scipy import ndimage, optimize
 
 from rsi.datasets.synthetic import flaw_pattern, pure_noise_pairs, synthetic_pair, textured_surface
-from rsi.detection.detect import detect
+from rsi.detection.detect import Detection, detect
 from rsi.detection.noise import interpolation_factor
 from rsi.detection.roc import theoretical_roc, threshold_for
 from rsi.errors import InputError
@@ -298,3 +298,73 @@ def test_misregistration_floor_turns_a_moved_edge_into_noise() -> None:
     assert naive.mask[:, 46:52].any()
     assert not floored.mask[:, 40:60].any()
     assert floored.mask[22, 22]
+
+
+def _sparse_and_full(**settings: object) -> tuple[Detection, Detection, float]:
+    pair = synthetic_pair((256, 256), flaw_spacing_px=40, rng=5)
+    inspection = pair.inspection.copy()
+    inspection[:6, 100:112] -= 0.3  # a flaw on the image edge: its box meets the frame there
+    arguments: dict[str, object] = {"noise_sigma": 2 / 255, "misregistration_std_px": 0.2, **settings}
+    full = detect(pair.reference, inspection, **arguments)  # type: ignore[arg-type]
+    above = threshold_for(1e-5, polarity="both", method="lrt", flaw_model="single")
+    sparse = detect(
+        pair.reference, inspection, registration=full.registration, sparse_above=above, **arguments
+    )  # type: ignore[arg-type]
+    return full, sparse, above
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        {"flaw_model": "uniform", "method": "erosion"},
+        {"flaw_model": "single", "method": "lrt"},
+        {"flaw_model": "uniform", "method": "erosion", "size": 5, "registration_model": "affine"},
+        {"flaw_model": "uniform", "method": "erosion", "size": 5, "p_false_alarm": 1e-9},
+        # A threshold below 0 bounds nothing: every pixel may be flagged, the maps are whole.
+        {"flaw_model": "uniform", "method": "erosion", "p_false_alarm": 0.3},
+    ],
+)
+def test_sparse_maps_equal_the_whole_frame_where_they_can_matter(settings: dict[str, object]) -> None:
+    full, sparse, above = _sparse_and_full(**settings)
+    assert full.mask.any() and full.flaws == sparse.flaws
+    for name in ("mask", "valid", "difference"):
+        np.testing.assert_array_equal(getattr(sparse, name), getattr(full, name))
+    computed = np.isfinite(sparse.sigma)
+    assert full.mask[~computed].sum() == 0
+    for name in ("score", "statistic", "sigma"):
+        np.testing.assert_array_equal(getattr(sparse, name)[computed], getattr(full, name)[computed])
+    assert not sparse.score[~computed].any() and not sparse.statistic[~computed].any()
+
+    # Beyond the boxes no pixel passes |d| / sigma > above that is connected to a possible flag.
+    # As the grouping of docs/deeppcb.md reads it: |d| / sigma, inf sigma giving 0.
+    def pixel_z(found: Detection) -> np.ndarray:
+        return np.abs(found.difference) / np.maximum(found.sigma, np.float32(1e-6))
+
+    assert np.array_equal(pixel_z(sparse)[computed], pixel_z(full)[computed])
+    assert not pixel_z(sparse)[~computed].any()
+    # Every pixel beyond `above` connected to a flag through such pixels (the grown extent) was computed.
+    extent = (pixel_z(full) > above) & full.valid  # sigma is 0 where invalid
+    labels, _ = ndimage.label(extent | full.mask, structure=np.ones((3, 3)))
+    assert computed[np.isin(labels, labels[full.mask])].all()
+    assert computed.all() == (full.threshold <= 0)  # a 5x5 erosion at 1e-5 and a 3x3 at 0.3 bound nothing
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        {"noise_sigma": None},  # self-calibrated: the variance is fitted per pixel
+        {"flaw_model": "uniform", "method": "lrt"},  # a window test: |T| is not bounded by one |d|
+        {"registration_model": "local"},
+        {"sparse_above": -1.0},
+    ],
+)
+def test_sparse_needs_its_bound(settings: dict[str, object]) -> None:
+    pair = synthetic_pair((128, 128), rng=2)
+    arguments: dict[str, object] = {
+        "noise_sigma": 0.01,
+        "flaw_model": "single",
+        "sparse_above": 4.0,
+        **settings,
+    }
+    with pytest.raises(InputError, match="sparse_above"):
+        detect(pair.reference, pair.inspection, **arguments)  # type: ignore[arg-type]

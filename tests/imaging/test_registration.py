@@ -540,3 +540,72 @@ def test_two_threads_registering_at_once_get_the_serial_answers() -> None:
     with ThreadPoolExecutor(max_workers=2) as pool:
         results = list(pool.map(work, (0, 1)))
     assert results == [expected, expected]
+
+
+HALF_RESOLUTION_PX = 0.1  # finest_level=1: the half-size images' fit, scaled back (docs/registration.md)
+
+
+@pytest.mark.parametrize("model", ["translation", "affine", "homography"])
+def test_finest_level_one_recovers_a_known_warp_at_half_resolution(model: str) -> None:
+    reference = texture()
+    inspection = 1.2 * warped(reference, TRUTHS[model]) + 0.05
+    full = register(reference, inspection, model=model)
+    half = register(reference, inspection, model=model, finest_level=1)
+    assert half.converged and half.model == model
+    assert corner_error_px(half.matrix, TRUTHS[model]) < HALF_RESOLUTION_PX
+    # Bilinear resampling of this texture's 1.5 px blobs at half size loses a few per cent of contrast.
+    assert half.gain == pytest.approx(1.2, abs=0.06)
+    # In full-resolution pixels: a quarter of the samples, each twice as large, and a larger resampling
+    # residual give a std several times the full-resolution one (8x here), never a smaller one.
+    assert all(2 * f < h < 20 * f for f, h in zip(full.shift_std_px, half.shift_std_px, strict=True))
+
+
+def test_finest_level_zero_is_the_default_bit_for_bit() -> None:
+    reference = texture()
+    inspection = warped(reference, TRUTHS["affine"])
+    default = register(reference, inspection, model="affine")
+    explicit = register(reference, inspection, model="affine", finest_level=0)
+    np.testing.assert_array_equal(explicit.matrix, default.matrix)
+    assert (explicit.gain, explicit.iterations, explicit.shift_std_px) == (
+        default.gain,
+        default.iterations,
+        default.shift_std_px,
+    )
+
+
+def test_finest_level_beyond_the_pyramid_refines_the_coarsest_level() -> None:
+    reference = texture()  # 256 px: levels 0 and 1 only
+    inspection = shifted(reference, (3.7, -2.2))
+    coarsest = register(reference, inspection, finest_level=1)
+    beyond = register(reference, inspection, finest_level=5)
+    np.testing.assert_array_equal(beyond.matrix, coarsest.matrix)
+    small = texture(side_px=100)  # one level: full resolution whatever is asked
+    np.testing.assert_array_equal(
+        register(small, shifted(small, (1.5, 0.5)), finest_level=1).matrix,
+        register(small, shifted(small, (1.5, 0.5))).matrix,
+    )
+
+
+def test_finest_level_one_trims_a_flaw_there() -> None:
+    reference = texture()
+    inspection = shifted(reference, (3.7, -2.2))
+    inspection[100:120, 140:160] += 0.5
+    half = register(reference, inspection, finest_level=1)
+    np.testing.assert_allclose(half.translation_xy, (3.7, -2.2), atol=HALF_RESOLUTION_PX / 2)
+
+
+@pytest.mark.parametrize("model", ["translation", "affine"])
+def test_prepared_reference_at_finest_level_one_gives_the_cold_answer(model: str) -> None:
+    # The cold call prepares only the levels it refines; a prepared reference holds them all.
+    reference = texture(sigma_px=2.0)
+    inspection = warped(reference, TRUTHS[model])
+    cold = register(reference, inspection, model=model, finest_level=1)
+    warm = register(prepare_reference(reference, model=model), inspection, finest_level=1)
+    np.testing.assert_allclose(warm.matrix, cold.matrix, atol=1e-6)
+    assert (warm.iterations, warm.reason) == (cold.iterations, cold.reason)
+
+
+@pytest.mark.parametrize("value", [-1, 0.5, "1"])
+def test_finest_level_must_be_a_non_negative_int(value: object) -> None:
+    with pytest.raises(InputError, match="finest_level"):
+        register(texture(), texture(), finest_level=value)  # type: ignore[arg-type]

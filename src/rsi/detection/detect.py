@@ -13,6 +13,7 @@ threshold (Neyman-Pearson). ``docs/detection.md`` gives the derivation.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -425,6 +426,138 @@ def _flaws(
     return tuple(sorted(found, key=lambda flaw: -flaw.score))
 
 
+@dataclass(frozen=True)
+class _Test:
+    """What the test needs beyond the images: the settings and the noise model of ``d``."""
+
+    variance: Float32Array | np.floating[Any]  # sensor variance of d (factor included)
+    test_weights: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    registration: Registration | None
+    shift_floor: float
+    method: str
+    polarity: str
+    calibrate: bool  # self-calibration: rescale the statistic by its robust scale over the frame
+
+
+def _test_maps(
+    aligned: _Aligned, difference: Float32Array, valid: BoolArray, test: _Test
+) -> tuple[Float32Array, Float32Array, BoolArray, Float32Array]:
+    """Score, signed statistic, the test's validity and sigma of the images given (a whole frame or a box)."""
+    variance, inverse_variance = _variances(test.variance, valid, ~valid)
+    errors = _prediction_errors(aligned, test.registration, test.shift_floor)
+    statistic = _lrt(difference, inverse_variance, test.test_weights, errors)
+    if test.calibrate:
+        # Self-calibration: under H0 the statistic is N(0, 1); its robust scale absorbs noise-model error.
+        scale = noise.robust_scale(statistic, valid)
+        if scale > 0.0:
+            statistic = (statistic * np.float32(1.0 / scale)).astype(np.float32, copy=False)
+    bright, dark, valid = _METHOD_SCORES[test.method](statistic, valid, test.weights)
+    score = np.where(valid, _POLARITY_SCORE[test.polarity](bright, dark), np.float32(0.0))
+    return score, _signed(bright, dark, valid), valid, _sigma(variance, errors, valid)
+
+
+# seed §2.4: sigma^2 = v + coherent errors >= v, so |z| <= |d| / sqrt(v); a relative margin covers the
+# float32 rounding of z's few operations (each within 2^-24), so no pixel the test flags is skipped.
+_SPARSE_MARGIN = 1.0 - 1e-5
+
+
+# OpenCV's filters run a row in SIMD blocks and finish it in scalar code, whose rounding (no fused
+# multiply-add) can differ in the last bit: a box starting and ending on a multiple of 16 columns (or at the
+# frame's edge) puts every pixel in the same kind of block as on the whole frame.
+_SIMD_COLUMNS = 16
+
+
+def _compare(image: Float32Array, bound: float, operation: int) -> NDArray[np.uint8]:
+    """255 where ``image <operation> bound``, else 0: one pass, straight to uint8."""
+    # cv2.compare takes a float as a scalar (its stubs list arrays only).
+    return np.asarray(cv2.compare(image, bound, operation), dtype=np.uint8)  # type: ignore[call-overload]
+
+
+def _sparse_boxes(
+    difference: Float32Array, footprint: NDArray[np.uint8], level: float, above: float
+) -> list[tuple[int, int, int, int]]:
+    """Boxes (left, top, width, height) covering what may be flagged (every footprint pixel's |d| beyond
+    `level`), the footprint each reads, and the pixels with |d| beyond `above` 8-connected to them."""
+
+    def beyond(bound: float) -> NDArray[np.uint8]:
+        return np.asarray(
+            cv2.bitwise_or(_compare(difference, bound, cv2.CMP_GT), _compare(difference, -bound, cv2.CMP_LT)),
+            np.uint8,
+        )
+
+    flagged = cv2.bitwise_or(
+        cv2.erode(_compare(difference, level, cv2.CMP_GT), footprint),
+        cv2.erode(_compare(difference, -level, cv2.CMP_LT), footprint),
+    )
+    # The components of the strong pixels, the flagged ones and what their erosion reads (the dilation by
+    # the reflected footprint) that hold a flagged pixel.
+    read = cv2.bitwise_or(flagged, cv2.dilate(flagged, np.ascontiguousarray(footprint[::-1, ::-1])))
+    joined = cv2.bitwise_or(beyond(above), read)
+    _, labels, stats, _, (top, left, _, _) = components_with_stats(np.asarray(joined, np.uint8), 8)
+    rows, cols = np.nonzero(flagged)
+    held = np.unique(labels[rows - top, cols - left])
+    boxes: list[tuple[int, int, int, int]] = [tuple(stats[label, :4].tolist()) for label in held]
+    return boxes
+
+
+def _check_sparse(test: _Test, sparse_above: float) -> None:
+    """The bound |T| <= |d| / sqrt(v) needs one known variance, a pixel-wise test and one global shift std."""
+    local = test.registration is not None and test.registration.local is not None
+    if np.ndim(test.variance) != 0 or test.test_weights.shape != (1, 1) or local:
+        raise InputError(
+            f"sparse_above={sparse_above!r} needs a known noise_sigma on plain arrays (not Compensated "
+            "images), a pixel-wise test (method='erosion', or flaw_model='single') and a global "
+            "registration (not 'local'). Pass sparse_above=None for whole-frame maps."
+        )
+
+
+def _sparse_maps(
+    aligned: _Aligned,
+    difference: Float32Array,
+    valid: BoolArray,
+    test: _Test,
+    levels: tuple[float, float],
+) -> tuple[Float32Array, Float32Array, BoolArray, Float32Array]:
+    """`_test_maps` on boxes around the region where the maps can matter; elsewhere 0 (sigma inf).
+
+    `levels` are the test's threshold and ``sparse_above``, statistic units. Each box is computed with a halo
+    of 1 + the footprint's radius: the Sobel passes and the erosion read no farther, so inside the box the
+    same operations give the whole frame's values (tested bit for bit).
+    """
+    footprint = (test.weights != 0).astype(np.uint8)
+    if test.method != "erosion":
+        footprint = np.ones((1, 1), np.uint8)
+    deviation = float(np.sqrt(np.maximum(test.variance, _VARIANCE_FLOOR)))
+    # A threshold at or below 0 bounds nothing: every pixel may be flagged.
+    bound = -np.inf if levels[0] <= 0.0 else levels[0] * deviation * _SPARSE_MARGIN
+    boxes = _sparse_boxes(difference, footprint, bound, max(levels[1], 0.0) * deviation * _SPARSE_MARGIN)
+    valid_out = valid
+    if test.method == "erosion":
+        eroded = cv2.erode(valid.view(np.uint8), footprint, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+        valid_out = np.asarray(eroded, dtype=bool)
+    score = np.zeros(difference.shape, np.float32)
+    signed = np.zeros(difference.shape, np.float32)
+    sigma = np.full(difference.shape, np.inf, np.float32)
+    halo = 1 + max(footprint.shape) // 2
+    rows, cols = difference.shape
+    for left, top, width, height in boxes:
+        row0, col0 = max(0, top - halo), max(0, left - halo)
+        col0 -= col0 % _SIMD_COLUMNS
+        col1 = min(cols, -(-(left + width + halo) // _SIMD_COLUMNS) * _SIMD_COLUMNS)
+        crop = (slice(row0, min(rows, top + height + halo)), slice(col0, col1))
+        inner = (slice(top - row0, top - row0 + height), slice(left - col0, left - col0 + width))
+        box = (slice(top, top + height), slice(left, left + width))
+        maps = _test_maps(
+            dataclasses.replace(aligned, predicted=aligned.predicted[crop]),
+            difference[crop],
+            valid[crop],
+            test,
+        )
+        score[box], signed[box], sigma[box] = maps[0][inner], maps[1][inner], maps[3][inner]
+    return score, signed, valid_out, sigma
+
+
 def detect(
     reference: NDArray[Any] | Compensated,
     inspection: NDArray[Any] | Compensated,
@@ -441,6 +574,7 @@ def detect(
     registration_model: str = "translation",
     min_area_px: int = 1,
     misregistration_std_px: float = 0.0,
+    sparse_above: float | None = None,
 ) -> Detection:
     """Detect flaws in an inspection image by comparison with a reference image (seed §2.4).
 
@@ -476,6 +610,19 @@ def detect(
         turns it into noise at edges instead of false alarms. Also applies with ``registration=None``.
         With a local registration (``model="local"``) the per-pixel std of its field is used instead of
         the global ``shift_std_px``, and the floor applies to it.
+    sparse_above : float, optional
+        None (default): every map is computed on the whole frame. A value ``s >= 0``: the maps are computed
+        only where they can matter, in boxes around (a) every pixel the test could flag and the footprint it
+        reads, and (b) the pixels where ``|d| / sigma`` could exceed ``s`` that are 8-connected to (a);
+        elsewhere `score` and `statistic` are 0 and `sigma` is inf (``|d| / sigma`` is 0 there, as the
+        statistic). `mask`, `flaws`, `difference` and `valid`
+        are those of the whole-frame computation, and so is every map inside the boxes, bit for bit;
+        ``|difference| / sigma > s2`` for any ``s2 >= s`` holds exactly where it holds on the whole frame,
+        among pixels connected to (a) (seed §2.4: ``sigma^2 = v + coherent errors >= v``, so
+        ``|T| <= |d| / sqrt(v)`` bounds the statistic from the difference alone). Needs a known
+        `noise_sigma` on plain arrays, a pixel-wise test (``method="erosion"``, or ``flaw_model="single"``)
+        and a global registration (not ``"local"``). On a 640 x 640 DeepPCB pair the boxes cover about 1 %
+        of the frame (``docs/deeppcb.md``).
 
     Returns
     -------
@@ -502,6 +649,8 @@ def detect(
     choice(registration_model, "registration_model", REGISTRATION_MODELS)
     min_area = positive_int(min_area_px, "min_area_px")
     shift_floor = in_range(misregistration_std_px, "misregistration_std_px", low=0.0)
+    if sparse_above is not None:
+        in_range(sparse_above, "sparse_above", low=0.0)
     weights = flaw_kernel(chosen_model, size=size, peak_ratio=peak_ratio, kernel=kernel)
 
     reference_in = _unpack(reference, "reference", sigma_known)
@@ -517,27 +666,29 @@ def detect(
     variance_inspection, variance_reference = _sensor_variances(inspection_in, aligned, difference, valid)
     test_weights = _TEST_WEIGHTS[chosen_method](weights)
     factor = _factor(test_weights, aligned.fraction_xy)
-    variance, inverse_variance = _variances(
-        variance_inspection + np.float32(aligned.gain**2 * factor) * variance_reference, valid, invalid
+    test = _Test(
+        variance=variance_inspection + np.float32(aligned.gain**2 * factor) * variance_reference,
+        test_weights=test_weights,
+        weights=weights,
+        registration=used_registration,
+        shift_floor=shift_floor,
+        method=chosen_method,
+        polarity=chosen_polarity,
+        calibrate=sigma_known is None,
     )
-    errors = _prediction_errors(aligned, used_registration, shift_floor)
-
-    statistic = _lrt(difference, inverse_variance, test_weights, errors)
-    if sigma_known is None:
-        # Self-calibration: under H0 the statistic is N(0, 1); its robust scale absorbs noise-model error.
-        scale = noise.robust_scale(statistic, valid)
-        if scale > 0.0:
-            statistic = (statistic * np.float32(1.0 / scale)).astype(np.float32, copy=False)
-    bright, dark, valid = _METHOD_SCORES[chosen_method](statistic, valid, weights)
-    score = np.where(valid, _POLARITY_SCORE[chosen_polarity](bright, dark), np.float32(0.0))
-    signed = _signed(bright, dark, valid)
     threshold = float(
         thresholds(np.array([probability]), polarity=chosen_polarity, method=chosen_method, weights=weights)[
             0
         ]
     )
+    if sparse_above is None:
+        score, signed, valid, sigma = _test_maps(aligned, difference, valid, test)
+    else:
+        _check_sparse(test, sparse_above)
+        score, signed, valid, sigma = _sparse_maps(
+            aligned, difference, valid, test, (threshold, float(sparse_above))
+        )
     mask = (score > threshold) & valid
-    sigma = _sigma(variance, errors, valid)
     return Detection(
         score=score,
         statistic=signed,

@@ -33,7 +33,17 @@ from rsi.imaging._pyramid import (
     reference_pyramid,
     smooth,
 )
-from rsi.imaging._warps import WARP_MODELS, Allocate, Image, Matrix, is_translation, owned, sample, scratch
+from rsi.imaging._warps import (
+    WARP_MODELS,
+    Allocate,
+    Image,
+    Matrix,
+    is_translation,
+    owned,
+    rescale,
+    sample,
+    scratch,
+)
 
 __all__ = [
     "MODELS",
@@ -79,7 +89,8 @@ class Registration:
     gain, bias : float
         Photometric fit, ``inspection ~= gain * reference + bias`` (1 and 0 when not fitted).
     converged : bool
-        Whether the last update at full resolution was below the tolerance.
+        Whether the last update at the finest level refined (full resolution by default) was below the
+        tolerance.
     reason : str
         "converged", "max_iterations", "deadline" or "diverged"; "flat_reference" or "flat_inspection" when an
         image has one value everywhere (no texture: nothing to register, the identity is returned).
@@ -245,14 +256,26 @@ def prepare_reference(
 
 
 def _prepare(
-    image: Image, model: str, photometric: object, mask: object, count: int, *, allocate: Allocate
+    image: Image,
+    model: str,
+    photometric: object,
+    mask: object,
+    count: int,
+    *,
+    allocate: Allocate,
+    finest: int = 0,
 ) -> PreparedReference:
-    """Prepare the reference in arrays from `allocate`: owned ones, or scratch for one cold call."""
+    """Prepare the reference in arrays from `allocate`: owned ones, or scratch for one cold call.
+
+    With `finest` > 0 (a cold call that stops above full resolution) only the levels from `finest` down are
+    kept, and only theirs get terms: the result is the prepared reference of the image `finest` times halved.
+    """
     model = choice(model, "model", MODELS)
     if not isinstance(photometric, (bool, np.bool_)):
         raise InputError(f"photometric must be True or False; got {photometric!r}.")
     user_mask = None if mask is None else as_mask(mask, "mask", image.shape)
     images, masks = reference_pyramid(image, user_mask, count, allocate)
+    images, masks = images[finest:], masks[finest:]
     for level in images:
         level.setflags(write=False)
     terms = tuple(
@@ -269,6 +292,23 @@ def _prepare(
     return PreparedReference(
         model, bool(photometric), user_mask is not None, tuple(images), tuple(masks), terms
     )
+
+
+def _from_level(prepared: PreparedReference, finest: int) -> PreparedReference:
+    """A prepared reference's levels from `finest` down: that of the reference `finest` times halved."""
+    if finest == 0:
+        return prepared
+    return dataclasses.replace(
+        prepared,
+        images=prepared.images[finest:],
+        masks=prepared.masks[finest:],
+        terms=prepared.terms[finest:],
+    )
+
+
+def _finest_level(finest_level: object, count: int) -> int:
+    """The finest level refined: `finest_level`, or the coarsest of the `count` levels if that is coarser."""
+    return min(positive_int(finest_level, "finest_level", minimum=0), count - 1)
 
 
 def _check_prepared(prepared: PreparedReference, model: object, photometric: object, mask: object) -> None:
@@ -502,6 +542,7 @@ def register(
     deadline_s: float | None = None,
     initial: NDArray[np.floating] | Registration | None = None,
     tile_px: int | None = None,
+    finest_level: int = 0,
 ) -> Registration:
     """Register `reference` to `inspection` by coarse-to-fine inverse-compositional Gauss-Newton.
 
@@ -533,6 +574,13 @@ def register(
     tile_px : int, optional
         ``model="local"`` only: side of the overlapping tiles (default 64), at least 8 and at most the
         image's shorter side. Smaller tiles follow faster-varying distortion with less texture each.
+    finest_level : int
+        Finest pyramid level refined, >= 0: 0 (default) ends at full resolution; ``k`` ends on the images
+        ``2**k`` times smaller (the coarsest level if the pyramid has fewer: it keeps at least 128 px a side),
+        neither preparing nor sampling the finer levels, and the fit is scaled back to full-resolution
+        pixels; `tolerance` is then in that level's pixels, and flaws are trimmed there. Level 1 costs about
+        half of level 0 and is typically within 0.1 px of it (``docs/registration.md``): enough when the
+        detector's mis-registration floor is far larger (DeepPCB's 3 px, ``docs/deeppcb.md``).
 
     Returns
     -------
@@ -579,6 +627,7 @@ def register(
                 tolerance=tolerance,
                 deadline_s=deadline_s,
                 initial=initial,
+                finest_level=finest_level,
             ),
             mask=mask,
             tile_px=_DEFAULT_TILE_PX if tile_px is None else tile_px,
@@ -589,10 +638,13 @@ def register(
     inspection_image = _as_float32(inspection, "inspection")
     if isinstance(reference, PreparedReference):
         _check_prepared(reference, model, photometric, mask)
-        prepared = reference
+        count = min(len(reference.images), level_count(reference.shape, inspection_image.shape))
+        finest = _finest_level(finest_level, count)
+        prepared = _from_level(reference, finest)
     else:
         reference_image = _as_float32(reference, "reference")
         count = level_count(reference_image.shape, inspection_image.shape)
+        finest = _finest_level(finest_level, count)
         # One code path: the cold call prepares the reference, only the levels it needs, in this thread's
         # scratch buffers (it never leaves the call: the pages of the last call are reused, not faulted).
         prepared = _prepare(
@@ -602,6 +654,7 @@ def register(
             mask,
             count,
             allocate=scratch,
+            finest=finest,
         )
     settings = Settings(
         model=WARP_MODELS[prepared.model],
@@ -616,23 +669,27 @@ def register(
     flat = _flat_image(prepared, inspection_image)
     if flat is not None:
         return _untextured(flat, prepared, inspection_image, started)
-    count = min(len(prepared.images), level_count(prepared.shape, inspection_image.shape))
-    inspections = inspection_pyramid(inspection_image, count)
+    # From `finest` down the levels are those of both images `finest` times halved: solved as such, the fit
+    # is scaled back to full-resolution pixels.
+    scale = 2.0**finest
+    inspections = inspection_pyramid(inspection_image, count)[finest:]
     levels = [
         Level(index, prepared.images[index], inspections[index], prepared.masks[index])
-        for index in range(count)
+        for index in range(count - finest)
     ]
+    if start is not None:
+        start = dataclasses.replace(start, matrix=rescale(start.matrix, 1.0 / scale))
     estimate = coarse_to_fine(levels, partial(solve_level, terms=prepared.terms, settings=settings), start)
     return Registration(
         model=prepared.model,
-        matrix=estimate.matrix,
+        matrix=rescale(estimate.matrix, scale),
         gain=float(estimate.gain),
         bias=float(estimate.bias),
         converged=estimate.reason == "converged",
         reason=estimate.reason,
         iterations=estimate.iterations,
         residual_rms=estimate.residual_rms,
-        shift_std_px=estimate.shift_std_px,
+        shift_std_px=(scale * estimate.shift_std_px[0], scale * estimate.shift_std_px[1]),
         elapsed_s=time.perf_counter() - started,
     )
 
