@@ -112,8 +112,30 @@ def classify_copper(
     """:func:`classify_window` from the windows' copper (1) and their (pieces, holes) already counted.
 
     For callers that count the pieces anyway (:mod:`rsi.datasets.pcb_learn`): the connected components
-    are most of the time of naming a defect.
+    are most of the time of naming a defect. Raises InputError for windows that are not equal-shaped 2-D
+    0/1 uint8 arrays or counts that are not two whole numbers >= 0 each.
     """
+    for window, name in ((before, "before"), (after, "after")):
+        if (
+            not isinstance(window, np.ndarray)
+            or window.dtype != np.uint8
+            or window.ndim != 2
+            or window.size == 0
+        ):
+            raise InputError(
+                f"{name} must be a non-empty 2-D uint8 array of copper (1) and board (0); got "
+                f"{type(window).__name__} {getattr(window, 'shape', '')}. Threshold the grey window first."
+            )
+    same_shape(before, after, ("before", "after"))
+    for counts, name in ((pieces_before, "pieces_before"), (pieces_after, "pieces_after")):
+        if not (
+            isinstance(counts, tuple)
+            and len(counts) == 2
+            and all(isinstance(c, (int, np.integer)) and not isinstance(c, bool) and c >= 0 for c in counts)
+        ):
+            raise InputError(
+                f"{name} must be a (pieces, holes) tuple of two whole numbers >= 0; got {counts!r:.80}."
+            )
     added = int(cv2.morphologyEx(after & (1 - before), cv2.MORPH_OPEN, _OPENING).sum())
     removed = int(cv2.morphologyEx(before & (1 - after), cv2.MORPH_OPEN, _OPENING).sum())
     if added == removed == 0:
