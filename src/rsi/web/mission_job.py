@@ -23,6 +23,16 @@ SETTINGS: dict[str, dict[str, Any]] = {
 }
 
 
+def _with_suns(settings: dict[str, Any]) -> dict[str, Any]:
+    """A mission under the orbit's sun takes its inspection pass under another sun, as `rsi demo` does
+    (seed §2: a station is never inspected under the same sun twice)."""
+    if not settings.get("orbit"):
+        return settings
+    from rsi.mission import ORBIT_START_S, SUN_OFFSET_S
+
+    return {**settings, "orbit_start_s": (ORBIT_START_S[0], ORBIT_START_S[1] + SUN_OFFSET_S)}
+
+
 def _run(archive_path: str, seed: int, setting: str, queue: Any) -> None:
     import os
 
@@ -35,7 +45,7 @@ def _run(archive_path: str, seed: int, setting: str, queue: Any) -> None:
 
     try:
         with Archive.open(archive_path) as archive:
-            result = run_mission(seed, archive=archive, progress=progress, **SETTINGS[setting])
+            result = run_mission(seed, archive=archive, progress=progress, **_with_suns(SETTINGS[setting]))
         queue.put(("done", result.run_id, len(result.findings), result.timings_s.get("total", 0.0)))
     except Exception as error:  # the page shows why the mission failed
         queue.put(("failed", f"{type(error).__name__}: {error}"))
