@@ -105,6 +105,24 @@ def read_regular_file(
     return data
 
 
+MAX_NAME_CHARS = 255 - 16
+"""Longest file or folder name written: the file system's 255 bytes less the temporary name's dot, random
+part and ``.tmp`` (:func:`atomic_write_bytes`)."""
+
+
+def name_fits(path: Path, name: str) -> None:
+    """Raise FileError naming `name` when a part of `path` is longer than the file system takes, or when it
+    holds a NUL (no file system takes one; Python's own error would not name the argument)."""
+    if "\x00" in str(path):
+        raise FileError(f"{name}={str(path)[:60]!r} holds a NUL character; no file name can. Remove it.")
+    for part in path.parts:
+        if len(os.fsencode(part)) > MAX_NAME_CHARS:
+            raise FileError(
+                f"{name}={str(path)[:60]!r}... has a name of {len(os.fsencode(part))} bytes; the file system "
+                f"takes at most {MAX_NAME_CHARS} per folder or file name here. Choose a shorter name."
+            )
+
+
 def writable_folder(out_dir: object, name: str) -> tuple[Path, Path | None]:
     """`out_dir` as a folder that can be written, checked before any work is done.
 
@@ -120,6 +138,7 @@ def writable_folder(out_dir: object, name: str) -> tuple[Path, Path | None]:
     if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir):
         raise InputError(f"{name} must be a folder path (str or pathlib.Path); got {out_dir!r:.60}.")
     folder = Path(out_dir)
+    name_fits(folder, name)
     existing, missing = folder, None
     while not existing.exists() and existing.parent != existing:
         existing, missing = existing.parent, existing

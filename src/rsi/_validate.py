@@ -269,3 +269,37 @@ def increasing_pair(value: object, name: str, *, low: float = 0.0, unit: str = "
             f"{_shown(value)}."
         )
     return first, second
+
+
+def _is_named(value: object, kind: str) -> bool:
+    return any(cls.__name__ == kind for cls in type(value).__mro__)
+
+
+def record_named(value: object, name: str, kind: str) -> None:
+    """Raise unless `value` is a `kind` (a class of that name, or a subclass of one).
+
+    Checked by class name: the report layer draws records of the layers below and may not import them
+    (pyproject.toml's import contracts), and sim.clearance would import its own caller, sim.world.
+    """
+    if not _is_named(value, kind):
+        raise InputError(
+            f"{name} must be a {kind}; got {type(value).__name__} {_shown(value)}. "
+            f"Pass the {kind} that rsi returned."
+        )
+
+
+def records_named(value: object, name: str, kind: str) -> list[Any]:
+    """Return `value` as a list after checking it is a list or tuple of `kind` records, or raise naming it."""
+    if not isinstance(value, (list, tuple)):
+        raise InputError(f"{name} must be a list of {kind}; got {type(value).__name__} {_shown(value)}.")
+    for index, item in enumerate(value):
+        record_named(item, f"{name}[{index}]", kind)
+    return list(value)
+
+
+def size3(value: object, name: str) -> tuple[float, float, float]:
+    """Return `value` as three finite half sizes > 0 (metres) or raise naming it."""
+    sizes = vector3(value, name)
+    if min(sizes) <= 0.0:
+        raise InputError(f"{name} must be three half sizes > 0 m; got {_shown(value)}.")
+    return sizes

@@ -180,11 +180,13 @@ def test_roc_report_writes_png_and_csv(tmp_path: Path) -> None:
 
 def test_report_imports_no_algorithm_and_plots_without_pyplot(tmp_path: Path) -> None:
     # ARCHITECTURE.md: report -> result records only. Drawing a ROC must not load a registration, a detector
-    # or pyplot (a bare Agg Figure keeps no global state).
+    # or pyplot (a bare Agg Figure keeps no global state). The curve is a stand-in of the record's class name
+    # (the report checks records by name, never importing their modules).
     code = (
         "import sys, numpy as np, rsi.report;"
         "from rsi.report.writers import write_roc_report;"
-        "from types import SimpleNamespace as C;"
+        "from types import SimpleNamespace;"
+        "C = type('RocCurve', (SimpleNamespace,), {});"
         f"write_roc_report({str(tmp_path)!r}, [C(p_false_alarm=np.array([1e-5]), p_detection=np.array([0.5]),"
         " threshold=np.array([4.0]), label='a')]);"
         "bad = [m for m in ('rsi.imaging.registration', 'rsi.detection.detect', 'matplotlib.pyplot') "

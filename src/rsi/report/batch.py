@@ -10,6 +10,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rsi import _validate as v
+from rsi._files import writable_folder
+from rsi.errors import InputError
 from rsi.report.writers import FLAW_COLUMNS as _PAIR_FLAW_COLUMNS
 from rsi.report.writers import csv_text, flaw_records, to_json, write_files
 
@@ -26,6 +29,7 @@ FLAW_COLUMNS = ("pair_id", *_PAIR_FLAW_COLUMNS, "confidence")
 
 def pair_rows(result: BatchResult, items: Sequence[BatchItem]) -> list[dict[str, Any]]:
     """One plain dict per pair (:data:`PAIR_COLUMNS`), in the order of `items` (the records' order)."""
+    _batch(result, items)
     return [
         {
             "pair_id": record.pair_id,
@@ -45,6 +49,7 @@ def pair_rows(result: BatchResult, items: Sequence[BatchItem]) -> list[dict[str,
 
 def batch_flaw_rows(result: BatchResult) -> list[dict[str, Any]]:
     """One plain dict per flaw of every pair (:data:`FLAW_COLUMNS`), pairs in order, strongest flaw first."""
+    v.record_named(result, "result", "BatchResult")
     return [
         {"pair_id": record.pair_id, **row, "confidence": confidence}
         for record in result.records
@@ -71,9 +76,22 @@ def write_batch_report(
     dict of str to Path
         File name -> written path.
     """
+    writable_folder(out_dir, "out_dir")
+    _batch(result, items)
     contents = {
         "pairs.csv": csv_text(PAIR_COLUMNS, pair_rows(result, items)).encode(),
         "flaws.csv": csv_text(FLAW_COLUMNS, batch_flaw_rows(result)).encode(),
         "batch.json": to_json(result.summary()).encode(),
     }
     return write_files(out_dir, contents)
+
+
+def _batch(result: object, items: object) -> None:
+    v.record_named(result, "result", "BatchResult")
+    listed = v.records_named(items, "items", "BatchItem")
+    records = getattr(result, "records", ())
+    if len(listed) != len(records):
+        raise InputError(
+            f"items must hold one BatchItem per record of result ({len(records)}); got {len(listed)}. "
+            "Pass the manifest's items the batch ran."
+        )

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi import _validate as v
 from rsi._validate import as_image, as_mask
 from rsi.errors import InputError
 
@@ -48,6 +49,7 @@ def encode_png(image: UInt8Array) -> bytes:
     bytes
         The PNG file contents.
     """
+    _uint8_picture(image, "image")
     import cv2
 
     ok, buffer = cv2.imencode(".png", np.ascontiguousarray(image))
@@ -129,6 +131,7 @@ def colour_png(
         The PNG file contents.
     """
     pixels = as_image(image, "image", allow_nan=True)
+    limit = None if limit is None else v.finite_number(limit, "limit")
     mask = _valid_or_all(valid, pixels.shape) & np.isfinite(pixels)
     low, high = _colour_limits(pixels, mask, symmetric=symmetric, limit=limit)
     index = np.clip((np.nan_to_num(pixels) - low) / (high - low), 0.0, 1.0)
@@ -195,6 +198,7 @@ def mapped_png(
         The PNG file contents.
     """
     pixels = as_image(image, "image", allow_nan=True)
+    low, high = v.finite_number(low, "low"), v.finite_number(high, "high")
     if not high > low:
         raise InputError(f"high must exceed low; got low={low!r}, high={high!r}.")
     rows_factor, cols_factor = (int(factor) for factor in scale_rc)
@@ -234,6 +238,7 @@ def overlay_png(image: object, flaws: Sequence[Flaw], *, valid: object = None, p
     bytes
         The PNG file contents (enlarged by a whole factor when the image is small).
     """
+    flaws = v.records_named(flaws, "flaws", "Flaw")
     import cv2
 
     grey = to_uint8(image, valid=valid)
@@ -279,6 +284,12 @@ def roc_png(
     bytes
         The PNG file contents.
     """
+    curves = v.records_named(curves, "curves", "RocCurve")
+    _title(title)
+    if measured is not None and not isinstance(measured, (list, tuple)):
+        raise InputError(
+            f"measured must be a list of bools, one per curve, or None; got {type(measured).__name__}."
+        )
     # A bare Figure renders through the Agg canvas: no pyplot, so no GUI backend and no global figure state
     # (safe in the web console's threads too).
     from matplotlib.figure import Figure
@@ -301,6 +312,7 @@ def roc_png(
 
 def figure_png(figure: Any) -> bytes:
     """Render a matplotlib ``Figure`` (bare, on the Agg canvas) to PNG bytes, trimmed to its contents."""
+    v.record_named(figure, "figure", "Figure")
     import io
 
     buffer = io.BytesIO()
@@ -321,3 +333,19 @@ def _plot_curve(axes: Any, curve: RocCurve, *, measured: bool) -> None:
         # as left-pointing triangles on the axis floor, i.e. "P_F below anything this image can measure".
         floor = np.full(np.count_nonzero(~seen), _P_FALSE_ALARM_FLOOR)
         axes.plot(floor, p_detection[~seen], "<", color=line.get_color(), label=f"{curve.label}, P_F = 0")
+
+
+def _uint8_picture(image: object, name: str) -> None:
+    """Raise unless `image` is a uint8 grey (M, N) or colour (M, N, 3) picture, as OpenCV encodes."""
+    shape: tuple[int, ...] = tuple(getattr(image, "shape", ()))
+    fits = len(shape) == 2 or (len(shape) == 3 and shape[2] == 3)
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or not fits or min(shape, default=0) < 1:
+        raise InputError(
+            f"{name} must be a uint8 array of shape (M, N) or (M, N, 3); got "
+            f"{type(image).__name__} {getattr(image, 'dtype', '')} {shape}. Convert with to_uint8."
+        )
+
+
+def _title(title: object) -> None:
+    if not isinstance(title, str):
+        raise InputError(f"title must be a str; got {type(title).__name__} {title!r:.60}.")

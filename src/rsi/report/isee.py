@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rsi import _validate as v
+from rsi._files import writable_folder
 from rsi.report.figures import figure_png
 from rsi.report.writers import to_json, write_files
 
@@ -133,6 +135,7 @@ def lamp_png(result: ProximityDemoResult) -> bytes:
 
 def scenario_details(result: ProximityDemoResult) -> dict[str, Any]:
     """scenarios.json content: the seed, the law used, per-surface figures, and scenario e's task error."""
+    v.record_named(result, "result", "ProximityDemoResult")
     law = result.law
     return {
         "seed": result.seed,
@@ -160,6 +163,8 @@ def write_proximity_report(out_dir: Path | str, result: ProximityDemoResult) -> 
     dict of str to Path
         File name -> written path.
     """
+    writable_folder(out_dir, "out_dir")
+    v.record_named(result, "result", "ProximityDemoResult")
     law = result.law
     contents = {
         "fig3_readings_vs_position.png": fig3_png(result),

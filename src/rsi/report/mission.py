@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi import _validate as v
+from rsi._files import writable_folder
 from rsi.constants import ROOM_TEMPERATURE_K
 from rsi.errors import InputError
 from rsi.report.figures import figure_png, mapped_png, roc_png
@@ -132,6 +134,9 @@ def write_mission_report(
     OSError
         If the folder cannot be written.
     """
+    writable_folder(out_dir, "out_dir")
+    _result_and_score(result, score)
+    _timings(timings_s)
     records = finding_records(result, score)
     page = mission_html(result, score, timings_s=timings_s)
     files = write_files(
@@ -147,6 +152,7 @@ def write_mission_report(
 
 def finding_records(result: MissionResult, score: MissionScore) -> list[dict[str, Any]]:
     """One plain dict per finding with the :data:`FINDING_COLUMNS`; ``number`` is 1-based, as on the page."""
+    _result_and_score(result, score)
     anomalies = result.truth.anomalies
     records = []
     for index, finding in enumerate(result.findings):
@@ -190,6 +196,8 @@ def mission_html(
     result: MissionResult, score: MissionScore, *, timings_s: Mapping[str, float] | None = None
 ) -> str:
     """The report page as one string: style inline, every picture a ``data:image/png;base64`` URI."""
+    _result_and_score(result, score)
+    _timings(timings_s)
     start_s = time.perf_counter()
     sections = [
         header_section(result, score),
@@ -505,12 +513,14 @@ def crop_window(
 ) -> tuple[slice, slice]:
     """Image rows and columns around `bbox`: at least :data:`CROP_FRAME_PX` frame pixels each way, square
     on screen (`row_step` frame rows per image row), holding the box, inside the image."""
-    row0, col0, row1, col1 = bbox
+    row0, col0, row1, col1 = _ints(bbox, "bbox", 4)
+    rows, cols = _ints(shape, "shape", 2)
+    row_step = v.positive_int(row_step, "row_step", maximum=_MAX_ROW_STEP)
     half_rows = max(CROP_FRAME_PX // (2 * row_step), math.ceil((row1 - row0) / 2) + 4)
     half_cols = max(CROP_FRAME_PX // 2, math.ceil((col1 - col0) / 2) + 8, row_step * half_rows)
     half_rows = max(half_rows, math.ceil(half_cols / row_step))
     centre_row, centre_col = (row0 + row1) // 2, (col0 + col1) // 2
-    return (_span(centre_row, half_rows, shape[0]), _span(centre_col, half_cols, shape[1]))
+    return (_span(centre_row, half_rows, rows), _span(centre_col, half_cols, cols))
 
 
 def _span(centre: int, half: int, length: int) -> slice:
@@ -726,6 +736,7 @@ _PASS_STYLE = (("reference", "C0", 1.0), ("inspection", "C1", 0.8))
 def suns_section(result: MissionResult) -> str:
     """Each pass's sun and, per visit, the lamp setting that reproduced it (seed §2: lighting variation;
     seed §4.1: the solar simulator), with the angle between the passes' suns in words."""
+    v.record_named(result, "result", "MissionResult")
     if not result.suns:
         return "<h2>The sun on each pass</h2>\n<p>No sun in this run: the mission ran without the orbit.</p>"
     passes = _table(
@@ -757,6 +768,7 @@ def sun_separation_deg(result: MissionResult) -> tuple[float, float, float] | No
     """Angle between the inspection's sun and the reference's at each plan point both passes lit, degrees:
     (median, least, most) over those plan points (each pass's first visit to a point); None unless both
     passes have one in common."""
+    v.record_named(result, "result", "MissionResult")
     first: dict[tuple[str, str], tuple[float, float, float]] = {}
     for setting in result.suns:
         first.setdefault((setting.stage, setting.label), setting.sun_world)
@@ -847,6 +859,7 @@ def sun_png(result: MissionResult) -> bytes:
     """Left: each visit's sun on the orbit (angle from noon; hollow in the Earth's shadow), one ring per
     pass, the angle between the passes written between them. Right: the lamp's direction error at each
     plan point of each pass."""
+    v.record_named(result, "result", "MissionResult")
     from matplotlib.figure import Figure
 
     figure = Figure(figsize=(9.0, 4.2), dpi=100, layout="constrained")
@@ -932,3 +945,28 @@ __all__ = [
     "suns_section",
     "write_mission_report",
 ]
+
+
+_MAX_ROW_STEP = 16  # frame rows per image row: 2 for the interlaced ISEE, 1 otherwise
+
+
+def _ints(value: object, name: str, count: int) -> tuple[int, ...]:
+    """`value` as `count` integers >= 0 (pixel indices or sizes), or raise naming it."""
+    if not isinstance(value, (tuple, list, np.ndarray)) or len(value) != count:
+        raise InputError(f"{name} must be {count} integers >= 0 (pixels); got {value!r:.80}.")
+    return tuple(v.positive_int(item, f"{name}[{index}]", minimum=0) for index, item in enumerate(value))
+
+
+def _result_and_score(result: object, score: object) -> None:
+    v.record_named(result, "result", "MissionResult")
+    v.record_named(score, "score", "MissionScore")
+
+
+def _timings(timings_s: object) -> None:
+    """None, or a mapping of stage name to seconds."""
+    if timings_s is None:
+        return
+    if not isinstance(timings_s, Mapping) or not all(isinstance(key, str) for key in timings_s):
+        raise InputError(f"timings_s must map stage names to seconds, or be None; got {timings_s!r:.80}.")
+    for key, seconds in timings_s.items():
+        v.finite_number(seconds, f"timings_s[{key!r}]")

@@ -8,7 +8,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rsi.report.figures import encode_png, figure_png
+from rsi import _validate as v
+from rsi._files import writable_folder
+from rsi.errors import InputError
+from rsi.report.figures import _title, _uint8_picture, encode_png, figure_png
 from rsi.report.writers import csv_text, to_json, write_files
 
 if TYPE_CHECKING:
@@ -35,6 +38,7 @@ SUN_PATH_COLUMNS = (
 
 def sun_path_rows(path: SunPath) -> list[dict[str, float | bool]]:
     """One row per sample of `path` with the columns of :data:`SUN_PATH_COLUMNS`."""
+    v.record_named(path, "path", "SunPath")
     trajectory, clipped = path.trajectory, path.clipped
     rows: list[dict[str, float | bool]] = []
     for index, time_s in enumerate(path.time_s):
@@ -62,6 +66,8 @@ def sun_path_rows(path: SunPath) -> list[dict[str, float | bool]]:
 
 def sun_path_png(path: SunPath, *, title: str) -> bytes:
     """Plot the lamp joints, the spot intensity and the direction error against orbit time (seed §4.1)."""
+    v.record_named(path, "path", "SunPath")
+    _title(title)
     from matplotlib.figure import Figure
 
     minutes = np.asarray(path.time_s) / 60.0
@@ -95,6 +101,9 @@ def _shade(axes: Any, minutes: np.ndarray, where: np.ndarray, colour: str, label
 
 def write_sun_report(out_dir: Path | str, path: SunPath, *, title: str) -> dict[str, Path]:
     """Write sun_path.csv, sun_path.png and sun_path.json (summary: eclipse, exposure, clipped share)."""
+    writable_folder(out_dir, "out_dir")
+    v.record_named(path, "path", "SunPath")
+    _title(title)
     summary = {
         "samples": len(path.time_s),
         "sunlit_fraction": float(np.mean(path.sunlit)),
@@ -114,5 +123,17 @@ def write_sun_report(out_dir: Path | str, path: SunPath, *, title: str) -> dict[
 
 def write_overview(out_dir: Path | str, picture_rgb: np.ndarray) -> dict[str, Path]:
     """Write overview.png: the whole mock-up from the overview camera with numbered anomaly markers."""
+    writable_folder(out_dir, "out_dir")
+    _rgb(picture_rgb)
     bgr = np.ascontiguousarray(np.asarray(picture_rgb, dtype=np.uint8)[..., ::-1])
     return write_files(out_dir, {"overview.png": encode_png(bgr)})
+
+
+def _rgb(picture_rgb: object) -> None:
+    shape: tuple[int, ...] = tuple(getattr(picture_rgb, "shape", ()))
+    if len(shape) != 3 or shape[2] != 3 or getattr(picture_rgb, "dtype", None) != np.uint8:
+        raise InputError(
+            f"picture_rgb must be a uint8 (M, N, 3) RGB picture (rsi.sim render output); got "
+            f"{type(picture_rgb).__name__} {getattr(picture_rgb, 'dtype', '')} {shape}."
+        )
+    _uint8_picture(picture_rgb, "picture_rgb")

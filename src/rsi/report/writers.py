@@ -18,7 +18,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rsi._files import atomic_write_bytes
+from rsi import _validate as v
+from rsi._files import atomic_write_bytes, name_fits, writable_folder
+from rsi.errors import InputError
 from rsi.report import figures
 
 if TYPE_CHECKING:
@@ -35,6 +37,8 @@ ROC_COLUMNS = ("label", "threshold", "p_false_alarm", "p_detection")
 
 def atomic_write_text(path: Path | str, text: str) -> Path:
     """Write UTF-8 `text` to `path` atomically (see :func:`atomic_write_bytes`)."""
+    _path(path, "path")
+    _text(text, "text")
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
@@ -58,6 +62,8 @@ def json_ready(value: Any) -> Any:
 
 def to_json(record: Mapping[str, Any]) -> str:
     """Serialise a record to strict JSON (no NaN/inf), indented, with a trailing newline."""
+    if not isinstance(record, Mapping):
+        raise InputError(f"record must be a mapping (a dict); got {type(record).__name__}.")
     return json.dumps(json_ready(record), indent=2, allow_nan=False) + "\n"
 
 
@@ -75,6 +81,8 @@ def flaw_records(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None
     -------
     list of dict
     """
+    flaws = v.records_named(flaws, "flaws", "Flaw")
+    _flags(is_true, "is_true", len(flaws))
     records = []
     for number, flaw in enumerate(flaws, start=1):
         row0, col0, row1, col1 = flaw.bbox
@@ -98,6 +106,7 @@ def flaw_records(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None
 
 def flaws_document(detection: Detection, *, is_true: Sequence[bool] | None = None) -> dict[str, Any]:
     """flaws.json content: the test's settings and threshold, then the flaws (strongest first)."""
+    v.record_named(detection, "detection", "Detection")
     return {
         "count": len(detection.flaws),
         "flaw_model": detection.flaw_model,
@@ -110,6 +119,8 @@ def flaws_document(detection: Detection, *, is_true: Sequence[bool] | None = Non
 
 
 def csv_text(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> str:
+    _texts(columns, "columns")
+    _rows(rows, "rows")
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
@@ -125,6 +136,7 @@ def flaws_csv(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None) -
 
 def roc_csv(curves: Sequence[RocCurve]) -> str:
     """ROC table in long form: one row per (curve, operating point) with :data:`ROC_COLUMNS`."""
+    v.records_named(curves, "curves", "RocCurve")
     rows = [
         {
             "label": curve.label,
@@ -142,6 +154,8 @@ def roc_csv(curves: Sequence[RocCurve]) -> str:
 
 def registration_record(registration: Registration | None) -> dict[str, Any] | None:
     """Plain dict of a registration result (None stays None), for JSON and tables."""
+    if registration is not None:
+        v.record_named(registration, "registration", "Registration")
     if registration is None:
         return None
     return {
@@ -175,6 +189,7 @@ def _local_record(registration: Registration) -> dict[str, Any]:
 
 def pair_summary(result: PairResult) -> dict[str, Any]:
     """summary.json content for one inspected pair: settings, threshold, registration, flaw count, timing."""
+    v.record_named(result, "result", "PairResult")
     detection = result.detection
     return {
         "shape": result.inspection.shape,
@@ -192,6 +207,7 @@ def pair_summary(result: PairResult) -> dict[str, Any]:
 
 def demo_summary(demo: DemoResult) -> dict[str, Any]:
     """summary.json content for the demo: the pair summary plus the truth and the score against it."""
+    v.record_named(demo, "demo", "DemoResult")
     score = demo.score
     return {
         "seed": demo.seed,
@@ -222,6 +238,8 @@ def _pair_files(result: PairResult, *, is_true: Sequence[bool] | None = None) ->
 
 
 def write_files(out_dir: Path | str, contents: Mapping[str, bytes]) -> dict[str, Path]:
+    writable_folder(out_dir, "out_dir")
+    _contents(contents)
     folder = Path(out_dir)
     return {name: atomic_write_bytes(folder / name, data) for name, data in contents.items()}
 
@@ -241,6 +259,8 @@ def write_pair_report(out_dir: Path | str, result: PairResult) -> dict[str, Path
     dict of str to Path
         File name -> written path.
     """
+    writable_folder(out_dir, "out_dir")
+    v.record_named(result, "result", "PairResult")
     return write_files(out_dir, _pair_files(result))
 
 
@@ -263,6 +283,9 @@ def write_roc_report(
     dict of str to Path
         File name -> written path.
     """
+    writable_folder(out_dir, "out_dir")
+    v.records_named(curves, "curves", "RocCurve")
+    _text(title, "title")
     contents = {"roc.png": figures.roc_png(curves, title=title), "roc.csv": roc_csv(curves).encode()}
     return write_files(out_dir, contents)
 
@@ -287,6 +310,8 @@ def write_demo_report(out_dir: Path | str, demo: DemoResult) -> dict[str, Path]:
     dict of str to Path
         File name -> written path.
     """
+    writable_folder(out_dir, "out_dir")
+    v.record_named(demo, "demo", "DemoResult")
     reference, inspection = demo.reference_compensated, demo.inspection_compensated
     contents = {
         "reference.png": figures.grey_png(demo.reference_frame.raw),
@@ -300,3 +325,41 @@ def write_demo_report(out_dir: Path | str, demo: DemoResult) -> dict[str, Path]:
     title = f"Demo ROC: {demo.pair.detection.flaw_model} and single-pixel flaw models (seed {demo.seed})"
     files.update(write_roc_report(out_dir, demo.curves, title=title))
     return files
+
+
+def _path(value: object, name: str) -> None:
+    if not isinstance(value, (str, os.PathLike)) or not str(value):
+        raise InputError(f"{name} must be a file path (str or pathlib.Path); got {value!r:.80}.")
+    name_fits(Path(value), name)
+
+
+def _text(value: object, name: str) -> None:
+    if not isinstance(value, str):
+        raise InputError(f"{name} must be a str; got {type(value).__name__} {value!r:.60}.")
+
+
+def _texts(value: object, name: str) -> None:
+    if not isinstance(value, (list, tuple)) or not all(isinstance(item, str) for item in value):
+        raise InputError(f"{name} must be a list of str (the column names); got {value!r:.80}.")
+
+
+def _rows(value: object, name: str) -> None:
+    if not isinstance(value, (list, tuple)) or not all(isinstance(item, Mapping) for item in value):
+        raise InputError(f"{name} must be a list of dicts (one per row); got {value!r:.80}.")
+
+
+def _flags(value: object, name: str, count: int) -> None:
+    """None, or one truth value per flaw (a list or tuple of `count` bools)."""
+    if value is None:
+        return
+    if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != count:
+        raise InputError(f"{name} must be None or {count} bools, one per flaw; got {value!r:.80}.")
+
+
+def _contents(value: object) -> None:
+    if not isinstance(value, Mapping) or not all(
+        isinstance(key, str) and key and isinstance(data, bytes) for key, data in value.items()
+    ):
+        raise InputError(f"contents must map file names (str) to bytes; got {value!r:.80}.")
+    for key in value:
+        name_fits(Path(key), "contents")

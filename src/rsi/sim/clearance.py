@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rsi import _validate as v
+from rsi.errors import InputError
 from rsi.sim.render import import_mujoco
 
 if TYPE_CHECKING:
@@ -22,6 +24,11 @@ CLEARANCE_CAP_M = 2.0
 
 def is_arm_geom(model: Any, geom: int, prefix: str) -> bool:
     """Whether geom `geom` of `model` belongs to the arm whose names start with `prefix`."""
+    mujoco = import_mujoco()
+    v.instance_of(model, "model", mujoco.MjModel, none_allowed=False)
+    geom = v.positive_int(geom, "geom", minimum=0, maximum=model.ngeom - 1)
+    if not isinstance(prefix, str):
+        raise InputError(f"prefix must be a str (the arm's name prefix); got {type(prefix).__name__}.")
     body = str(model.body(int(model.geom_bodyid[geom])).name)
     return body.startswith(prefix) or str(model.geom(geom).name).startswith(prefix)
 
@@ -40,6 +47,7 @@ class ArmClearance:
     """
 
     def __init__(self, world: World) -> None:
+        v.record_named(world, "world", "World")  # by name: rsi.sim.world imports this module
         model = world.model
         prefix = world.arm.prefix
         arm = [g for g in range(model.ngeom) if is_arm_geom(model, g, prefix)]

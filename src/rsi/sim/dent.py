@@ -16,7 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi import _validate as v
+from rsi.errors import InputError
+
 F64 = NDArray[np.float64]
+MAX_HALF_SIZE_M = 5.0
+"""Largest half size (or tank radius, half length) meshed: the mockup's parts are under a metre, and a mesh
+with a vertex every centimetre grows with the square of the side (10 m faces: millions of vertices)."""
 
 CRATER_SPACING_M = 1e-3  # grid step inside the crater: ~2 px at the 0.5 m standoff (seed §2.1)
 # The classic renderer lights vertices and interpolates: a face needs vertices every centimetre or so to
@@ -60,8 +66,7 @@ class BoxMesh:
 
 def local_rotation(zaxis: tuple[float, float, float] | F64) -> F64:
     """The 3x3 rotation MuJoCo gives a geom whose ``zaxis`` is `zaxis` (the shortest turn from +z)."""
-    target = np.asarray(zaxis, dtype=float)
-    target = target / np.linalg.norm(target)
+    target = v.direction3(zaxis, "zaxis")
     z = np.array([0.0, 0.0, 1.0])
     cosine = float(np.dot(z, target))
     if cosine < -1.0 + 1e-12:
@@ -83,6 +88,13 @@ def crater_on_box(
     radius_m: float,
 ) -> Crater:
     """The crater of a dent at world `point_m`, outward `normal`, in the box (`size`, `pos`, `zaxis`)."""
+    size = _half_sizes(size)
+    pos, point_m, normal = (
+        v.vector3(pos, "pos"),
+        v.vector3(point_m, "point_m"),
+        tuple(v.direction3(normal, "normal")),
+    )
+    depth_m, radius_m = v.positive(depth_m, "depth_m"), v.positive(radius_m, "radius_m")
     rotation = local_rotation(zaxis)
     local_normal = rotation.T @ np.asarray(normal, dtype=float)
     axis = int(np.argmax(np.abs(local_normal)))
@@ -108,6 +120,8 @@ def crater_surface(
     A decal planted on the face before the blow (an impact spot, seed §4) follows the metal into the crater:
     it sinks with the face and tilts with its slope.
     """
+    v.instance_of(crater, "crater", Crater, none_allowed=False)
+    pos, point_m = v.vector3(pos, "pos"), v.vector3(point_m, "point_m")
     rotation = local_rotation(zaxis)
     local = rotation.T @ (np.asarray(point_m, dtype=float) - np.asarray(pos, dtype=float))
     first, second = (k for k in range(3) if k != crater.axis)
@@ -125,6 +139,10 @@ def crater_surface(
 
 def box_mesh(size: tuple[float, ...], repeat_per_m: float, crater: Crater | None = None) -> BoxMesh:
     """A closed box mesh of half sizes `size`, flat or with `crater` pressed into one face."""
+    size = _half_sizes(size)
+    repeat_per_m = v.positive(repeat_per_m, "repeat_per_m")
+    if crater is not None:
+        v.instance_of(crater, "crater", Crater)
     # one set of grid lines per axis, shared by the faces that meet at an edge: no T-junctions, no cracks
     lines = [_grid_lines(size[axis], None, 0.0) for axis in range(3)]
     if crater is not None:
@@ -146,6 +164,17 @@ def box_mesh(size: tuple[float, ...], repeat_per_m: float, crater: Crater | None
             faces.append(face_triangles + count)
             count += len(face_vertices)
     return BoxMesh(np.concatenate(vertices), np.concatenate(texcoords), np.concatenate(faces))
+
+
+def _half_sizes(size: object) -> tuple[float, float, float]:
+    sizes = v.size3(size, "size")
+    if max(sizes) > MAX_HALF_SIZE_M:
+        raise InputError(f"size must be half sizes <= {MAX_HALF_SIZE_M} m (a mockup part); got {size!r:.80}.")
+    return sizes
+
+
+def _skin_size(radius: object, name: str) -> float:
+    return v.in_range(radius, name, low=0.0, high=MAX_HALF_SIZE_M, low_inclusive=False)
 
 
 def _grid_lines(half: float, centre: float | None, radius: float) -> F64:
@@ -233,6 +262,9 @@ def dent_on_skin(
     radius_m: float,
 ) -> SkinDent:
     """The dent centred at world `point_m` on the side of a cylinder or capsule (`radius`, `half_length`)."""
+    radius, half_length = _skin_size(radius, "radius"), _skin_size(half_length, "half_length")
+    pos, point_m = v.vector3(pos, "pos"), v.vector3(point_m, "point_m")
+    depth_m, radius_m = v.positive(depth_m, "depth_m"), v.positive(radius_m, "radius_m")
     local = local_rotation(zaxis).T @ (np.asarray(point_m, dtype=float) - np.asarray(pos, dtype=float))
     # the rim stays on the side (a dent wider than the tank would fold it) and the centre clear of the ends
     rim = min(radius_m, 0.95 * half_length, 0.5 * np.pi * radius)
@@ -262,6 +294,9 @@ def skin_surface(
 
     A spot planted before the blow follows the metal into the dent, as on a box (:func:`crater_surface`).
     """
+    v.instance_of(dent, "dent", SkinDent, none_allowed=False)
+    radius = _skin_size(radius, "radius")
+    pos, point_m = v.vector3(pos, "pos"), v.vector3(point_m, "point_m")
     rotation = local_rotation(zaxis)
     local = rotation.T @ (np.asarray(point_m, dtype=float) - np.asarray(pos, dtype=float))
     angle = float(np.arctan2(local[1], local[0]))
@@ -284,6 +319,12 @@ def skin_mesh(
     The side is a grid in azimuth and height, refined to :data:`CRATER_SPACING_M` over the dent, its seam
     opposite the dent; each end is its own set of rings, so a cylinder's rims stay sharp.
     """
+    radius, half_length = _skin_size(radius, "radius"), _skin_size(half_length, "half_length")
+    repeat_per_m = v.positive(repeat_per_m, "repeat_per_m")
+    if not isinstance(capsule, (bool, np.bool_)):
+        raise InputError(f"capsule must be True (round ends) or False (flat ends); got {capsule!r:.80}.")
+    if dent is not None:
+        v.instance_of(dent, "dent", SkinDent)
     centre = 0.0 if dent is None else dent.angle_rad
     step = 1.0 / (SKIN_SEGMENTS_PER_M * radius)
     angles = np.linspace(centre - np.pi, centre + np.pi, max(int(np.ceil(2 * np.pi / step)), 16) + 1)

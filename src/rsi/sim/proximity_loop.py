@@ -114,6 +114,18 @@ def _true_distances_m(rig: Rig) -> FloatArray:
     return np.where((raw < 0.0) | (raw >= RANGEFINDER_CUTOFF_M), np.inf, raw)
 
 
+def _check_rig(rig: object) -> None:
+    missing = [name for name in _RIG_METHODS if not callable(getattr(rig, name, None))]
+    if missing:
+        raise InputError(
+            f"rig must be an arm (rsi.sim.arm.Arm, or anything with {', '.join(_RIG_METHODS)}); "
+            f"got {type(rig).__name__}, which lacks {', '.join(missing)}."
+        )
+
+
+_RIG_METHODS = ("rangefinder_distances_m", "site_position_m", "tool_pose", "step_velocity")
+
+
 class ProximityLoop:
     """The 44 Hz proximity loop of seed §3.1 (Fig. 4) on an arm, one :meth:`step` per sensor sample.
 
@@ -144,6 +156,11 @@ class ProximityLoop:
         rng: np.random.Generator | int | None = None,
         apply_proximity: bool = True,
     ) -> None:
+        _check_rig(rig)
+        if sensor is not None:
+            v.instance_of(sensor, "sensor", ProximitySensor)
+        if not isinstance(law, ProximityLaw):  # read below before the law setter checks it
+            raise InputError(f"law must be a ProximityLaw; got {type(law).__name__}. Try ARM_LAW.")
         self.sensor = ProximitySensor(sample_rate_hz=law.sample_rate_hz) if sensor is None else sensor
         self.law = law
         self.mode = mode

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
+from rsi import _validate as v
 from rsi.sim.anomalies import (
     DENT_RIM_M,
     DENT_RIM_PER_DEPTH,
@@ -359,6 +360,8 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
     index : SceneIndex
         Which geoms show each anomaly.
     """
+    v.instance_of(mockup, "mockup", Mockup, none_allowed=False)
+    v.instance_of(anomalies, "anomalies", AnomalySet, none_allowed=False)
     by_name = {part.name: part for part in mockup.parts}
     materials = [_material_xml(name, material) for name, material in MATERIALS.items()]
     anomaly_parts: list[Part] = []
@@ -638,6 +641,8 @@ def build_model(
     """
     from rsi.sim.render import import_mujoco
 
+    if arm_home_tool_tip_m is not None:  # checked before the scene is built (a second or so)
+        v.vector3(arm_home_tool_tip_m, "arm_home_tool_tip_m")
     mujoco_module: Any = import_mujoco()
     xml, assets, index = scene_mjcf(mockup, anomalies)
     if arm_home_tool_tip_m is None:
