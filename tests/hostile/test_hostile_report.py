@@ -3,9 +3,9 @@
 ``rsi.sim.clearance``, ``rsi.sim.proximity_loop`` and ``rsi.sim.scene``.
 
 Each argument is drawn from :data:`hostile_values.HOSTILE_FAST` or, less often, its default, so nearly every
-call must be refused, fast, by the rule of :func:`hostile_values.call_keeps_the_rule`. Every function named
-in its module's ``__all__`` (and every one of the four sim modules) gets :data:`CASES` calls; the report's
-helpers that no ``__all__`` lists get :data:`HELPER_CASES` (see there why).
+call must be refused, fast, by the rule of :func:`hostile_values.call_keeps_the_rule`. Every function gets
+:data:`CASES` calls, drawn :data:`PER_EXAMPLE` to a hypothesis example: hypothesis costs about 1 ms an
+example however cheap the refusal, and one call to an example would take the 52 functions over a minute.
 """
 
 from __future__ import annotations
@@ -45,11 +45,8 @@ MODULES = (
     "rsi.sim.scene",
 )
 CASES = 1000
-HELPER_CASES = 400
-"""Cases for a report helper outside every ``__all__`` (figures, writers, the batch's rows, the sun path's).
-Why fewer: hypothesis costs about 1 ms a case however cheap the refusal, so 1,000 cases of each of the 52
-functions take over a minute; each helper refuses through the same record, path or number checks
-(rsi._validate, rsi._files) as a front door of :data:`CASES` cases that calls it."""
+PER_EXAMPLE = 10
+"""Calls drawn in one hypothesis example (a failing batch still shrinks, to the one call that broke)."""
 TIME_LIMIT_S = 10.0
 
 
@@ -66,15 +63,10 @@ def _public(module_name: str) -> Iterator[tuple[str, Callable[..., Any]]]:
             continue  # a Protocol describes what a caller passes; it is never called
         if dataclasses.is_dataclass(obj) and not hasattr(obj, "__post_init__"):
             continue  # a record rsi builds from checked values (as test_hostile_api.py), no entry point
-        listed = hasattr(module, "__all__") or module_name.startswith("rsi.sim")
-        yield f"{home}.{obj.__qualname__}", (obj, CASES if listed else HELPER_CASES)
+        yield f"{home}.{obj.__qualname__}", obj
 
 
-# A function listed in rsi.report's __all__ and reached again through its own module keeps the larger count.
-SURFACE: dict[str, tuple[Callable[..., Any], int]] = {}
-for _module in MODULES:
-    for _name, (_function, _cases) in _public(_module):
-        SURFACE[_name] = (_function, max(_cases, SURFACE.get(_name, (None, 0))[1]))
+SURFACE = dict(item for module in MODULES for item in _public(module))
 
 
 def _arguments(function: Callable[..., Any]) -> st.SearchStrategy[dict[str, Any]]:
@@ -101,8 +93,7 @@ def test_every_listed_function_is_fuzzed() -> None:
         "rsi.sim.clearance.ArmClearance",
     }
     assert front_doors <= set(SURFACE)
-    assert all(SURFACE[name][1] == CASES for name in front_doors)
-    assert sum(cases for _function, cases in SURFACE.values()) >= 30_000
+    assert len(SURFACE) * CASES >= 50_000
 
 
 @pytest.mark.filterwarnings("ignore::hypothesis.errors.HypothesisWarning")
@@ -111,13 +102,19 @@ def test_a_report_or_scene_function_lets_only_named_errors_escape(
     qualified_name: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.chdir(tmp_path)  # whatever a call writes (a report folder) lands here
-    function, cases = SURFACE[qualified_name]
+    function = SURFACE[qualified_name]
 
-    @settings(max_examples=cases, deadline=None, database=None, suppress_health_check=list(HealthCheck))
-    @given(_arguments(function))
-    def check(arguments: dict[str, Any]) -> None:
-        problem = call_keeps_the_rule(function, arguments, limit_s=TIME_LIMIT_S)
-        assert not problem, f"{qualified_name}({', '.join(arguments)}): {problem}"
+    @settings(
+        max_examples=CASES // PER_EXAMPLE,
+        deadline=None,
+        database=None,
+        suppress_health_check=list(HealthCheck),
+    )
+    @given(st.lists(_arguments(function), min_size=PER_EXAMPLE, max_size=PER_EXAMPLE))
+    def check(calls: list[dict[str, Any]]) -> None:
+        for arguments in calls:
+            problem = call_keeps_the_rule(function, arguments, limit_s=TIME_LIMIT_S)
+            assert not problem, f"{qualified_name}({', '.join(arguments)}): {problem}"
 
     check()
 
