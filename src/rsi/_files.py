@@ -42,10 +42,18 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
     Raises
     ------
+    FileError
+        `path` names something that is not a regular file (a device, a FIFO, a folder): replacing it would
+        swap the node itself (run as root, ``/dev/zero`` became a 4-byte file) (issue 17).
     OSError
         If the folder or file cannot be written.
     """
     target = Path(path)
+    if target.exists() and not target.is_file():
+        raise FileError(
+            f"path {str(target)!r} is not a regular file (a device, FIFO or folder); nothing was written. "
+            "Choose a file path."
+        )
     target.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:

@@ -13,6 +13,8 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import inspect
+import os
+import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -23,7 +25,7 @@ from hostile_values import HOSTILE_FAST, call_keeps_the_rule
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rsi.errors import InputError
+from rsi.errors import FileError, InputError
 from rsi.report import batch as report_batch
 from rsi.report import figures, writers
 from rsi.report import isee as report_isee
@@ -69,13 +71,29 @@ def _public(module_name: str) -> Iterator[tuple[str, Callable[..., Any]]]:
 SURFACE = dict(item for module in MODULES for item in _public(module))
 
 
+def _kept_inside(value: object) -> object:
+    """A path drawn as text or Path, made relative (so under the test's folder) unless it is /dev/zero.
+
+    The writers create what they are given and the suite may run as root: ``/nonexistent/x`` or a drawn
+    ``"/a"`` would be written at the root of the machine. /dev/zero stays, and must be refused: replacing it
+    once turned the device into a 4-byte file (``rsi._files.atomic_write_bytes`` now refuses).
+    """
+    if isinstance(value, (str, Path)) and str(value) != "/dev/zero":
+        text = str(value).lstrip("/").replace("..", "__")
+        return Path(text) if isinstance(value, Path) else text
+    return value
+
+
+_HOSTILE = HOSTILE_FAST.map(_kept_inside)
+
+
 def _arguments(function: Callable[..., Any]) -> st.SearchStrategy[dict[str, Any]]:
     """Each parameter hostile, or one time in three its default."""
     drawn = {}
     for parameter in inspect.signature(function).parameters.values():
         if parameter.kind in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD):
             continue
-        options = [HOSTILE_FAST, HOSTILE_FAST]
+        options = [_HOSTILE, _HOSTILE]
         if parameter.default is not inspect.Parameter.empty:
             options.append(st.just(parameter.default))
         drawn[parameter.name] = st.one_of(*options)
@@ -136,6 +154,7 @@ def _refusals(tmp: Path) -> list[tuple[Callable[..., Any], dict[str, Any], str]]
         (writers.write_files, {"out_dir": tmp / ("y" * 300), "contents": {}}, "out_dir=.* at most 239"),
         (writers.atomic_write_text, {"path": "a\x00b", "text": ""}, "path=.* holds a NUL"),
         (writers.atomic_write_text, {"path": 7, "text": ""}, "path must be a file path"),
+        (writers.atomic_write_text, {"path": tmp, "text": ""}, "is not a regular file"),
         (writers.atomic_write_text, {"path": tmp / "a.txt", "text": b"x"}, "text must be a str; got bytes"),
         (writers.to_json, {"record": [1]}, "record must be a mapping"),
         (writers.csv_text, {"columns": "ab", "rows": []}, "columns must be a list of str"),
@@ -149,6 +168,12 @@ def _refusals(tmp: Path) -> list[tuple[Callable[..., Any], dict[str, Any], str]]
         (figures.overlay_png, {"image": _FIGURE, "flaws": None}, "flaws must be a list of Flaw"),
         (figures.colour_png, {"image": _FIGURE, "limit": ""}, "limit must be a number"),
         (figures.mapped_png, {"image": _FIGURE, "low": None, "high": 1.0}, "low must be a number"),
+        (figures.mapped_png, {"image": _FIGURE, "low": 0, "high": 1, "scale_rc": None}, "scale_rc must hold"),
+        (
+            figures.mapped_png,
+            {"image": _FIGURE, "low": 0, "high": 1, "scale_rc": (1, 10**7)},
+            "under 67108864",
+        ),
         (report_sim.write_overview, {"out_dir": tmp, "picture_rgb": _FIGURE}, "picture_rgb must be a uint8"),
         (report_sim.sun_path_png, {"path": 0, "title": "t"}, "path must be a SunPath"),
         (report_batch.pair_rows, {"result": None, "items": []}, "result must be a BatchResult"),
@@ -188,6 +213,15 @@ def test_each_added_refusal_names_the_argument_and_the_fix(tmp_path: Path) -> No
         with pytest.raises(InputError, match=message):
             function(**arguments)
     assert not any(tmp_path.iterdir()), "a refused call wrote something"
+
+
+def test_a_device_is_never_replaced_by_a_written_file(tmp_path: Path) -> None:
+    fifo = tmp_path / "pipe.txt"
+    os.mkfifo(fifo)
+    with pytest.raises(FileError, match="is not a regular file"):
+        writers.atomic_write_text(fifo, "x")
+    assert stat.S_ISFIFO(fifo.lstat().st_mode)
+    assert sorted(tmp_path.iterdir()) == [fifo]  # no temporary left behind
 
 
 def test_the_arm_geom_check_refuses_a_geom_outside_the_model() -> None:

@@ -201,9 +201,7 @@ def mapped_png(
     low, high = v.finite_number(low, "low"), v.finite_number(high, "high")
     if not high > low:
         raise InputError(f"high must exceed low; got low={low!r}, high={high!r}.")
-    rows_factor, cols_factor = (int(factor) for factor in scale_rc)
-    if rows_factor < 1 or cols_factor < 1:
-        raise InputError(f"scale_rc must hold whole factors >= 1; got {scale_rc!r}.")
+    rows_factor, cols_factor = _scale(scale_rc, pixels.size)
     mask = _valid_or_all(valid, pixels.shape) & np.isfinite(pixels)
     index = np.clip((np.nan_to_num(pixels) - low) / (high - low), 0.0, 1.0)
     bgr = _lookup_table(cmap)[np.round(index * 255.0).astype(np.intp)]
@@ -349,3 +347,19 @@ def _uint8_picture(image: object, name: str) -> None:
 def _title(title: object) -> None:
     if not isinstance(title, str):
         raise InputError(f"title must be a str; got {type(title).__name__} {title!r:.60}.")
+
+
+_MAX_PICTURE_PX = 2**26
+"""Most pixels an enlarged picture may have (64 M, 192 MB in colour): crops are enlarged to ~200 x 200."""
+
+
+def _scale(scale_rc: object, pixels: int) -> tuple[int, int]:
+    """`scale_rc` as two whole factors >= 1 that keep the picture under :data:`_MAX_PICTURE_PX`."""
+    given = tuple(scale_rc) if isinstance(scale_rc, (tuple, list)) else ()
+    factors = [item for item in given if isinstance(item, (int, np.integer)) and item >= 1]
+    if len(given) != 2 or len(factors) != 2 or pixels * int(factors[0]) * int(factors[1]) > _MAX_PICTURE_PX:
+        raise InputError(
+            f"scale_rc must hold two whole factors >= 1 that keep the picture under {_MAX_PICTURE_PX} "
+            f"pixels; got {scale_rc!r:.80}."
+        )
+    return int(factors[0]), int(factors[1])
