@@ -387,25 +387,15 @@ def test_sim_render_takes_the_anomaly_draw_from_a_json_file(tmp_path: Path) -> N
 
 
 def test_demo_passes_the_anomaly_draw_to_the_mission(tmp_path: Path) -> None:
-    import rsi.mission.run
-    from rsi.errors import InputError
     from rsi.sim.anomalies import AnomalySettings
 
-    seen: dict[str, Any] = {}
-
-    def stop(seed: int, **kwargs: Any) -> None:
-        seen.update(kwargs)
-        raise InputError("stopped after the settings were passed")
-
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(rsi.mission.run, "run_mission", stop)
-        result = invoke("demo", "--anomalies", "seed-mockup", "--out", tmp_path / "out")
+    result, seen = _demo_stopped(tmp_path, "--anomalies", "seed-mockup")
     assert result.exit_code == cli.EXIT_INVALID_VALUE and "stopped after" in result.stderr
     assert seen["anomalies"] == AnomalySettings.seed_mockup()
 
 
-def _demo_orbit_start(tmp_path: Path, *options: str) -> tuple[Result, Any]:
-    """`rsi demo` stopped where it calls run_mission: the result and the orbit_start_s it passed."""
+def _demo_stopped(tmp_path: Path, *options: str) -> tuple[Result, dict[str, Any]]:
+    """`rsi demo` stopped where it calls run_mission: the result and the keywords it passed."""
     import rsi.mission.run
     from rsi.errors import InputError
 
@@ -418,7 +408,7 @@ def _demo_orbit_start(tmp_path: Path, *options: str) -> tuple[Result, Any]:
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(rsi.mission.run, "run_mission", stop)
         result = invoke("demo", *options, "--out", tmp_path / "out")
-    return result, seen.get("orbit_start_s")
+    return result, seen
 
 
 @pytest.mark.parametrize(("options", "offset_s"), [((), 300.0), (("--sun-offset-s", "0"), 0.0),
@@ -428,7 +418,8 @@ def test_demo_inspects_under_another_sun_by_default(
 ) -> None:
     from rsi.mission.run import ORBIT_START_S
 
-    result, orbit_start_s = _demo_orbit_start(tmp_path, *options)
+    result, seen = _demo_stopped(tmp_path, *options)
+    orbit_start_s = seen.get("orbit_start_s")
     assert result.exit_code == cli.EXIT_INVALID_VALUE and "stopped after" in result.stderr
     # issue 14: the reference where run_mission puts it, the inspection one orbit later plus the offset
     assert orbit_start_s == (ORBIT_START_S[0], ORBIT_START_S[1] + offset_s)
@@ -443,7 +434,8 @@ def test_demo_sun_offset_default_is_the_missions() -> None:
 
 @pytest.mark.parametrize("value", ["-1", "nan", "inf", "-inf"])
 def test_bad_sun_offset_is_refused_by_name_before_any_work(value: str, tmp_path: Path) -> None:
-    result, orbit_start_s = _demo_orbit_start(tmp_path, "--sun-offset-s", value)
+    result, seen = _demo_stopped(tmp_path, "--sun-offset-s", value)
+    orbit_start_s = seen.get("orbit_start_s")
     assert result.exit_code == cli.EXIT_INVALID_VALUE, result.output
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("rsi: error: --sun-offset-s must be a finite number")
