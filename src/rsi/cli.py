@@ -688,6 +688,14 @@ def _pick_vista(names: Sequence[str], vista: str) -> str:
     )
 
 
+def _check_layout(layout: str) -> None:
+    """--layout checked before any work: one of the mock-up's layouts (rsi.sim.LAYOUTS)."""
+    from rsi.sim import LAYOUTS
+
+    if layout not in LAYOUTS:
+        raise InputError(f"--layout={layout!r} is not known. Choose one of {', '.join(LAYOUTS)}.")
+
+
 @sim_app.command("render", epilog=_EPILOG)
 def sim_render(
     *,
@@ -701,9 +709,13 @@ def sim_render(
     ] = Repeatability.lab,
     anomalies: AnomaliesOption = AnomalyDraw.wide,
     anomalies_json: AnomaliesJsonOption = None,
+    layout: Annotated[
+        str, typer.Option(help="The mock-up's layout: 'truss' (seed §4) or 'truss-b' (issue 15).")
+    ] = "truss",
 ) -> None:
     """Visit a vista twice (reference, then inspection with anomalies) and write what the camera saw."""
     with _errors():
+        _check_layout(layout)
         _out_folder(out)
         settings = _anomaly_settings(anomalies, anomalies_json)
         from rich.table import Table
@@ -712,7 +724,7 @@ def sim_render(
         from rsi.datasets.rendered import render_vista_to_folder
         from rsi.report.sim import write_overview
 
-        world = rsi.sim.load("truss", seed=seed, repeatability=repeatability.value, settings=settings)
+        world = rsi.sim.load(layout, seed=seed, repeatability=repeatability.value, settings=settings)
         name = _pick_vista(world.vistas, vista)
         files: dict[str, Path] = {}
         with _progress_bar("render") as update:
@@ -722,7 +734,7 @@ def sim_render(
                 update(state, step, 3)
             files.update(write_overview(out, world.overview_picture()))
             update("overview", 3, 3)
-        table = Table(title=f"World seed {seed}: anomalies (ground truth)")
+        table = Table(title=f"World seed {seed} ({layout}): anomalies (ground truth)")
         for column in ("#", "kind", "subtype", "surface", "site", "x m", "y m", "z m", "size mm"):
             table.add_column(column)
         for number, anomaly in enumerate(world.anomalies.anomalies):

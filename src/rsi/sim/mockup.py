@@ -700,12 +700,9 @@ def _panel_c(place: Placement) -> _Piece:
     long_side = (0, 1, 0) if turned else (1, 0, 0)
     cells = Patch(f"{name}_cells", vector3(*xy(0.0, 0.0), surface_z), _UP, long_side, (0.23, 0.17), "panel")
     site = f"{name}_panel"
-    if turned:
-        # seed §2.1 incidence: 45 deg from the front, so the arm on its rail reaches the view (a camera
-        # straight above the panel is beyond it; issue 15); the image's up runs along the panel
-        look = vista(site, cells.centre_m, _unit(np.array([0.0, -1.0, 1.0])), _UP, VISTA_STANDOFF_M)
-    else:
-        look = vista(site, cells.centre_m, _UP, (0.0, 1.0, 0.0), VISTA_STANDOFF_M)
+    # straight down, image up towards the back, on either turn (the turned panel's long side runs up the
+    # image); beyond the reach of the arm on its rail (issue 5: the plan flags such views)
+    look = vista(site, cells.centre_m, _UP, (0.0, 1.0, 0.0), VISTA_STANDOFF_M)
     return _Piece(
         parts=parts,
         patches=[cells],
