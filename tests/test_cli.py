@@ -371,6 +371,27 @@ def test_sim_render_writes_both_visits_the_truth_and_the_overview(tmp_path: Path
     assert "impact" in result.stdout
 
 
+def test_sim_render_takes_the_layout(tmp_path: Path) -> None:
+    result = invoke("sim", "render", "--seed", "3", "--layout", "truss-b", "--vista", "E_tubing",
+                    "--rows", "64", "--cols", "64", "--out", tmp_path)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    truth = json.loads((tmp_path / "E_tubing_inspection_truth.json").read_text())
+    assert truth["vista"] == "E_tubing" and "truss-b" in result.stdout
+    # the second tank-and-tubing ORU exists only on truss-b
+    refused = invoke(
+        "sim", "render", "--vista", "E_tubing", "--rows", "64", "--cols", "64", "--out", tmp_path
+    )
+    assert refused.exit_code == cli.EXIT_INVALID_VALUE and "vista='E_tubing' is not known" in refused.stderr
+
+
+def test_sim_render_refuses_an_unknown_layout_by_name_before_any_work(tmp_path: Path) -> None:
+    result = invoke("sim", "render", "--layout", "truss-c", "--out", tmp_path / "out")
+    assert result.exit_code == cli.EXIT_INVALID_VALUE, result.output
+    lines = result.stderr.strip().splitlines()
+    assert lines == ["rsi: error: --layout='truss-c' is not known. Choose one of truss, truss-b."]
+    assert not (tmp_path / "out").exists()
+
+
 def test_sim_render_takes_the_anomaly_draw_from_a_json_file(tmp_path: Path) -> None:
     fields = {"impact_count_range": [3, 3], "impact_bright_probability": 1.0, "anomaly_free_probability": 0}
     settings = tmp_path / "anomalies.json"
