@@ -864,9 +864,8 @@ def build_mockup(layout: Layout) -> Mockup:
     length = BAY_M * layout.bays
     centre = vector3(_at(length / 2), 0.0, _CZ_M)
     vistas = [item for piece in pieces for item in piece.vistas]
-    # the whole mock-up from the front, a little to the left and above; farther back for a longer truss
-    overview = max(3.4, 3.4 * layout.bays / 3)
-    vistas.append(vista("overview", centre, _unit(np.array([-0.1, -1.0, 0.45])), _UP, overview))
+    # the whole mock-up from the front, a little to the left and above (3.4 m: four bays still fit the frame)
+    vistas.append(vista("overview", centre, _unit(np.array([-0.1, -1.0, 0.45])), _UP, 3.4))
     door = next(piece.door for piece in pieces if piece.door is not None)
     kapton = next(piece.vistas[1].name for piece in pieces if piece.door is not None)
     tubings = [piece for piece in pieces if piece.leaks]
