@@ -763,21 +763,25 @@ def sim_sun(
     step_s: Annotated[float, typer.Option(min=0.1, max=600.0, help="Sample spacing.")] = 10.0,
     vista: Annotated[str, typer.Option(help="Vista point whose target the lamp lights.")] = "0",
     out: Annotated[Path, typer.Option("--out", help="Folder for sun_path.csv/.png/.json.")] = Path("rsi-sun"),
+    layout: Annotated[
+        str, typer.Option(help="The mock-up's layout: 'truss' (seed §4) or 'truss-b' (issue 15).")
+    ] = "truss",
 ) -> None:
     """Sun direction along a low Earth orbit and the lamp trajectory that reproduces it (seed §4.1)."""
     with _errors():
+        _check_layout(layout)
         _out_folder(out)
         import math
 
         import numpy as np
 
         from rsi.report.sim import write_sun_report
-        from rsi.sim.mockup import truss_mockup
+        from rsi.sim.mockup import mockup as build_mockup
         from rsi.sim.orbit import Orbit, eclipse, orbital_period_s, sun_path
         from rsi.sim.solar_simulator import LAMBDA_RANGE_M, LampMount
 
         orbit = Orbit(altitude_m=altitude_km * 1000.0, beta_rad=math.radians(beta_deg))
-        mockup = truss_mockup()
+        mockup = build_mockup(layout)
         name = _pick_vista(tuple(mockup.vistas), vista)
         times = np.arange(0.0, orbits * orbital_period_s(orbit), step_s)
         spot_x, _, spot_z = mockup.vistas[name].target_m
