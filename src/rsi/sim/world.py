@@ -294,8 +294,8 @@ class World:
         """
         if self._arm is None:
             raise InputError(
-                "this world has no arm; build it with "
-                f"rsi.sim.load({self.mockup.layout!r}, seed=..., arm=True)."
+                "this world has no arm; build it with rsi.sim.load(layout, seed=..., arm=True), the layout "
+                f"one of {', '.join(SCENES)}."
             )
         return self._arm
 
