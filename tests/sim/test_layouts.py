@@ -197,7 +197,8 @@ def test_the_truss_b_door_is_hinged_on_its_right_edge_and_swings_out(world_b: Wo
     door = world_b.mockup.door
     part = next(p for p in world_b.mockup.parts if p.name == door.body)
     assert door.hinge_m[0] == pytest.approx(part.pos[0] + part.size[0])  # the right edge, seen from the front
-    assert (door.body, door.joint) == ("A_door", "A_door_hinge")
+    assert (door.body, door.joint, door.vista) == ("A_door", "A_door_hinge", "A_door")
+    assert world_b.vista(door.vista).target_m[0] == pytest.approx(part.pos[0])  # it looks at the door
     geom = world_b.model.geom(door.body).id
     closed = world_b.data.geom_xpos[geom].copy()
     world_b.set_door(np.pi / 2)

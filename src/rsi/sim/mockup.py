@@ -126,6 +126,8 @@ class Door:
         A point on the hinge axis, world metres.
     axis : (float, float, float)
         Hinge axis, oriented so that a positive angle swings the door's free edge out towards -y.
+    vista : str
+        The vista that looks at the door (open it to see the connectors and cold plate behind).
     max_angle_rad : float
         Widest opening.
     """
@@ -134,6 +136,7 @@ class Door:
     joint: str
     hinge_m: Vector3
     axis: Vector3
+    vista: str
     max_angle_rad: float = DOOR_MAX_ANGLE_RAD
 
 
@@ -486,6 +489,7 @@ def _oru_a(place: Placement) -> _Piece:
         f"{name}_door_hinge",
         vector3(x0, face - 0.002, cz),
         vector3(0.0, 0.0, -hand),  # hinge on the left: -z; on the right: +z (both swing out to -y)
+        f"{name}_door",
     )
     parts.append(
         Part(door.body, door.body, "box", (0.07, 0.002, 0.11), vector3(mid, face - 0.002, cz), "aluminium")
@@ -572,7 +576,7 @@ def _oru_a(place: Placement) -> _Piece:
             )
         },
         vistas=[
-            vista(f"{name}_door", vector3(mid, face, cz), _FRONT, _UP, VISTA_STANDOFF_M),
+            vista(door.vista, vector3(mid, face, cz), _FRONT, _UP, VISTA_STANDOFF_M),
             vista(f"{name}_kapton", vector3(fill_x, face, cz), _FRONT, _UP, VISTA_STANDOFF_M),
         ],
         peltier=peltier,
