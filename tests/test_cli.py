@@ -371,6 +371,28 @@ def test_sim_render_writes_both_visits_the_truth_and_the_overview(tmp_path: Path
     assert "impact" in result.stdout
 
 
+def test_sim_render_takes_the_layout(tmp_path: Path) -> None:
+    result = invoke("sim", "render", "--seed", "3", "--layout", "truss-b", "--vista", "E_tubing",
+                    "--rows", "64", "--cols", "64", "--out", tmp_path)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    truth = json.loads((tmp_path / "E_tubing_inspection_truth.json").read_text())
+    assert truth["vista"] == "E_tubing" and "truss-b" in result.stdout
+    # the second tank-and-tubing ORU exists only on truss-b
+    refused = invoke(
+        "sim", "render", "--vista", "E_tubing", "--rows", "64", "--cols", "64", "--out", tmp_path
+    )
+    assert refused.exit_code == cli.EXIT_INVALID_VALUE and "vista='E_tubing' is not known" in refused.stderr
+
+
+@pytest.mark.parametrize("command", ["render", "sun"])
+def test_sim_refuses_an_unknown_layout_by_name_before_any_work(command: str, tmp_path: Path) -> None:
+    result = invoke("sim", command, "--layout", "truss-c", "--out", tmp_path / "out")
+    assert result.exit_code == cli.EXIT_INVALID_VALUE, result.output
+    lines = result.stderr.strip().splitlines()
+    assert lines == ["rsi: error: --layout='truss-c' is not known. Choose one of truss, truss-b."]
+    assert not (tmp_path / "out").exists()
+
+
 def test_sim_render_takes_the_anomaly_draw_from_a_json_file(tmp_path: Path) -> None:
     fields = {"impact_count_range": [3, 3], "impact_bright_probability": 1.0, "anomaly_free_probability": 0}
     settings = tmp_path / "anomalies.json"
@@ -475,6 +497,13 @@ def test_bad_anomaly_draw_is_refused_by_name(
     result = invoke(*command, *options, "--out", tmp_path / "out")
     assert result.exit_code == code, result.output
     assert message in result.stderr
+
+
+def test_sim_sun_lights_a_vista_of_the_layout(tmp_path: Path) -> None:
+    result = invoke("sim", "sun", "--layout", "truss-b", "--vista", "E_tubing", "--orbits", "0.1",
+                    "--step-s", "60", "--out", tmp_path)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "sun_path.csv").exists()
 
 
 def test_sim_sun_writes_the_lamp_trajectory(tmp_path: Path) -> None:

@@ -688,6 +688,14 @@ def _pick_vista(names: Sequence[str], vista: str) -> str:
     )
 
 
+def _check_layout(layout: str) -> None:
+    """--layout checked before any work: one of the mock-up's layouts (rsi.sim.LAYOUTS)."""
+    from rsi.sim import LAYOUTS
+
+    if layout not in LAYOUTS:
+        raise InputError(f"--layout={layout!r} is not known. Choose one of {', '.join(LAYOUTS)}.")
+
+
 @sim_app.command("render", epilog=_EPILOG)
 def sim_render(
     *,
@@ -701,9 +709,13 @@ def sim_render(
     ] = Repeatability.lab,
     anomalies: AnomaliesOption = AnomalyDraw.wide,
     anomalies_json: AnomaliesJsonOption = None,
+    layout: Annotated[
+        str, typer.Option(help="The mock-up's layout: 'truss' (seed §4) or 'truss-b' (issue 15).")
+    ] = "truss",
 ) -> None:
     """Visit a vista twice (reference, then inspection with anomalies) and write what the camera saw."""
     with _errors():
+        _check_layout(layout)
         _out_folder(out)
         settings = _anomaly_settings(anomalies, anomalies_json)
         from rich.table import Table
@@ -712,7 +724,7 @@ def sim_render(
         from rsi.datasets.rendered import render_vista_to_folder
         from rsi.report.sim import write_overview
 
-        world = rsi.sim.load("truss", seed=seed, repeatability=repeatability.value, settings=settings)
+        world = rsi.sim.load(layout, seed=seed, repeatability=repeatability.value, settings=settings)
         name = _pick_vista(world.vistas, vista)
         files: dict[str, Path] = {}
         with _progress_bar("render") as update:
@@ -722,7 +734,7 @@ def sim_render(
                 update(state, step, 3)
             files.update(write_overview(out, world.overview_picture()))
             update("overview", 3, 3)
-        table = Table(title=f"World seed {seed}: anomalies (ground truth)")
+        table = Table(title=f"World seed {seed} ({layout}): anomalies (ground truth)")
         for column in ("#", "kind", "subtype", "surface", "site", "x m", "y m", "z m", "size mm"):
             table.add_column(column)
         for number, anomaly in enumerate(world.anomalies.anomalies):
@@ -751,21 +763,25 @@ def sim_sun(
     step_s: Annotated[float, typer.Option(min=0.1, max=600.0, help="Sample spacing.")] = 10.0,
     vista: Annotated[str, typer.Option(help="Vista point whose target the lamp lights.")] = "0",
     out: Annotated[Path, typer.Option("--out", help="Folder for sun_path.csv/.png/.json.")] = Path("rsi-sun"),
+    layout: Annotated[
+        str, typer.Option(help="The mock-up's layout: 'truss' (seed §4) or 'truss-b' (issue 15).")
+    ] = "truss",
 ) -> None:
     """Sun direction along a low Earth orbit and the lamp trajectory that reproduces it (seed §4.1)."""
     with _errors():
+        _check_layout(layout)
         _out_folder(out)
         import math
 
         import numpy as np
 
         from rsi.report.sim import write_sun_report
-        from rsi.sim.mockup import truss_mockup
+        from rsi.sim.mockup import mockup as build_mockup
         from rsi.sim.orbit import Orbit, eclipse, orbital_period_s, sun_path
         from rsi.sim.solar_simulator import LAMBDA_RANGE_M, LampMount
 
         orbit = Orbit(altitude_m=altitude_km * 1000.0, beta_rad=math.radians(beta_deg))
-        mockup = truss_mockup()
+        mockup = build_mockup(layout)
         name = _pick_vista(tuple(mockup.vistas), vista)
         times = np.arange(0.0, orbits * orbital_period_s(orbit), step_s)
         spot_x, _, spot_z = mockup.vistas[name].target_m

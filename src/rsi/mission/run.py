@@ -276,7 +276,7 @@ def _archived(  # noqa: PLR0917 - the run's parts, each needed once
         run_settings=run_settings,
         settings=settings,
     )
-    store_findings(archive, run_id, findings)
+    store_findings(archive, run_id, findings, world=world)
     return run_id
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, replace
 from typing import TYPE_CHECKING
 
@@ -17,8 +18,14 @@ if TYPE_CHECKING:
     from rsi.imaging.compensation import Compensated
     from rsi.sim.world import World
 
-# the non-visual findings are filed under the vista their instrument reads (seed §3-4)
-_VISTA_OF_SENSOR = {"pyrometer": "A_kapton", "gas": "D_tubing"}
+
+def _filed_under(world: World, finding: MissionFinding) -> str:
+    """The vista a finding is filed under: a non-visual one under the vista its instrument read (seed §3-4;
+    of a layout's two tubings, the one nearest the finding), a visual one under its source."""
+    vistas = world.mockup.instrument_vistas.get(finding.source, ())
+    if not vistas:
+        return finding.source
+    return min(vistas, key=lambda name: math.dist(world.vista(name).target_m, finding.position_m))
 
 
 def store_references(
@@ -40,15 +47,18 @@ def store_references(
     return archive.start_run(label="mission inspection pass", seed=seed, settings=stored)
 
 
-def store_findings(archive: Archive, run_id: int, findings: tuple[MissionFinding, ...]) -> None:
-    """The run's findings, then the run marked finished."""
+def store_findings(
+    archive: Archive, run_id: int, findings: tuple[MissionFinding, ...], *, world: World
+) -> None:
+    """The run's findings (each filed under the vista of `world` it was seen from), then the run marked
+    finished."""
     from rsi.archive import Finding
 
     archive.add_findings(
         run_id,
         [
             Finding(
-                vista=_VISTA_OF_SENSOR.get(f.source, f.source),
+                vista=_filed_under(world, f),
                 kind=f.kind,
                 confidence=f.confidence,
                 position_m=f.position_m,

@@ -1,9 +1,10 @@
 """The ISEE's non-visual surveys (seed §3-4): the pyrometer over the Kapton circles (hot and cold spots) and
-the MOS gas sensor along the tubing (the active leak).
+the MOS gas sensor along each tank-and-tubing ORU's tubing (the active leaks), wherever the layout put them.
 """
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -15,6 +16,7 @@ from rsi.mission.records import MissionFinding
 from rsi.mission.settings import MissionSettings
 
 if TYPE_CHECKING:
+    from rsi.sim.anomalies import Site
     from rsi.sim.world import World
 
 FloatArray = NDArray[np.float64]
@@ -50,18 +52,32 @@ def pyrometer_pass(
     return findings, readings
 
 
+def _tubings(world: World) -> list[tuple[Site, ...]]:
+    """The leak holes of each tank-and-tubing ORU of the world's layout (``Mockup.tubing_leaks``)."""
+    by_name = {site.name: site for site in world.mockup.candidates.leak_sites}
+    return [tuple(by_name[name] for name in names) for names in world.mockup.tubing_leaks]
+
+
 def gas_stations(world: World, settings: MissionSettings) -> FloatArray:
-    """Stations 0.1 m in front of the tubing's horizontal runs, where the leak holes are (seed §4 F)."""
-    leaks = world.mockup.candidates.leak_sites
-    front = np.asarray(leaks[0].normal)
-    heights = sorted({round(site.position_m[2], 4) for site in leaks})
-    xs = [site.position_m[0] for site in leaks]
-    # the whole run of each tube, one station per spacing, plus a margin of one jet half-width
-    low, high = min(xs) - 0.1, max(xs) + 0.1
-    count = round((high - low) / settings.gas_station_spacing_m) + 1
-    y = leaks[0].position_m[1] + settings.gas_standoff_m * front[1]
-    stations = [(x, y, z) for z in heights for x in np.linspace(low, high, count)]
-    return np.asarray(stations, dtype=np.float64)
+    """Stations 0.1 m in front of each tubing's horizontal runs, where the leak holes are (seed §4 F)."""
+    stations: list[tuple[float, float, float]] = []
+    for leaks in _tubings(world):
+        front = np.asarray(leaks[0].normal)
+        heights = sorted({round(site.position_m[2], 4) for site in leaks})
+        xs = [site.position_m[0] for site in leaks]
+        # the whole run of each tube, one station per spacing, plus a margin of one jet half-width
+        low, high = min(xs) - 0.1, max(xs) + 0.1
+        count = round((high - low) / settings.gas_station_spacing_m) + 1
+        y = leaks[0].position_m[1] + settings.gas_standoff_m * front[1]
+        stations += [(x, y, z) for z in heights for x in np.linspace(low, high, count)]
+    return np.asarray(stations, dtype=np.float64).reshape(-1, 3)
+
+
+def _leak_y(world: World, station: FloatArray) -> float:
+    """Depth of the tubing a station faces: its nearest leak hole's, along and up the truss (x, z)."""
+    sites = world.mockup.candidates.leak_sites
+    nearest = min(sites, key=lambda site: math.dist(site.position_m[::2], station[::2]))
+    return float(nearest.position_m[1])
 
 
 # Seed §4 has up to two leaks on: each plume is its own peak along the tubing. A round turbulent jet's
@@ -89,7 +105,12 @@ def _leak_finding(
     """A leak at a plume's peak station, refined along the run by a parabola through its neighbours."""
     position = stations[best].copy()
     # the jet is round: a parabola through the neighbours on the same run refines the peak
-    if 0 < best < len(stations) - 1 and stations[best - 1][2] == stations[best + 1][2] == position[2]:
+    if (
+        0 < best < len(stations) - 1
+        and stations[best - 1][2] == stations[best + 1][2] == position[2]
+        # neighbours on the same run: not the last station of another tubing's
+        and abs(stations[best + 1][0] - stations[best - 1][0]) < 3 * settings.gas_station_spacing_m
+    ):
         left, mid, right = estimate[best - 1 : best + 2]
         curvature = left - 2 * mid + right
         if curvature < 0:
@@ -118,9 +139,9 @@ def gas_pass(
     readings = world.read_gas(stations[samples], times, sensor=sensor, rng=rng)
     tail = int(2.0 * sensor.sample_rate_hz)  # the last 2 s of each dwell, the sensor nearly settled
     estimate = readings.estimated_ppm.reshape(len(stations), per_station)[:, -tail:].mean(axis=1)
-    leak_y = world.mockup.candidates.leak_sites[0].position_m[1]  # on the tubing, not the station
+    # a leak lies on the tubing, not at the station
     findings = [
-        _leak_finding(stations, estimate, peak, leak_y, settings)
+        _leak_finding(stations, estimate, peak, _leak_y(world, stations[peak]), settings)
         for peak in _plume_peaks(stations, estimate, settings)
     ]
     return findings, stations, estimate

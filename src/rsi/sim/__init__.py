@@ -12,21 +12,25 @@
 - :mod:`rsi.sim.proximity_loop`   the §3.1 44 Hz proximity loop on the arm (Fig. 4), stepped or run
 - :mod:`rsi.sim.clearance`        the arm's smallest distance to the mock-up (MuJoCo geom distances)
 
-The front door is :func:`load`. Importing ``rsi.sim`` does not import MuJoCo: it loads on first use.
+The front door is :func:`load`; :data:`LAYOUTS` names the mock-up's layouts it builds ("truss", the seed's,
+and "truss-b", issue 15's second arrangement). Importing ``rsi.sim`` does not import MuJoCo: it loads on
+first use.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from rsi.sim.mockup import LAYOUT_NAMES as LAYOUTS
+
 if TYPE_CHECKING:
     from rsi.sim.world import World
 
-__all__ = ["load"]
+__all__ = ["LAYOUTS", "load"]
 
 
 def load(scene: str = "truss", **kwargs: Any) -> World:
-    """Build a seeded world; see :func:`rsi.sim.world.load` (``rsi.sim.load("truss", seed=7)``)."""
+    """Build a seeded world; see :func:`rsi.sim.world.load` (``rsi.sim.load("truss-b", seed=7)``)."""
     from rsi.sim.world import load as load_world
 
     return load_world(scene, **kwargs)

@@ -46,8 +46,8 @@ from rsi.sim.dent import (
     skin_surface,
 )
 from rsi.sim.mockup import (
-    DOOR_HINGE_AXIS,
     SCREW_RADIUS_M,
+    Door,
     Mockup,
     Part,
     vector3,
@@ -117,7 +117,6 @@ MATERIALS: dict[str, Material] = {
     "screw": Material((0.60, 0.60, 0.62), 0.6, 0.5, None),
     "hole": Material((0.02, 0.02, 0.02), 0.0, 0.0, None),
 }
-_PLATES = ("B_plate", "D_plate")  # bead-blasted plates: matte, so that they read differently from tanks
 # The material under an anomaly, by its truth surface (rsi.sim.mockup.SURFACES); older truth named materials.
 _SURFACE_MATERIALS = {"kapton": "kapton", "panel": "solar_cell", "plate": "plate"}
 _TEXTURE_PX = 256
@@ -282,10 +281,17 @@ def _spot_material(base: Material, factor: float, contrast: float, polarity: str
     return Material(tuple(c * (1.0 - contrast) for c in rgb), 0.05, 0.1, None)  # type: ignore[arg-type]
 
 
-def _impact_materials(index: int, impact: Impact, surface_factor: float) -> list[str]:
-    base = _surface_material(impact.surface)
-    if impact.site.startswith(("B_plate", "D_plate")):  # older truth named the plates' material aluminium
-        base = MATERIALS["plate"]
+def _impact_surface(impact: Impact, mockup: Mockup) -> str:
+    """What an impact lies on: the surface of the mock-up's patch it was drawn on (older truth named the
+    material there, "aluminium" for a bead-blasted plate or the door), else its own truth surface."""
+    for patch in mockup.candidates.impact_patches:
+        if patch.name == impact.site:
+            return patch.surface
+    return impact.surface
+
+
+def _impact_materials(index: int, impact: Impact, surface_factor: float, surface: str) -> list[str]:
+    base = _surface_material(surface)
     xml = [
         _material_xml(
             f"impact_{index}", _spot_material(base, surface_factor, impact.darkening, impact.polarity)
@@ -306,6 +312,16 @@ def _on_part(part: Part, point: np.ndarray, tolerance_m: float = 2e-3) -> bool:
         radial = float(np.hypot(local[0], local[1]))
         return abs(radial - part.size[0]) <= tolerance_m and abs(local[2]) <= part.size[1] + tolerance_m
     return False
+
+
+def _impact(
+    index: int, impact: Impact, swaps: list[SwappedComponent], mockup: Mockup
+) -> tuple[list[Part], list[str], bool]:
+    """An impact's decals, their materials, and whether it lies on the door (and so rides on it)."""
+    centre, normal, surface_factor = _planted(impact, swaps, mockup)
+    parts, _ = _impact_parts(index, impact, centre, normal)
+    surface = _impact_surface(impact, mockup)
+    return parts, _impact_materials(index, impact, surface_factor, surface), surface == "door"
 
 
 def _planted(
@@ -345,7 +361,7 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
     Parameters
     ----------
     mockup : Mockup
-        The geometry (:func:`rsi.sim.mockup.truss_mockup`).
+        The geometry (:func:`rsi.sim.mockup.mockup`).
     anomalies : AnomalySet
         What to plant: impacts become dark or bright decals, removed screws leave a hole, swapped components
         are dented (a crater pressed into a box face or a tank's skin) or discoloured (as a whole, or a
@@ -374,10 +390,9 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
     swaps = [anomaly for anomaly in anomalies.anomalies if isinstance(anomaly, SwappedComponent)]
     for index, anomaly in enumerate(anomalies.anomalies):
         if isinstance(anomaly, Impact):
-            centre, normal, surface_factor = _planted(anomaly, swaps, mockup)
-            parts, _ = _impact_parts(index, anomaly, centre, normal)
-            materials += _impact_materials(index, anomaly, surface_factor)
-            (door_parts if anomaly.site == "A_door_face" else anomaly_parts).extend(parts)
+            parts, spot_materials, on_door = _impact(index, anomaly, swaps, mockup)
+            materials += spot_materials
+            (door_parts if on_door else anomaly_parts).extend(parts)  # a spot on the door rides on it
             flaw_geoms[index] = tuple(part.name for part in parts)
         elif isinstance(anomaly, MissingScrew):
             heads = (anomaly.site, f"{anomaly.site}_slot")
@@ -394,16 +409,14 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
             if not _is_patch(anomaly):  # a patch lies on the original: nothing of it is replaced
                 pristine_names.update(part.name for part in originals)
                 pristine_geoms[index] = tuple(part.name for part in originals)
-    hinge = np.asarray(mockup.door_hinge_m)
+    hinge = np.asarray(mockup.door.hinge_m)
     world_xml, door_xml = [], []
     for part in mockup.parts:
         group = PRISTINE_GROUP if part.name in pristine_names else COMMON_GROUP
-        if part.component == "A_door":
-            door_xml.append(
-                _geom_xml(part, group=group, material=_visual(part), origin=tuple(hinge), meshes=meshes)
-            )
+        if part.component == mockup.door.body:
+            door_xml.append(_geom_xml(part, group=group, origin=tuple(hinge), meshes=meshes))
         else:
-            world_xml.append(_geom_xml(part, group=group, material=_visual(part), meshes=meshes))
+            world_xml.append(_geom_xml(part, group=group, meshes=meshes))
     world_xml += [_geom_xml(part, group=ANOMALY_GROUP, meshes=meshes) for part in anomaly_parts]
     door_xml += [
         _geom_xml(part, group=ANOMALY_GROUP, origin=tuple(hinge), meshes=meshes) for part in door_parts
@@ -416,17 +429,13 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
     textures = {kind: _png(_texture(kind)) for kind in ("brushed", "grain", "cells")}
     texture_xml = [f'<texture name="tex_{kind}" type="2d" file="{kind}.png"/>' for kind in textures]
     texture_xml += mesh_xml
-    xml = _document(materials, texture_xml, world_xml, door_xml, hinge)
+    xml = _document(materials, texture_xml, world_xml, door_xml, mockup)
     index_record = SceneIndex(flaw_geoms=flaw_geoms, pristine_geoms=pristine_geoms)
     return xml, {f"{kind}.png": data for kind, data in textures.items()}, index_record
 
 
-def _visual(part: Part) -> str:
-    return "plate" if part.name in _PLATES else part.material
-
-
 def _material_of(part: Part) -> Material:
-    return MATERIALS[_visual(part)]
+    return MATERIALS[part.material]
 
 
 def _hole(screw: MissingScrew) -> Part:
@@ -486,7 +495,7 @@ def _swapped(
         ]
         return copies, tuple(copy.name for copy in copies), materials
     copies = [
-        Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, _visual(p), p.zaxis) for p in originals
+        Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, p.material, p.zaxis) for p in originals
     ]
     first = originals[0]
     if first.shape == "box":
@@ -559,8 +568,18 @@ def _register_meshes(
     return xml
 
 
+def _door_xml(door: Door, geoms: list[str]) -> str:
+    return (
+        f'<body name="{door.body}" pos="{_fmt(door.hinge_m)}">\n'
+        f'      <joint name="{door.joint}" type="hinge" axis="{_fmt(door.axis)}" '
+        f'range="0 {door.max_angle_rad:g}" limited="true"/>\n'
+        f"      {''.join(geoms)}\n"
+        "    </body>"
+    )
+
+
 def _document(
-    materials: list[str], textures: list[str], world: list[str], door: list[str], hinge: np.ndarray
+    materials: list[str], textures: list[str], world: list[str], door: list[str], mockup: Mockup
 ) -> str:
     lamp_dir = "0 0 -1"
     strobe = _spot("strobe", (0.0, 0.03, 0.0), STROBE_LEVEL, 32.0)
@@ -568,9 +587,10 @@ def _document(
         _spot(f"halogen_{k}", (x, -0.03, 0.0), HALOGEN_LEVEL, 35.0) for k, x in enumerate((-0.05, 0.05))
     )
     room, sun = f"{ROOM_FRACTION * SUN_LEVEL:.6g}", f"{SUN_LEVEL} {SUN_LEVEL} {SUN_LEVEL}"
+    middle, _, height = mockup.centre_m
     return f"""<mujoco model="rsi_truss_mockup">
   <compiler angle="radian"/>
-  <statistic extent="3" center="0.9 0 1.2"/>
+  <statistic extent="{mockup.length_m + 1.2:.6g}" center="{middle:.6g} 0 {height:.6g}"/>
   <visual>
     <headlight active="0" ambient="0 0 0" diffuse="0 0 0" specular="0 0 0"/>
     <global offwidth="{MAX_RENDER_PX}" offheight="{MAX_RENDER_PX}" fovy="{CAMERA_FOVY_DEG}"/>
@@ -583,9 +603,9 @@ def _document(
     {"".join(materials)}
   </asset>
   <worldbody>
-    <light name="room" type="directional" pos="0.9 0 4" dir="0 0 -1" castshadow="false"
+    <light name="room" type="directional" pos="{middle:.6g} 0 4" dir="0 0 -1" castshadow="false"
            diffuse="0 0 0" specular="0 0 0" ambient="{room} {room} {room}"/>
-    <body name="solar_lamp" mocap="true" pos="0.9 -2.5 2.9">
+    <body name="solar_lamp" mocap="true" pos="{middle:.6g} -2.5 2.9">
       <light name="solar_lamp" mode="fixed" type="spot" pos="0 0 0" dir="{lamp_dir}" castshadow="true"
              cutoff="{LAMP_CUTOFF_DEG:g}" exponent="0" attenuation="1 0 0"
              diffuse="{sun}" specular="{sun}" ambient="0 0 0"/>
@@ -598,10 +618,7 @@ def _document(
       {strobe}{halogens}
     </body>
     {"".join(world)}
-    <body name="A_door" pos="{_fmt(hinge)}">
-      <joint name="A_door_hinge" type="hinge" axis="{_fmt(DOOR_HINGE_AXIS)}" range="0 1.92" limited="true"/>
-      {"".join(door)}
-    </body>
+    {_door_xml(mockup.door, door)}
   </worldbody>
   <sensor>
     <rangefinder name="isee_range" site="isee_range"/>

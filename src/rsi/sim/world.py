@@ -27,11 +27,12 @@ from rsi.sim.mockup import (
     A_FACE_Y_M,
     BAY_M,
     BAYS,
+    LAYOUT_NAMES,
     TRUSS_Z0_M,
     VISTA_STANDOFF_M,
     Mockup,
     Vista,
-    truss_mockup,
+    mockup,
 )
 from rsi.sim.orbit import (
     FLASH_S,
@@ -70,7 +71,7 @@ if TYPE_CHECKING:
     from rsi.sensors.pyrometer import Pyrometer, PyrometerReading
     from rsi.sim.anomalies import Site
 
-SCENES = ("truss",)
+SCENES = LAYOUT_NAMES  # the mock-up's layouts (rsi.sim.mockup.LAYOUTS): "truss", "truss-b"
 # Seed §2.3 viewpoint repeatability, as the image shift it causes at the vista's standoff: the lab arm
 # returns within 1-2 px; in orbit arm flexibility and thermal expansion give about 10 px.
 REPEATABILITY_PX: dict[str, tuple[float, float]] = {"lab": (1.0, 2.0), "space": (8.0, 12.0)}
@@ -83,12 +84,15 @@ HALOGEN_LUX = 1500.0  # end-effector lamps' regulated illuminance at the standof
 DEFAULT_SIZE = (480, 640)  # the seed's video frame
 # Issue 4: the arm on its rail in the same world, rail along the truss (x) and centred on it. At home the
 # ISEE's cameras and rangefinders (on the housing face, RANGEFINDER_RECESS_M behind the jaw tips) stand the
-# vistas' 0.5 m off the front-most face (ORU A), looking at the B tank, whose front is as far forward.
+# vistas' 0.5 m off the front-most face (ORU A, as far forward on every layout). ARM_HOME_TOOL_TIP_M is the
+# seed layout's ("truss": looking at the B tank, whose front is as far forward); arm_home_tool_tip_m(mockup)
+# gives any layout's (issue 15: the rail follows the truss).
 ARM_HOME_TOOL_TIP_M = (
     BAY_M * BAYS / 2,
     A_FACE_Y_M - (VISTA_STANDOFF_M - RANGEFINDER_RECESS_M),
     TRUSS_Z0_M + BAY_M / 2,
 )
+_LAMP_AIM_Y_M = -0.47  # the lamp's first spot: on the ORUs' front faces
 TOOL_VIEW = "tool"  # View.vista of a frame from the arm's ISEE camera
 _TRUTH_DEPTH_TOLERANCE_M = 5e-3
 # What the joint encoders leave unknown of a commanded camera pose: a 17-bit absolute encoder resolves
@@ -98,7 +102,6 @@ ENCODER_POSITION_SIGMA_M = 1e-4
 # how far the pyrometer's laser-sighted spot misses its aim: the arm's repeatability at the tool
 _PYROMETER_MISS_M = {"lab": (0.0, 1e-3), "space": (2e-3, 6e-3)}
 ENCODER_ANGLE_SIGMA_RAD = 1e-4
-_TRUSS_PARTS = ("longeron_", "batten_", "node_", "diagonal_")  # the frame the components hang on (seed §4)
 _MARKER_COLOURS = {
     "hot_spot": (255, 64, 32),
     "cold_spot": (64, 160, 255),
@@ -215,7 +218,7 @@ class World:
         self._noise_rng = np.random.default_rng(noise)
         self._encoder_rng = np.random.default_rng(encoders)
         model, index = build_model(
-            mockup, anomalies, arm_home_tool_tip_m=ARM_HOME_TOOL_TIP_M if arm else None
+            mockup, anomalies, arm_home_tool_tip_m=arm_home_tool_tip_m(mockup) if arm else None
         )
         self.model: Any = model
         self.index: SceneIndex = index
@@ -231,11 +234,13 @@ class World:
         self._lights = {
             group: [self._id("light", name) for name in names] for group, names in LIGHT_GROUPS.items()
         }
+        # the frame the components hang on (seed §4): longerons, battens, nodes, diagonals
         self._truss_geoms = [
-            self._id("geom", part.name) for part in mockup.parts if part.name.startswith(_TRUSS_PARTS)
+            self._id("geom", part.name) for part in mockup.parts if part.component == "truss"
         ] + self._arm_geoms()
         self._component_geoms = self._swappable_geoms()
-        centre = (0.9, -0.47, 1.2)  # front of the middle bay
+        middle, _, height = mockup.centre_m
+        centre = (middle, _LAMP_AIM_Y_M, height)  # front of the truss's middle
         # seed §4.1: the pan range (theta 90-180 deg) puts the lamp on the +x side of its spot
         self.lamp = inverse_kinematics(centre, intensity_lux=LAB_LAMP_LUX, rail_m=2.0)
         self.set_lamp(self.lamp)
@@ -289,7 +294,8 @@ class World:
         """
         if self._arm is None:
             raise InputError(
-                "this world has no arm; build it with rsi.sim.load('truss', seed=..., arm=True)."
+                "this world has no arm; build it with rsi.sim.load(layout, seed=..., arm=True), the layout "
+                f"one of {', '.join(SCENES)}."
             )
         return self._arm
 
@@ -362,15 +368,17 @@ class World:
         self.lamp_on = on
 
     def set_door(self, angle_rad: float) -> None:
-        """Open the ORU A door by `angle_rad` in [0, 1.92] (0 = closed): shows connectors and cold plate."""
-        angle = v.in_range(angle_rad, "angle_rad", low=0.0, high=1.92)
-        self.data.qpos[self.model.jnt_qposadr[self._id("joint", "A_door_hinge")]] = angle
+        """Open the electrical ORU's door by `angle_rad` in [0, 1.92] (0 = closed): shows connectors and cold
+        plate. It swings out towards the robot (-y) about its hinge, on whichever edge the layout put it."""
+        door = self.mockup.door
+        angle = v.in_range(angle_rad, "angle_rad", low=0.0, high=door.max_angle_rad)
+        self.data.qpos[self.model.jnt_qposadr[self._id("joint", door.joint)]] = angle
         self._mujoco.mj_forward(self.model, self.data)  # the door's geoms follow qpos only after kinematics
 
     @property
     def door_angle_rad(self) -> float:
-        """Opening angle of the ORU A door."""
-        return float(self.data.qpos[self.model.jnt_qposadr[self._id("joint", "A_door_hinge")]])
+        """Opening angle of the electrical ORU's door."""
+        return float(self.data.qpos[self.model.jnt_qposadr[self._id("joint", self.mockup.door.joint)]])
 
     def set_strobe_energy(self, factor: float) -> None:
         """Flash energy of the ISEE strobe as a multiple of the seed's 1.3 lm s (seed §2.1), in [0.1, 8].
@@ -899,6 +907,13 @@ def frame_size(size: object) -> tuple[int, int]:
     return (rows, cols)
 
 
+def arm_home_tool_tip_m(mockup: Mockup) -> tuple[float, float, float]:
+    """Where the arm's home tool tip stands in front of `mockup`: mid-truss, its rail centred on the truss
+    (:data:`ARM_HOME_TOOL_TIP_M` on the seed layout), the vistas' standoff off the front-most face."""
+    v.instance_of(mockup, "mockup", Mockup, none_allowed=False)
+    return (mockup.length_m / 2, ARM_HOME_TOOL_TIP_M[1], ARM_HOME_TOOL_TIP_M[2])
+
+
 def load(
     scene: str = "truss",
     *,
@@ -912,8 +927,9 @@ def load(
 
     Parameters
     ----------
-    scene : {"truss"}
-        The mock-up.
+    scene : {"truss", "truss-b"}
+        The mock-up's layout (:data:`SCENES`, :data:`rsi.sim.mockup.LAYOUTS`): the seed's, or issue 15's
+        second arrangement of the same kinds of component on four bays.
     seed : int or numpy.random.SeedSequence
         Seed of every random choice, >= 0, or a sequence spawned for this world: one child stream draws the
         anomalies, the other the viewpoint errors and camera noise.
@@ -925,7 +941,8 @@ def load(
         The inspection camera (seed §2.1).
     arm : bool
         Also put the K1207-style arm on its rail, carrying the ISEE, in the same MuJoCo world (issue 4):
-        rail along the truss at x = 0.9 +- 1 m, home tool tip at :data:`ARM_HOME_TOOL_TIP_M`. Reach it as
+        rail along the truss, centred on it (x = 0.9 +- 1 m on "truss", 1.2 +- 1 m on "truss-b"), home tool
+        tip at :func:`arm_home_tool_tip_m` (:data:`ARM_HOME_TOOL_TIP_M` on "truss"). Reach it as
         :attr:`World.arm`; frames from its camera with :meth:`World.render_from_tool`. False (default)
         builds exactly the model, and the frames, of a world without it.
 
@@ -937,9 +954,7 @@ def load(
     _check_build(repeatability, camera, arm)  # before the anomalies are drawn and the model is built
     # one stream draws the anomalies, the other is the world's (poses, noise): spawned, never re-derived
     anomaly_stream, world_stream = seed_sequence(seed).spawn(2)
-    mockup = truss_mockup()
-    anomalies = seed_anomalies(
-        mockup.candidates, rng=np.random.default_rng(anomaly_stream), settings=settings
-    )
+    built = mockup(scene)
+    anomalies = seed_anomalies(built.candidates, rng=np.random.default_rng(anomaly_stream), settings=settings)
     # a spawned child keeps its parent's entropy: world.seed is the user's integer
-    return World(mockup, anomalies, seed=world_stream, repeatability=repeatability, camera=camera, arm=arm)
+    return World(built, anomalies, seed=world_stream, repeatability=repeatability, camera=camera, arm=arm)

@@ -1,0 +1,77 @@
+"""The non-visual surveys on any layout (issue 15): the gas survey runs along each tank-and-tubing ORU's
+tubing, and a finding is filed under the vista of the instrument that read it, found from the mock-up."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.mission import MissionSettings
+from rsi.mission.records import MissionFinding
+from rsi.mission.store import _filed_under
+from rsi.mission.surveys import gas_pass, gas_stations
+from rsi.sim.anomalies import AnomalySettings, seed_anomalies
+from rsi.sim.mockup import mockup
+from rsi.sim.world import World
+
+# two strong leaks at once (seed §4 has up to two on), one on each tubing of truss-b
+DRAW = AnomalySettings(
+    anomaly_free_probability=0.0, active_leak_count_range=(2, 2), leak_exit_ppm_range=(20000.0, 20000.0)
+)
+
+
+@pytest.fixture(scope="module")
+def world() -> Iterator[World]:
+    built = mockup("truss-b")
+    first, second = (set(names) for names in built.tubing_leaks)
+    for seed in range(50):
+        anomalies = seed_anomalies(built.candidates, rng=np.random.default_rng(seed), settings=DRAW)
+        sites = {leak.site for leak in anomalies.gas_leaks}
+        if sites & first and sites & second:
+            break
+    world = World(built, anomalies, seed=0)
+    yield world
+    world.close()
+
+
+def test_the_gas_survey_runs_along_each_tubing(world: World) -> None:
+    settings = MissionSettings()
+    stations = gas_stations(world, settings)
+    sites = {site.name: site for site in world.mockup.candidates.leak_sites}
+    for names in world.mockup.tubing_leaks:
+        xs = [sites[name].position_m[0] for name in names]
+        along = stations[(stations[:, 0] >= min(xs) - 0.1 - 1e-9) & (stations[:, 0] <= max(xs) + 0.1 + 1e-9)]
+        # two runs (the high and the low tube), 0.1 m in front of the holes, from end to end of each
+        assert sorted({round(z, 4) for z in along[:, 2]}) == sorted(
+            {round(sites[n].position_m[2], 4) for n in names}
+        )
+        np.testing.assert_allclose(along[:, 1], sites[names[0]].position_m[1] - settings.gas_standoff_m)
+        assert along[:, 0].min() == pytest.approx(min(xs) - 0.1) and along[:, 0].max() == pytest.approx(
+            max(xs) + 0.1
+        )
+    assert len(stations) % 4 == 0  # two tubings of two runs, each as many stations long
+
+
+def test_the_gas_survey_finds_a_leak_on_each_tubing(world: World) -> None:
+    findings, _, _ = gas_pass(world, np.random.default_rng(0), MissionSettings())
+    leaks = world.anomalies.gas_leaks
+    assert len(leaks) == 2 and len(findings) == 2
+    for leak in leaks:
+        nearest = min(np.linalg.norm(np.subtract(f.position_m, leak.position_m)) for f in findings)
+        assert nearest < 0.03  # the scoring radius of a leak
+    vistas = {_filed_under(world, finding) for finding in findings}
+    assert vistas == {"D_tubing", "E_tubing"}  # each filed under its own tubing's vista
+
+
+def test_a_finding_is_filed_under_its_instrument_vista_or_its_source(world: World) -> None:
+    def finding(source: str, position_m: tuple[float, float, float]) -> MissionFinding:
+        return MissionFinding("hot_spot", position_m, 0.05, 0.9, source, 1.0)
+
+    kapton = world.vista("A_kapton").target_m
+    assert _filed_under(world, finding("pyrometer", kapton)) == "A_kapton"
+    assert _filed_under(world, finding("B_tank", world.vista("B_tank").target_m)) == "B_tank"
