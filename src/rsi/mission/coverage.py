@@ -98,7 +98,8 @@ class CoverageRules:
         margin = v.positive_int(self.margin_px, "margin_px", minimum=0)
         if 2 * margin >= min(rows, cols):
             raise InputError(
-                f"margin_px={margin} leaves nothing of a {rows}x{cols} image; keep it under {min(rows, cols) // 2}."
+                f"margin_px={margin} leaves nothing of a {rows}x{cols} image; "
+                f"keep it under {min(rows, cols) // 2}."
             )
 
     @property

@@ -27,6 +27,7 @@ Deterministic: no random draw anywhere. See docs/mission.md, "Plan from the CAD 
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, replace
@@ -324,12 +325,14 @@ def _cost_matrix(points: list[Vista], doors: list[float]) -> FloatArray:
 
 def tour_order(points: list[Vista], doors: list[float], start_m: FloatArray) -> list[int]:
     """Step 5: nearest neighbour from the vista nearest `start_m`, then 2-opt on the open path."""
+    from rsi.mission.transit import TRANSFER_SPEED_M_S
+
     if not points:
         return []
     cost = _cost_matrix(points, doors)
-    first = int(
-        np.argmin([np.linalg.norm(_staging(p) - start_m) + DOOR_CHANGE_S * d for p, d in zip(points, doors)])
-    )
+    # from the home, a closed-door point first: the door opens once, for the points that need it
+    away = [float(np.linalg.norm(_staging(p) - start_m)) / TRANSFER_SPEED_M_S for p in points]
+    first = int(np.argmin([t + DOOR_CHANGE_S * (d != 0.0) for t, d in zip(away, doors, strict=True)]))
     order = [first]
     while len(order) < len(points):
         left = [k for k in range(len(points)) if k not in order]
@@ -339,7 +342,7 @@ def tour_order(points: list[Vista], doors: list[float], start_m: FloatArray) -> 
 
 def _two_opt(order: list[int], cost: FloatArray) -> list[int]:
     def length(path: list[int]) -> float:
-        return float(sum(cost[a, b] for a, b in zip(path, path[1:])))
+        return float(sum(cost[a, b] for a, b in itertools.pairwise(path)))
 
     improved = True
     while improved:
@@ -359,9 +362,9 @@ def tour_figures(points: list[Vista], start_m: FloatArray) -> tuple[float, float
     if not points:
         return 0.0, 0.0
     stops = [np.asarray(start_m, float), *(_staging(p) for p in points)]
-    length = float(sum(np.linalg.norm(b - a) for a, b in zip(stops, stops[1:])))
+    length = float(sum(np.linalg.norm(b - a) for a, b in itertools.pairwise(stops)))
     seconds = float(np.linalg.norm(stops[1] - stops[0])) / TRANSFER_SPEED_M_S
-    seconds += sum(transfer_s(a, b) for a, b in zip(points, points[1:]))
+    seconds += sum(transfer_s(a, b) for a, b in itertools.pairwise(points))
     return length, seconds
 
 
@@ -429,9 +432,12 @@ def generate_plan(
     chosen, coverable = greedy_cover(weighed, sight.samples.area_m2, target)
     picked = [weighed[k] for k in chosen]
     reached = [c.reachable for c in picked]
-    start = picked[0].vista.position_m
+    start: FloatArray = np.asarray(picked[0].vista.position_m)
     if arm_world is not None:
-        reached = [ok and ik_reaches(arm_world, c.vista, c.door_angle_rad) for ok, c in zip(reached, picked)]
+        reached = [
+            ok and ik_reaches(arm_world, c.vista, c.door_angle_rad)
+            for ok, c in zip(reached, picked, strict=True)
+        ]
         arm_world.arm.reset()
         start = arm_world.arm.tool_pose()[0]
     order = tour_order([c.vista for c in picked], [c.door_angle_rad for c in picked], np.asarray(start))
@@ -458,7 +464,7 @@ def _assembled(
 ) -> CadPlan:
     """The plan record: points named in visiting order, the coverage of the chosen views, the tour."""
     vistas = tuple(replace(c.vista, name=f"cad_{k:02d}") for k, c in enumerate(picked))
-    points = tuple(PlanPoint(p.name, p.name, c.door_angle_rad) for p, c in zip(vistas, picked))
+    points = tuple(PlanPoint(p.name, p.name, c.door_angle_rad) for p, c in zip(vistas, picked, strict=True))
     length, seconds = tour_figures(list(vistas), start)
     first = np.full(len(sight.samples), -1, dtype=np.int64)
     for number, candidate in enumerate(picked):
@@ -471,7 +477,7 @@ def _assembled(
         points=points,
         vistas=vistas,
         targets=tuple(c.surface for c in picked),
-        unreachable=tuple(p.name for p, ok in zip(points, reached) if not ok),
+        unreachable=tuple(p.name for p, ok in zip(points, reached, strict=True) if not ok),
         coverage=measured,
         coverable=coverable,
         tour_m=length,
