@@ -88,7 +88,14 @@ class CoverageRules:
 
     def __post_init__(self) -> None:
         v.in_range(self.max_pixel_m, "max_pixel_m", low=0.0, low_inclusive=False)
-        v.in_range(self.max_incidence_deg, "max_incidence_deg", low=0.0, high=90.0, low_inclusive=False)
+        v.in_range(
+            self.max_incidence_deg,
+            "max_incidence_deg",
+            low=0.0,
+            high=90.0,
+            low_inclusive=False,
+            high_inclusive=False,
+        )
         v.in_range(self.sample_spacing_m, "sample_spacing_m", low=1e-3, high=0.1)
         v.in_range(self.depth_tolerance_m, "depth_tolerance_m", low=0.0, low_inclusive=False, high=0.02)
         if not isinstance(self.size, tuple) or len(self.size) != 2:

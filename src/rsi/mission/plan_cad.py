@@ -31,7 +31,7 @@ import itertools
 import math
 import time
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -119,30 +119,34 @@ class CadPlan:
 # --------------------------------------------------------------------------------------- candidates
 
 
-def _frames(item: Surface | Site) -> list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
-    """Targets on `item`: (point, normal, first axis, second axis), grid ``TARGET_SPACING_M`` apart."""
-    from rsi.mission.coverage import _grid
+def _steps(half: float, spacing: float) -> FloatArray:
+    """Offsets from a surface's middle, `spacing` apart, within +-`half`: the middle always one of them."""
+    count = math.floor(half / spacing + 1e-9)
+    steps: FloatArray = np.arange(-count, count + 1, dtype=np.float64) * spacing
+    return steps
 
+
+def _frames(item: Surface | Site) -> list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
+    """Targets on `item`: (point, normal, first axis, second axis), its middle and a grid
+    ``TARGET_SPACING_M`` apart."""
     if isinstance(item, Site):
         normal = np.asarray(item.normal)
         return [(np.asarray(item.position_m), normal, *_site_axes(normal))]
     if isinstance(item, Patch):
         u_axis, v_axis, normal = (np.asarray(a) for a in (item.u_axis, item.v_axis, item.normal))
-        us, vs = (_grid(half, TARGET_SPACING_M) for half in item.half_extent_m)
+        us, vs = (_steps(half, TARGET_SPACING_M) for half in item.half_extent_m)
         centre = np.asarray(item.centre_m)
         return [(centre + a * u_axis + b * v_axis, normal, u_axis, v_axis) for a in us for b in vs]
     return _cylinder_frames(item)
 
 
 def _cylinder_frames(item: CylinderPatch) -> list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
-    from rsi.mission.coverage import _grid
-
     axis, front = np.asarray(item.axis), np.asarray(item.front)
     side = np.cross(axis, front)
     frames = []
-    for angle in _grid(item.half_angle_rad, TARGET_SPACING_M / item.radius_m):
+    for angle in _steps(item.half_angle_rad, TARGET_SPACING_M / item.radius_m):
         normal = math.cos(angle) * front + math.sin(angle) * side
-        for along in _grid(item.half_length_m, TARGET_SPACING_M):
+        for along in _steps(item.half_length_m, TARGET_SPACING_M):
             point = np.asarray(item.centre_m) + along * axis + item.radius_m * normal
             frames.append((point, normal, axis, np.cross(normal, axis)))
     return frames
@@ -238,7 +242,33 @@ def greedy_cover(candidates: list[Candidate], area: FloatArray, target: float) -
             break
         chosen.append(best)
         covered[candidates[best].seen] = True
-    return _pruned(chosen, candidates, area, goal), float(area[coverable].sum() / area.sum())
+    kept = _pair_swaps(_pruned(chosen, candidates, area, goal), matrix, candidates, area, goal)
+    return kept, float(area[coverable].sum() / area.sum())
+
+
+def _pair_swaps(
+    kept: list[int], matrix: Any, candidates: list[Candidate], area: FloatArray, goal: float
+) -> list[int]:
+    """Replace any two points by one candidate while the goal is still met (greedy's first, widest pick
+    often leaves two half views where one offset view would do), until no pair can be."""
+    improved = True
+    while improved and len(kept) > 1:
+        improved = False
+        counts = np.zeros(area.size, dtype=np.int64)
+        for k in kept:
+            counts[candidates[k].seen] += 1
+        for a, b in itertools.combinations(range(len(kept)), 2):
+            left = counts.copy()
+            left[candidates[kept[a]].seen] -= 1
+            left[candidates[kept[b]].seen] -= 1
+            have = float(area[left > 0].sum())
+            gain = matrix @ np.where(left > 0, 0.0, area)
+            best = int(np.argmax(gain))
+            if have + gain[best] >= goal:
+                kept = [k for i, k in enumerate(kept) if i not in (a, b)] + [best]
+                improved = True
+                break
+    return kept
 
 
 def _pruned(chosen: list[int], candidates: list[Candidate], area: FloatArray, goal: float) -> list[int]:

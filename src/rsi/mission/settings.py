@@ -107,7 +107,7 @@ class MissionSettings:
     plan : {"hand", "cad"}
         The vista points: ``"hand"`` the ten hand-placed points of the truss (:mod:`rsi.mission.plan`,
         the operating point of the figures in docs/mission.md), ``"cad"`` a plan generated from the CAD
-        model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 32 points on the truss, not yet
+        model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 28 points on the truss, not yet
         measured in the mission's figures).
     """
 

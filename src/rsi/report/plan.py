@@ -49,7 +49,7 @@ def coverage_png(picture: NDArray[np.uint8], pose: Any, points_m: NDArray[np.flo
     else:
         x0, y0, x1, y1 = 0.0, 0.0, float(cols), float(rows)
     x0, y0, x1, y1 = max(x0, 0.0), max(y0, 0.0), min(x1, cols - 1.0), min(y1, rows - 1.0)
-    figure = Figure(figsize=(9.0, 9.0 * (y1 - y0) / max(x1 - x0, 1.0)), dpi=80)
+    figure = Figure(figsize=(8.0, 8.0 * (y1 - y0) / max(x1 - x0, 1.0)), dpi=72)
     axes = figure.add_axes((0.0, 0.0, 1.0, 1.0))
     axes.imshow(picture, alpha=0.6)
     for mask, colour in ((covered & inside, COVERED_COLOUR), (~covered & inside, UNCOVERED_COLOUR)):
