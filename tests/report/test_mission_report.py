@@ -104,6 +104,7 @@ def test_every_image_is_a_png_that_decodes(report: Report) -> None:
     assert boxed > 0
     plots = 2 + (1 if report.result.transits else 0) + (1 if report.result.roc else 0)
     plots += 1 if report.result.suns else 0  # the passes' suns (issue 14)
+    plots += 1 if report.result.plan_coverage is not None else 0  # the plan's coverage map (issue 15)
     assert len(sources) == 1 + 4 * boxed + plots
     for source in sources:
         data = base64.b64decode(source.removeprefix(DATA_URI), validate=True)

@@ -1,6 +1,10 @@
 """The mission's plan: the vista points that cover every component of the mock-up (seed §4).
 
-The mock-up's own vistas cover its components; the solar panel's dark cells need closer views (see
+:func:`plan_vistas` gives the plan ``MissionSettings.plan`` names: ``"cad"`` the plan generated from any
+mock-up's CAD model (:func:`rsi.mission.plan_cad.generate_plan`, no layout named), ``"hand"`` (the default
+while the mission's figures are measured on it) the **hand plan**, kept as a named comparison: ten points
+placed by hand on the ``truss`` layout only. Its names and offsets below are that layout's: the mock-up's
+own vistas cover its components, the solar panel's dark cells need closer views (see
 :func:`panel_vistas`), and the electrical ORU's inside is seen with its door open (seed §4 A).
 """
 
@@ -9,6 +13,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from rsi import _validate as v
+from rsi.errors import InputError
 from rsi.mission.records import PlanPoint
 from rsi.mission.settings import MissionSettings
 
@@ -16,7 +21,8 @@ if TYPE_CHECKING:
     from rsi.sim.mockup import Vista
     from rsi.sim.world import World
 
-# the panel's four quarters (rows across the truss) and its centre, offsets from its vista's target
+# The hand plan on the truss layout only: the panel's four quarters (rows across the truss) and its centre,
+# offsets from its vista's target
 _PANEL_OFFSETS_M = {
     "C_panel_west_front": (-0.125, -0.095),
     "C_panel_west_back": (-0.125, 0.095),
@@ -26,7 +32,7 @@ _PANEL_OFFSETS_M = {
 }
 
 
-def panel_vistas(standoff_m: float) -> tuple[Vista, ...]:
+def panel_vistas(standoff_m: float, centre: tuple[float, float, float] | None = None) -> tuple[Vista, ...]:
     """Five close views of the solar panel at `standoff_m` that the mock-up does not list (seed §4 C).
 
     At the 0.5 m standoff a pixel is 0.66 mm on the dark cells: a millimetre impact covers two pixels and
@@ -37,7 +43,7 @@ def panel_vistas(standoff_m: float) -> tuple[Vista, ...]:
     """
     from rsi.sim.mockup import truss_mockup, vista
 
-    centre = truss_mockup().vistas["C_panel"].target_m
+    centre = truss_mockup().vistas["C_panel"].target_m if centre is None else centre
     return tuple(
         vista(name, (centre[0] + dx, centre[1] + dy, centre[2]), (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), standoff_m)
         for name, (dx, dy) in _PANEL_OFFSETS_M.items()
@@ -63,15 +69,36 @@ PLAN: tuple[PlanPoint, ...] = plan_points(MissionSettings())
 
 
 def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[PlanPoint, ...]:
-    """Add the plan's panel vistas to `world` (once) and return the plan (every component covered)."""
+    """Add the plan's vistas to `world` (once) and return the plan (``settings.plan``: see the module notes).
+
+    Raises InputError for a world that is not a World, settings that are not MissionSettings, or the hand
+    plan asked of a world whose mock-up lacks its vistas (the hand plan is the truss layout's).
+    """
     from rsi.sim.world import World
 
     settings = v.instance_or_default(settings, "settings", MissionSettings)
     v.instance_of(world, "world", World, none_allowed=False)
-    for point in panel_vistas(settings.panel_standoff_m):
+    if settings.plan == "cad":
+        from rsi.mission.plan_cad import add_plan_vistas, generate_plan
+
+        return add_plan_vistas(world, generate_plan(world, settings))
+    return hand_plan_vistas(world, settings)
+
+
+def hand_plan_vistas(world: World, settings: MissionSettings) -> tuple[PlanPoint, ...]:
+    """Add the hand plan's panel vistas to `world` (once) and return the hand plan (truss layout only)."""
+    needed = {point.vista for point in plan_points(settings)} - set(_PANEL_OFFSETS_M) | {"C_panel"}
+    missing = sorted(needed - set(world.vistas))
+    if missing:
+        raise InputError(
+            f"the hand plan is the truss layout's and this world lacks its vistas {missing}; "
+            "use MissionSettings(plan='cad') for a plan from this mock-up's CAD model."
+        )
+    centre = world.vista("C_panel").target_m
+    for point in panel_vistas(settings.panel_standoff_m, centre):
         if point.name not in world.vistas:
             world.add_vista(point)
     return plan_points(settings)
 
 
-__all__ = ["PLAN", "panel_vistas", "plan_points", "plan_vistas"]
+__all__ = ["PLAN", "hand_plan_vistas", "panel_vistas", "plan_points", "plan_vistas"]

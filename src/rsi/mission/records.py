@@ -17,6 +17,7 @@ from rsi.mission.settings import MissionSettings
 if TYPE_CHECKING:
     from rsi.detection.detect import Flaw
     from rsi.detection.roc import RocCurve
+    from rsi.mission.coverage import Coverage
     from rsi.mission.sun import SunSetting
     from rsi.mission.transit import Transit
     from rsi.sim.anomalies import Anomaly, AnomalySet
@@ -215,6 +216,9 @@ class MissionResult:
         (empty without the orbit).
     settings : MissionSettings
         The settings the mission ran with.
+    plan_coverage : Coverage or None
+        What the plan covers of the mock-up's inspectable surface at 0.5 mm per pixel and 45 deg, measured
+        from the CAD (:func:`rsi.mission.coverage.coverage`; issue 15).
     """
 
     seed: int
@@ -236,6 +240,7 @@ class MissionResult:
     transits: tuple[Transit, ...] = ()
     suns: tuple[SunSetting, ...] = ()
     settings: MissionSettings = field(default_factory=MissionSettings)
+    plan_coverage: Coverage | None = field(default=None, repr=False, compare=False)
 
     @property
     def counts(self) -> tuple[bool, ...]:

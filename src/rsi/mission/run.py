@@ -24,6 +24,7 @@ import numpy as np
 
 from rsi import _validate as v
 from rsi.errors import InputError
+from rsi.mission.coverage import coverage
 from rsi.mission.evidence import screw_relief_m
 from rsi.mission.exposure import metered, settle
 from rsi.mission.plan import plan_vistas
@@ -131,6 +132,7 @@ def run_mission(
     streams = _Streams.spawned(seed)
     world = load("truss", seed=streams.world, repeatability=repeatability, arm=arm, settings=anomalies)
     plan = plan_vistas(world, settings)
+    plan_coverage = coverage(plan, world)  # issue 15: what the plan sees of the CAD, for the report
     tour = Tour(world, seed=streams.tour, size=shape, arm=arm, orbit=orbit)
     report = _progress_reporter(progress, total=2 * len(plan) + 2)
     sensor_rng = np.random.default_rng(streams.sensors)
@@ -172,6 +174,7 @@ def run_mission(
         transits=tuple(tour.transits),
         suns=tuple(tour.suns),
         settings=settings,
+        plan_coverage=plan_coverage,
     )
 
 

@@ -11,6 +11,7 @@ geometry is read from the arm's model, no numbers copied. See docs/mission.md.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -135,8 +136,15 @@ def viewing_pose(world: World, vista: str, *, offset_m: tuple[float, float] = (0
 
     Raises InputError for a world without the arm, an unknown vista or a non-finite offset.
     """
-    point = world_vista(world, vista)
-    isee = _isee(world)
+    return pose_of(world, world_vista(world, vista), offset_m=offset_m)
+
+
+def pose_of(world: World, point: Vista, *, offset_m: tuple[float, float] = (0.0, 0.0)) -> ViewingPose:
+    """:func:`viewing_pose` of a vista `point` the world need not list (a plan generator's candidate)."""
+    return _pose(_isee(world), point, offset_m)
+
+
+def _pose(isee: _Isee, point: Vista, offset_m: tuple[float, float]) -> ViewingPose:
     offset = np.asarray(offset_m, dtype=np.float64)
     if offset.shape != (2,) or not np.isfinite(offset).all():
         raise InputError(f"offset_m must be two finite numbers (right, up; metres); got {offset_m!r}.")
@@ -144,7 +152,7 @@ def viewing_pose(world: World, vista: str, *, offset_m: tuple[float, float] = (0
     camera = np.asarray(point.position_m, float) + rotation[:, :2] @ offset
     tool_rotation = rotation @ isee.camera_rotation.T
     return ViewingPose(
-        vista=vista,
+        vista=point.name,
         camera_m=camera,
         camera_rotation=rotation,
         tool_m=camera - tool_rotation @ isee.camera_m,
@@ -183,14 +191,27 @@ def reach(world: World, vista: str) -> Reach:
     The wrist site lies on the w2 pitch axis, fixed in the tool frame, so the goal fixes it; the shoulder
     rides the rail along world x. Raises InputError for a world without the arm or an unknown vista.
     """
-    pose = viewing_pose(world, vista)
+    return reach_pose(world, viewing_pose(world, vista))
+
+
+def reach_pose(world: World, pose: ViewingPose) -> Reach:
+    """:func:`reach` of a viewing pose (of a vista the world need not list)."""
+    return _reach(_isee(world), pose)
+
+
+def reach_vistas(world: World, points: Sequence[Vista]) -> list[Reach]:
+    """:func:`reach` of many vistas the world need not list (the ISEE's geometry read once)."""
     isee = _isee(world)
+    return [_reach(isee, _pose(isee, point, (0.0, 0.0))) for point in points]
+
+
+def _reach(isee: _Isee, pose: ViewingPose) -> Reach:
     wrist = pose.tool_m + pose.tool_rotation @ isee.wrist_m
     low, high = float(LIMITS.lower[0]), float(LIMITS.upper[0])
     rail = float(np.clip(wrist[0] - isee.shoulder_at_rail_zero_m[0], low, high))
     shoulder = isee.shoulder_at_rail_zero_m + rail * np.array([1.0, 0.0, 0.0])
     shortfall = float(np.linalg.norm(wrist - shoulder)) - (UPPER_ARM_M + FOREARM_M - REACH_MARGIN_M)
-    return Reach(vista=vista, reachable=shortfall <= 0.0, shortfall_m=shortfall, rail_m=rail)
+    return Reach(vista=pose.vista, reachable=shortfall <= 0.0, shortfall_m=shortfall, rail_m=rail)
 
 
 # --------------------------------------------------------------------------------- the rangefinders
@@ -230,7 +251,10 @@ __all__ = [
     "expected_ranges_m",
     "focal_px",
     "look_rotation",
+    "pose_of",
     "reach",
+    "reach_pose",
+    "reach_vistas",
     "viewing_pose",
     "world_arm",
     "world_vista",

@@ -26,6 +26,7 @@ from rsi._files import writable_folder
 from rsi.constants import ROOM_TEMPERATURE_K
 from rsi.errors import InputError
 from rsi.report.figures import figure_png, mapped_png, roc_png
+from rsi.report.plan import plan_section
 from rsi.report.writers import atomic_write_text, csv_text, to_json, write_files
 
 if TYPE_CHECKING:
@@ -205,6 +206,7 @@ def mission_html(
         findings_section(result, score),
         truth_section(result, score),
         suns_section(result),
+        plan_section(result),
         crops_section(result, score),
         sensors_section(result),
         proximity_section(result),
