@@ -318,6 +318,13 @@ def demo(
     anomalies: AnomaliesOption = AnomalyDraw.wide,
     anomalies_json: AnomaliesJsonOption = None,
     sun_offset_s: SunOffsetOption = DEMO_SUN_OFFSET_S,
+    layout: Annotated[
+        str,
+        typer.Option(
+            help="The mock-up's layout: 'truss' (seed §4, the hand plan) or 'truss-b' (issue 15, a plan "
+            "generated from its CAD model)."
+        ),
+    ] = "truss",
 ) -> None:
     """The whole inspection mission over the simulated truss mock-up, scored, archived and reported.
     Reference pass, anomalies, inspection pass with active second looks under another sun (--sun-offset-s),
@@ -327,6 +334,7 @@ def demo(
     """
     with _errors():
         orbit_start_s = _orbit_start_s(sun_offset_s)
+        _check_layout(layout)
         _out_folder(out)
         settings = _anomaly_settings(anomalies, anomalies_json)
         import time
@@ -340,7 +348,12 @@ def demo(
         with Archive.open(out / "archive.db") as archive, _progress_bar("mission") as update:
             stages = _FinalStage(update, "report")
             result = run_mission(
-                seed, archive=archive, progress=stages.update, anomalies=settings, orbit_start_s=orbit_start_s
+                seed,
+                archive=archive,
+                progress=stages.update,
+                anomalies=settings,
+                orbit_start_s=orbit_start_s,
+                layout=layout,
             )
             scoring_s = time.perf_counter()
             score = score_mission(result)

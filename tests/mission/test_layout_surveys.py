@@ -1,5 +1,5 @@
 """The non-visual surveys on any layout (issue 15): the gas survey runs along each tank-and-tubing ORU's
-tubing, and a finding is filed under the vista of the instrument that read it, found from the mock-up."""
+tubing, and a finding is filed under the plan point nearest to where its instrument read it."""
 
 from __future__ import annotations
 
@@ -12,13 +12,15 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.mission import MissionSettings
-from rsi.mission.records import MissionFinding
-from rsi.mission.store import _filed_under
+from rsi.mission.records import MissionFinding, PlanPoint
+from rsi.mission.store import filed_under
 from rsi.mission.surveys import gas_pass, gas_stations
 from rsi.sim.anomalies import AnomalySettings, seed_anomalies
 from rsi.sim.mockup import mockup
 from rsi.sim.world import World
 
+# a plan of the mock-up's own vistas, one point each
+PLAN = tuple(PlanPoint(name, name) for name in ("A_kapton", "B_tank", "D_tubing", "E_tubing"))
 # two strong leaks at once (seed §4 has up to two on), one on each tubing of truss-b
 DRAW = AnomalySettings(
     anomaly_free_probability=0.0, active_leak_count_range=(2, 2), leak_exit_ppm_range=(20000.0, 20000.0)
@@ -64,14 +66,15 @@ def test_the_gas_survey_finds_a_leak_on_each_tubing(world: World) -> None:
     for leak in leaks:
         nearest = min(np.linalg.norm(np.subtract(f.position_m, leak.position_m)) for f in findings)
         assert nearest < 0.03  # the scoring radius of a leak
-    vistas = {_filed_under(world, finding) for finding in findings}
+    vistas = {filed_under(world, PLAN, finding) for finding in findings}
     assert vistas == {"D_tubing", "E_tubing"}  # each filed under its own tubing's vista
 
 
-def test_a_finding_is_filed_under_its_instrument_vista_or_its_source(world: World) -> None:
+def test_a_finding_is_filed_under_the_nearest_plan_point_or_its_source(world: World) -> None:
     def finding(source: str, position_m: tuple[float, float, float]) -> MissionFinding:
         return MissionFinding("hot_spot", position_m, 0.05, 0.9, source, 1.0)
 
     kapton = world.vista("A_kapton").target_m
-    assert _filed_under(world, finding("pyrometer", kapton)) == "A_kapton"
-    assert _filed_under(world, finding("B_tank", world.vista("B_tank").target_m)) == "B_tank"
+    assert filed_under(world, PLAN, finding("pyrometer", kapton)) == "A_kapton"
+    # a visual finding stays under its source, wherever it lies
+    assert filed_under(world, PLAN, finding("B_tank", kapton)) == "B_tank"

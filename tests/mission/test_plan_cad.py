@@ -243,4 +243,4 @@ def test_a_surface_no_view_can_see_is_refused() -> None:
 def test_the_hand_plan_is_refused_on_another_layout() -> None:
     world = _world(_mockup(*map(list, zip(_plate(), strict=True))))
     with pytest.raises(InputError, match="hand plan is the truss layout's"):
-        plan_vistas(world)
+        plan_vistas(world, MissionSettings(plan="hand"))

@@ -1,10 +1,11 @@
 """The mission's plan: the vista points that cover every component of the mock-up (seed §4).
 
 :func:`plan_vistas` gives the plan ``MissionSettings.plan`` names: ``"cad"`` the plan generated from any
-mock-up's CAD model (:func:`rsi.mission.plan_cad.generate_plan`, no layout named), ``"hand"`` (the default
-while the mission's figures are measured on it) the **hand plan**, kept as a named comparison: ten points
-placed by hand on the ``truss`` layout only. Its names and offsets below are that layout's: the mock-up's
-own vistas cover its components, the solar panel's dark cells need closer views (see
+mock-up's CAD model (:func:`rsi.mission.plan_cad.generate_plan`, no layout named), ``"hand"`` the **hand
+plan**, and ``"auto"`` (the default) the hand plan on the truss, where the mission's figures are
+measured on it, and the CAD plan on any other layout. The hand plan is kept as a named comparison: ten
+points placed by hand on the ``truss`` layout only. Its names and offsets below are that layout's: the
+mock-up's own vistas cover its components, the solar panel's dark cells need closer views (see
 :func:`panel_vistas`), and the electrical ORU's inside is seen with its door open (seed §4 A).
 """
 
@@ -78,7 +79,7 @@ def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[
 
     settings = v.instance_or_default(settings, "settings", MissionSettings)
     v.instance_of(world, "world", World, none_allowed=False)
-    if settings.plan == "cad":
+    if settings.plan == "cad" or (settings.plan == "auto" and world.mockup.layout != "truss"):
         from rsi.mission.plan_cad import add_plan_vistas, generate_plan
 
         return add_plan_vistas(world, generate_plan(world, settings))
@@ -87,12 +88,10 @@ def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[
 
 def hand_plan_vistas(world: World, settings: MissionSettings) -> tuple[PlanPoint, ...]:
     """Add the hand plan's panel vistas to `world` (once) and return the hand plan (truss layout only)."""
-    needed = {point.vista for point in plan_points(settings)} - set(_PANEL_OFFSETS_M) | {"C_panel"}
-    missing = sorted(needed - set(world.vistas))
-    if missing:
+    if world.mockup.layout != "truss":
         raise InputError(
-            f"the hand plan is the truss layout's and this world lacks its vistas {missing}; "
-            "use MissionSettings(plan='cad') for a plan from this mock-up's CAD model."
+            f"the hand plan is the truss layout's and this world's mock-up is {world.mockup.layout!r}; "
+            "use MissionSettings(plan='cad') (or 'auto') for a plan from this mock-up's CAD model."
         )
     centre = world.vista("C_panel").target_m
     for point in panel_vistas(settings.panel_standoff_m, centre):

@@ -36,6 +36,7 @@ from rsi.mission.truth import with_truth
 from rsi.mission.views import seen_screws, sense, strobe_image
 from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit
 from rsi.sim.anomalies import AnomalySettings
+from rsi.sim.mockup import LAYOUT_NAMES as LAYOUTS
 from rsi.sim.orbit import orbital_period_s
 
 if TYPE_CHECKING:
@@ -68,6 +69,7 @@ def run_mission(
     orbit: bool = True,
     orbit_start_s: tuple[float, float] = ORBIT_START_S,
     anomalies: AnomalySettings | None = None,
+    layout: str = "truss",
 ) -> MissionResult:
     """Reference pass, inspection pass and sensor passes over the seeded mock-up (seed §2-§4).
 
@@ -104,6 +106,9 @@ def run_mission(
     anomalies : AnomalySettings, optional
         How the world's anomalies are drawn (counts and parameter ranges, :class:`rsi.sim.AnomalySettings`);
         the simulator's default draw when None.
+    layout : {"truss", "truss-b"}
+        The mock-up (:data:`rsi.sim.LAYOUTS`); the plan comes from its CAD model unless ``settings.plan``
+        asks for the truss's hand plan.
 
     Returns
     -------
@@ -122,6 +127,7 @@ def run_mission(
     from rsi.sim.world import load
 
     settings = _checked(seed, settings, archive, repeatability, progress, active=active, arm=arm, orbit=orbit)
+    v.choice(layout, "layout", LAYOUTS)
     if anomalies is not None and not isinstance(anomalies, AnomalySettings):
         raise InputError(
             f"anomalies must be None or an rsi.sim.AnomalySettings; got {type(anomalies).__name__}."
@@ -130,7 +136,7 @@ def run_mission(
     shape, starts = _size(size), pass_starts(orbit_start_s)
     clock = _Clock()
     streams = _Streams.spawned(seed)
-    world = load("truss", seed=streams.world, repeatability=repeatability, arm=arm, settings=anomalies)
+    world = load(layout, seed=streams.world, repeatability=repeatability, arm=arm, settings=anomalies)
     plan = plan_vistas(world, settings)
     plan_coverage = coverage(plan, world)  # issue 15: what the plan sees of the CAD, for the report
     tour = Tour(world, seed=streams.tour, size=shape, arm=arm, orbit=orbit)
@@ -279,7 +285,7 @@ def _archived(  # noqa: PLR0917 - the run's parts, each needed once
         run_settings=run_settings,
         settings=settings,
     )
-    store_findings(archive, run_id, findings, world=world)
+    store_findings(archive, run_id, findings, world=world, plan=plan)
     return run_id
 
 

@@ -16,7 +16,7 @@ from rsi.errors import InputError
 MISSION_SIZE = (480, 640)  # the seed's video frame (seed §2.1)
 OVERVIEW_SIZE = (600, 800)
 REPEATABILITY = ("lab", "space")
-PLANS = ("hand", "cad")
+PLANS = ("auto", "hand", "cad")
 
 
 @dataclass(frozen=True)
@@ -104,11 +104,11 @@ class MissionSettings:
     panel_standoff_m : float
         Standoff of the close solar-panel views: 0.46 mm pixels, where the cells' 0.8 mm texels no longer
         alias between visits.
-    plan : {"hand", "cad"}
+    plan : {"auto", "hand", "cad"}
         The vista points: ``"hand"`` the ten hand-placed points of the truss (:mod:`rsi.mission.plan`,
         the operating point of the figures in docs/mission.md), ``"cad"`` a plan generated from the CAD
-        model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 28 points on the truss, not yet
-        measured in the mission's figures).
+        model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 28 points on the truss),
+        ``"auto"`` (default) the hand plan on the truss layout and the CAD plan on any other.
     """
 
     p_false_alarm: float = 1e-9
@@ -147,7 +147,7 @@ class MissionSettings:
     gas_survey_start_s: float = 60.0
     door_open_rad: float = 1.4
     panel_standoff_m: float = 0.35
-    plan: str = "hand"
+    plan: str = "auto"
 
     def __post_init__(self) -> None:
         for item in fields(self):
@@ -156,7 +156,7 @@ class MissionSettings:
                 _check_flaw_model(value)
             elif item.name == "plan":
                 if value not in PLANS:
-                    raise InputError(f"plan must be one of {PLANS}; got {value!r}. The default is 'hand'.")
+                    raise InputError(f"plan must be one of {PLANS}; got {value!r}. The default is 'auto'.")
             elif isinstance(item.default, int) and (isinstance(value, bool) or not isinstance(value, int)):
                 raise InputError(
                     f"{item.name} must be an integer; got {value!r}. The default is {item.default}."

@@ -19,13 +19,14 @@ if TYPE_CHECKING:
     from rsi.sim.world import World
 
 
-def _filed_under(world: World, finding: MissionFinding) -> str:
-    """The vista a finding is filed under: a non-visual one under the vista its instrument read (seed §3-4;
-    of a layout's two tubings, the one nearest the finding), a visual one under its source."""
-    vistas = world.mockup.instrument_vistas.get(finding.source, ())
-    if not vistas:
+def filed_under(world: World, plan: tuple[PlanPoint, ...], finding: MissionFinding) -> str:
+    """The plan point a finding is filed under: a visual one under its source, a non-visual one under the
+    point whose vista's target is nearest to where its instrument read it (seed §3-4: the pyrometer's
+    Kapton circle, the gas sensor's tubing), on any layout and any plan."""
+    names = {point.name for point in plan}
+    if finding.source in names or not plan:
         return finding.source
-    return min(vistas, key=lambda name: math.dist(world.vista(name).target_m, finding.position_m))
+    return min(plan, key=lambda point: math.dist(world.vista(point.vista).target_m, finding.position_m)).name
 
 
 def store_references(
@@ -48,17 +49,22 @@ def store_references(
 
 
 def store_findings(
-    archive: Archive, run_id: int, findings: tuple[MissionFinding, ...], *, world: World
+    archive: Archive,
+    run_id: int,
+    findings: tuple[MissionFinding, ...],
+    *,
+    world: World,
+    plan: tuple[PlanPoint, ...],
 ) -> None:
-    """The run's findings (each filed under the vista of `world` it was seen from), then the run marked
-    finished."""
+    """The run's findings (each filed under the plan point it was seen from, :func:`filed_under`), then
+    the run marked finished."""
     from rsi.archive import Finding
 
     archive.add_findings(
         run_id,
         [
             Finding(
-                vista=_filed_under(world, f),
+                vista=filed_under(world, plan, f),
                 kind=f.kind,
                 confidence=f.confidence,
                 position_m=f.position_m,
