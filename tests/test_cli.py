@@ -384,9 +384,11 @@ def test_sim_render_takes_the_layout(tmp_path: Path) -> None:
     assert refused.exit_code == cli.EXIT_INVALID_VALUE and "vista='E_tubing' is not known" in refused.stderr
 
 
-@pytest.mark.parametrize("command", ["render", "sun"])
-def test_sim_refuses_an_unknown_layout_by_name_before_any_work(command: str, tmp_path: Path) -> None:
-    result = invoke("sim", command, "--layout", "truss-c", "--out", tmp_path / "out")
+@pytest.mark.parametrize("command", [("sim", "render"), ("sim", "sun"), ("demo",)])
+def test_an_unknown_layout_is_refused_by_name_before_any_work(
+    command: tuple[str, ...], tmp_path: Path
+) -> None:
+    result = invoke(*command, "--layout", "truss-c", "--out", tmp_path / "out")
     assert result.exit_code == cli.EXIT_INVALID_VALUE, result.output
     lines = result.stderr.strip().splitlines()
     assert lines == ["rsi: error: --layout='truss-c' is not known. Choose one of truss, truss-b."]

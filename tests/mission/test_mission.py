@@ -161,6 +161,7 @@ def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> N
         ({"seed": 0, "arm": 1}, "arm"),
         ({"seed": 0, "orbit": None}, "orbit"),
         ({"seed": 0, "anomalies": {"impact_count": 3}}, "anomalies"),
+        ({"seed": 0, "layout": "truss-c"}, "layout"),
     ],
 )
 def test_bad_input_names_the_argument(kwargs: dict[str, object], message: str) -> None:
@@ -179,6 +180,7 @@ def test_bad_input_names_the_argument(kwargs: dict[str, object], message: str) -
         ({"gas_dwell_s": float("nan")}, "gas_dwell_s"),
         ({"depth_jump_m": 0.0}, "depth_jump_m"),
         ({"nuisance_window_px": True}, "nuisance_window_px"),
+        ({"plan": "manual"}, "plan"),
     ],
 )
 def test_settings_refuse_bad_values_by_name(changes: dict[str, object], message: str) -> None:

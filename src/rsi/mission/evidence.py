@@ -412,6 +412,30 @@ def unexplained(
     return kept
 
 
+def apart_from_swaps(looks: list[Look], settings: MissionSettings) -> list[Look]:
+    """The confirmed looks without the small ones inside a swap's blob (seed §4: a dent's crater shades and
+    glints over centimetres; where the stereo cannot read the dent, the solar cells', its blob is the swap).
+
+    A blob's change is round about its box's centre, out to half the box's diagonal plus the surround a
+    swap's edge blurs into (``settings.surround_px``); a small look within that circle is the same change.
+    """
+    swaps = [look.bbox for look in looks if look.area_m2 > settings.component_area_m2]
+    return [
+        look
+        for look in looks
+        if look.area_m2 > settings.component_area_m2
+        or not any(_within(look.bbox, box, settings.surround_px) for box in swaps)
+    ]
+
+
+def _within(inner: tuple[int, int, int, int], outer: tuple[int, int, int, int], margin_px: int) -> bool:
+    """Whether the centre of box `inner` lies in the circle about box `outer` (half its diagonal + margin)."""
+    centre = np.array([(inner[0] + inner[2]) / 2, (inner[1] + inner[3]) / 2])
+    middle = np.array([(outer[0] + outer[2]) / 2, (outer[1] + outer[3]) / 2])
+    radius = 0.5 * math.hypot(outer[2] - outer[0], outer[3] - outer[1]) + margin_px
+    return bool(np.linalg.norm(centre - middle) <= radius)
+
+
 def explained_by(look: Look, view: Sensed, explanation: Explanation, settings: MissionSettings) -> bool:
     distance = float(np.linalg.norm(np.subtract(look.position_m, explanation.centre_m)))
     if distance > explanation.radius_m:

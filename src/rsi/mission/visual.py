@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from rsi.mission.evidence import (
     Explanation,
     Look,
+    apart_from_swaps,
     blobs,
     component_checks,
     confidence,
@@ -205,7 +206,7 @@ def inspect_visit(
         if active
         else (0, 0, 0)
     )
-    confirmed = _apart_from_swaps([look for look in looks if look.score > limits.confirm], settings)
+    confirmed = apart_from_swaps([look for look in looks if look.score > limits.confirm], settings)
     findings = screws + [finding for finding, _ in checks]
     findings += [_visual_finding(look, point.name, limits, settings) for look in confirmed]
     record = VisitRecord(
@@ -351,30 +352,6 @@ def _second_looks(
         look.score, look.second_look = fused, True
         confirmed += fused > limits.confirm
     return (len(looks), confirmed, len(looks) - confirmed)
-
-
-def _apart_from_swaps(looks: list[Look], settings: MissionSettings) -> list[Look]:
-    """The confirmed looks without the small ones inside a swap's blob (seed §4: a dent's crater shades and
-    glints over centimetres; where the stereo cannot read the dent, the solar cells', its blob is the swap).
-
-    A blob's change is round about its box's centre, out to half the box's diagonal plus the surround a
-    swap's edge blurs into (``settings.surround_px``); a small look within that circle is the same change.
-    """
-    swaps = [look.bbox for look in looks if look.area_m2 > settings.component_area_m2]
-    return [
-        look
-        for look in looks
-        if look.area_m2 > settings.component_area_m2
-        or not any(_within(look.bbox, box, settings.surround_px) for box in swaps)
-    ]
-
-
-def _within(inner: tuple[int, int, int, int], outer: tuple[int, int, int, int], margin_px: int) -> bool:
-    """Whether the centre of box `inner` lies in the circle about box `outer` (half its diagonal + margin)."""
-    centre = np.array([(inner[0] + inner[2]) / 2, (inner[1] + inner[3]) / 2])
-    middle = np.array([(outer[0] + outer[2]) / 2, (outer[1] + outer[3]) / 2])
-    radius = 0.5 * math.hypot(outer[2] - outer[0], outer[3] - outer[1]) + margin_px
-    return bool(np.linalg.norm(centre - middle) <= radius)
 
 
 def _visual_finding(look: Look, source: str, limits: Thresholds, settings: MissionSettings) -> MissionFinding:
