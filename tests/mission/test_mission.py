@@ -250,6 +250,26 @@ def test_run_roc_is_monotone_and_theory_spans_the_probabilities(archived: tuple[
     assert np.all(np.diff(theory.p_detection) >= -1e-12) and theory.p_detection[-1] == pytest.approx(1.0)
 
 
+def test_run_roc_is_empty_when_no_impact_centre_was_compared(archived: tuple[MissionResult, Path]) -> None:
+    """Space repeatability can leave every impact where nothing was compared: no measured curve, no error."""
+    import dataclasses
+
+    from rsi.mission.score import run_roc
+
+    result, _ = archived
+    if not any(v.images is not None and v.images.impact_truth.any() for v in result.visits):
+        pytest.skip("seed 0 at this size shows no counted impact")
+    blind = tuple(
+        v
+        if v.images is None
+        else dataclasses.replace(
+            v, images=dataclasses.replace(v.images, valid=v.images.valid & ~v.images.impact_truth)
+        )
+        for v in result.visits
+    )
+    assert run_roc(blind, result.settings) == ()
+
+
 def test_overview_pose_projects_every_anomaly_into_the_picture(archived: tuple[MissionResult, Path]) -> None:
     result, _ = archived
     assert result.overview_rgb is not None and result.overview_pose is not None

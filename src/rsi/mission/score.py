@@ -214,7 +214,10 @@ def run_roc(visits: tuple[VisitRecord, ...], settings: MissionSettings) -> tuple
     score = np.vstack([part for im in images for part in (im.score, band)])
     truth = np.vstack([part for im in images for part in (im.impact_truth, band.astype(bool))])
     valid = np.vstack([part for im in images for part in (im.valid, band.astype(bool))])
-    measured = empirical_roc(score, truth, valid=valid, label="this run (impacts >= 1 mm)")
+    try:
+        measured = empirical_roc(score, truth, valid=valid, label="this run (impacts >= 1 mm)")
+    except InputError:  # every impact's centre fell where no comparison was made: nothing to measure
+        return ()
     p_false_alarm = np.logspace(-7, 0, 100)
     strengths = [strength for im in images for strength in im.impact_strengths]
     curves = [
