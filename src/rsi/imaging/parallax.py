@@ -307,6 +307,7 @@ def predict_reference(
     reference_range_m: NDArray[np.floating] | None = None,
     range_std_m: NDArray[np.floating] | float = 0.0,
     occlusion_m: float = 0.02,
+    about_shift: bool = False,
 ) -> Predicted:
     """The reference as the inspection viewpoint sees it (seed §2.3), with what it cannot predict marked.
 
@@ -326,6 +327,12 @@ def predict_reference(
     occlusion_m : float
         Range difference that marks an occlusion (larger than the range noise, smaller than the depth
         steps of the scene).
+    about_shift : bool
+        Return the reference in its own frame with only the parallax about the fit's shift ``a`` taken
+        out: translated by ``a`` afterwards (by a registration, :class:`rsi.imaging.Registration`), it is
+        the prediction. A detector that models the resampling of a translation's sub-pixel phase (seed
+        §2.4, :func:`rsi.detect`) then sees the one resampling it models; where every surface lies at the
+        median depth this image is the reference itself, unresampled.
 
     Returns
     -------
@@ -335,7 +342,12 @@ def predict_reference(
     if np.shape(range_m) != shape:
         raise InputError(f"range_m must have the reference's shape {shape}; got {np.shape(range_m)}.")
     known = _known(range_m, fit)
+    seen_m = np.asarray(range_m, dtype=np.float32)
+    if about_shift:  # each reference pixel y, with the inspection's depth at y + a
+        known, seen_m = _translated(known, fit.shift_xy), _translated(seen_m, fit.shift_xy)
     map_x, map_y = fit.source_maps(known)
+    if about_shift:
+        map_x, map_y = map_x + np.float32(fit.shift_xy[0]), map_y + np.float32(fit.shift_xy[1])
 
     def warp(values: NDArray[np.generic], interpolation: int = cv2.INTER_LINEAR) -> F32:
         moved = cv2.remap(
@@ -352,7 +364,7 @@ def predict_reference(
     if reference_range_m is not None:
         before = warp(np.asarray(reference_range_m, dtype=np.float32), cv2.INTER_NEAREST)
         with np.errstate(invalid="ignore"):
-            occluded = np.abs(before - np.asarray(range_m, dtype=np.float32)) > occlusion_m
+            occluded = np.abs(before - seen_m) > occlusion_m
         valid &= ~occluded
     std = fit.std_px(known, range_std_m)
     grad_x, grad_y = _gradients(image)
@@ -365,6 +377,19 @@ def predict_reference(
         interpolation_variance=warp(reference.interpolation_variance),
     )
     return Predicted(predicted, before, std, occluded)
+
+
+def _translated(values: F32, shift_xy: tuple[float, float]) -> F32:
+    """`values` read at ``y + shift`` at every pixel ``y`` (nearest: no depth blended across an edge)."""
+    move = np.array([[1.0, 0.0, shift_xy[0]], [0.0, 1.0, shift_xy[1]]], dtype=np.float64)
+    moved = cv2.warpAffine(
+        values,
+        move,
+        (values.shape[1], values.shape[0]),
+        flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
+    return np.asarray(moved, dtype=np.float32)
 
 
 __all__ = ["ParallaxFit", "Predicted", "fit_parallax", "predict_reference"]

@@ -219,7 +219,9 @@ def _reference_pass(
             window_px=settings.nuisance_window_px,
             spread_px=settings.nuisance_spread_px,
         )
-        stored[point.name] = StoredView(reference, second, scale, depth, reliefs, energy, shutter)
+        stored[point.name] = StoredView(
+            reference, second, scale, depth, reliefs, energy, shutter, second_range_m=again.range_m
+        )
         report(f"reference {point.name}")
     return stored
 

@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi.errors import InputError
 from rsi.mission.evidence import (
     Explanation,
     Look,
@@ -37,13 +38,14 @@ from rsi.mission.evidence import (
 from rsi.mission.exposure import shortened
 from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
 from rsi.mission.settings import MissionSettings
-from rsi.mission.views import Sensed, inspection_region, sense, strobe_image
+from rsi.mission.views import Sensed, inspection_region, model_depth, sense, strobe_image
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
     from rsi.detection.pair import PairResult
     from rsi.imaging.compensation import Compensated
+    from rsi.imaging.registration import Registration
     from rsi.mission.tour import Tour
     from rsi.sim.anomalies import Site
     from rsi.sim.world import World
@@ -70,6 +72,8 @@ class StoredView:
         Stereo relief of every screw site the reference saw, metres.
     strobe_energy, shutter : float
         The metered flash energy and shutter, kept for every later visit of the point.
+    second_range_m : ndarray of shape (M, N), float32, or None
+        The second reference's stereo range map (NaN where unmatched), for its occlusions.
     """
 
     reference: Compensated
@@ -79,6 +83,7 @@ class StoredView:
     reliefs: Mapping[str, float]
     strobe_energy: float
     shutter: float
+    second_range_m: NDArray[np.float32] | None = None
 
 
 @dataclass(frozen=True)
@@ -112,6 +117,29 @@ class _Comparison:
     inspection: Compensated
     scale: NDArray[np.float32]
     pair: PairResult
+    range_m: NDArray[np.float32]
+    aligned: tuple[Registration | None, Registration | None] = (None, None)
+
+
+class _Looking(TypedDict):
+    """What one inspection viewpoint gives every reference predicted for it."""
+
+    inspection: Compensated
+    depth_m: NDArray[np.float32]
+    settings: MissionSettings
+
+
+@dataclass(frozen=True)
+class _Predicted:
+    """Both pristine visits with the parallax of the inspection viewpoint taken out (seed §2.3 in depth),
+    each in its own frame with the registration (its fitted shift) that then predicts the inspection; the
+    reference's range map moved alike."""
+
+    reference: Compensated
+    second: Compensated
+    range_m: NDArray[np.float32]
+    shift_xy: tuple[float, float]
+    aligned: tuple[Registration | None, Registration | None]
 
 
 def compare(
@@ -120,9 +148,13 @@ def compare(
     p_false_alarm: float,
     settings: MissionSettings,
     scale: NDArray[np.float32] | None = None,
+    *,
+    registration: Registration | None = None,
 ) -> PairResult:
-    """Register `reference` onto `inspection`, test for flaws of either sign, the variance times `scale`."""
-    from rsi.detection.pair import inspect_pair
+    """Register `reference` onto `inspection` (or take `registration`), test for flaws of either sign, the
+    variance times `scale`."""
+    from rsi.detection.detect import detect
+    from rsi.detection.pair import PairResult, inspect_pair
 
     # seed §2.2: each pass's variance holds its own compensation error (rsi.imaging.compensate_field_pair),
     # whatever sun the other pass had: under a moved sun the reference's shadow edges say nothing of these
@@ -130,15 +162,17 @@ def compare(
     if scale is not None:
         ref = replace(ref, variance=(ref.variance * scale).astype(np.float32))
         insp = replace(insp, variance=(insp.variance * scale).astype(np.float32))
-    return inspect_pair(
-        ref,
-        insp,
-        flaw_model=settings.flaw_model,
-        size=settings.flaw_size_px,
-        p_false_alarm=p_false_alarm,
-        polarity=IMPACT_POLARITY,
-        misregistration_std_px=settings.misregistration_std_px,
-    )
+    keywords = {
+        "flaw_model": settings.flaw_model,
+        "size": settings.flaw_size_px,
+        "p_false_alarm": p_false_alarm,
+        "polarity": IMPACT_POLARITY,
+        "misregistration_std_px": settings.misregistration_std_px,
+    }
+    if registration is None:
+        return inspect_pair(ref, insp, **keywords)  # type: ignore[arg-type]
+    found = detect(ref, insp, registration=registration, **keywords)  # type: ignore[arg-type]
+    return PairResult(ref.image, insp.image, found, 0.0)
 
 
 def thresholds(settings: MissionSettings) -> Thresholds:
@@ -186,14 +220,24 @@ def inspect_visit(
         range_m=view.range_m,
         reliefs=stored.reliefs,
         done=screws_checked,
-        pairs=(comparison.pair, compare(stored.second, inspection, p_first, settings, comparison.scale)),
+        pairs=(
+            comparison.pair,
+            compare(
+                comparison.second,
+                inspection,
+                p_first,
+                settings,
+                comparison.scale,
+                registration=comparison.aligned[1],
+            ),
+        ),
         confirm=limits.confirm,
     )
     checks = component_checks(
         comparison.pair,
         view,
         point.name,
-        reference_m=stored.range_m,
+        reference_m=comparison.range_m,
         world=world,
         settings=settings,
     )
@@ -202,7 +246,7 @@ def inspect_visit(
 
     looks = _new_blobs(comparison, view, world, explanations, active=active, limits=limits, settings=settings)
     counts = (
-        _second_looks(comparison, looks, point, world, limits=limits, settings=settings, tour=tour)
+        _second_looks(stored, looks, point, limits=limits, settings=settings, tour=tour)
         if active
         else (0, 0, 0)
     )
@@ -227,23 +271,86 @@ def _restricted(image: Compensated, region: NDArray[np.bool_]) -> Compensated:
 def _with_parallax(
     stored: StoredView, inspection: Compensated, view: Sensed, p_false_alarm: float, settings: MissionSettings
 ) -> tuple[_Comparison, tuple[float, float]]:
-    """The comparison with the reference, tested again once the registered shift's parallax is counted.
-
-    Seed §2.3: one translation registers one depth; the shift it found sets how far every other surface
-    stays mis-registered (:func:`rsi.detection.nuisance.parallax_scale`).
-    """
-    from rsi.detection.nuisance import parallax_scale
-
-    pair = compare(stored.reference, inspection, p_false_alarm, settings, stored.scale)
-    registration = pair.detection.registration
-    translation = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
-    parallax = parallax_scale(
-        stored.reference, view.surface_m, math.hypot(*translation), spread_px=settings.nuisance_spread_px
+    """The comparison with both pristine visits as the inspection viewpoint sees them (:func:`in_depth`);
+    returns it and the fitted shift of the surfaces at the median depth."""
+    seen = in_depth(stored, inspection, view, settings)
+    pair = compare(
+        seen.reference, inspection, p_false_alarm, settings, stored.scale, registration=seen.aligned[0]
     )
-    scale = stored.scale * parallax
-    pair = compare(stored.reference, inspection, p_false_alarm, settings, scale)
-    comparison = _Comparison(stored.reference, stored.second, inspection, scale, pair)
-    return comparison, (translation[0], translation[1])
+    comparison = _Comparison(
+        seen.reference, seen.second, inspection, stored.scale, pair, seen.range_m, seen.aligned
+    )
+    return comparison, seen.shift_xy
+
+
+def in_depth(
+    stored: StoredView, inspection: Compensated, view: Sensed, settings: MissionSettings
+) -> _Predicted:
+    """Both pristine visits with the parallax of the inspection viewpoint taken out (seed §2.3).
+
+    One translation registers one depth; after a viewpoint error every other surface stays off by its
+    parallax (:mod:`rsi.imaging.parallax`). Each reference is registered once by translation, then the
+    rigid-scene motion ``a + b (1/Z - 1/Z0)`` is fitted from there on the CAD model's depth placed on the
+    frame by the stereo range map (:func:`rsi.mission.views.model_depth`); the reference is resampled by
+    the parallax about ``a`` only (none where a surface lies at the median depth) and registered by ``a``,
+    whose sub-pixel resampling the detector models (seed §2.4). Pixels the two viewpoints see past
+    different edges (their ranges disagree by more than a depth jump) leave the comparison.
+    """
+    looking = _Looking(inspection=inspection, depth_m=model_depth(view), settings=settings)
+    reference, range_m, shift, aligned = _predicted(stored.reference, stored.range_m, stored.scale, looking)
+    second, _, _, aligned_second = _predicted(stored.second, stored.second_range_m, stored.scale, looking)
+    return _Predicted(reference, second, range_m, shift, (aligned, aligned_second))
+
+
+def _predicted(
+    reference: Compensated,
+    reference_range_m: NDArray[np.float32] | None,
+    scale: NDArray[np.float32],
+    looking: _Looking,
+) -> tuple[Compensated, NDArray[np.float32], tuple[float, float], Registration | None]:
+    """One reference with the parallax about its fitted shift taken out, its range map moved alike, the
+    shift, and the registration by that shift (the first registration's photometric map, the fit's shift
+    uncertainty); the reference itself and no registration where too few ranges allow a fit."""
+    from rsi.imaging.parallax import fit_parallax, predict_reference
+    from rsi.imaging.registration import Registration
+
+    inspection, depth_m, settings = looking["inspection"], looking["depth_m"], looking["settings"]
+    registration = compare(reference, inspection, settings.p_preliminary, settings, scale).registration
+    start = (0.0, 0.0) if registration is None else registration.translation_xy
+    gain, bias = (1.0, 0.0) if registration is None else (registration.gain, registration.bias)
+    before = (
+        np.full(reference.image.shape, np.nan, np.float32) if reference_range_m is None else reference_range_m
+    )
+    try:
+        fit = fit_parallax(
+            reference.image,
+            inspection.image,
+            depth_m,
+            valid=inspection.valid,
+            start_xy=start,
+            gain=gain,
+            bias=bias,
+        )
+    except InputError:  # too few ranges in view to fit: the comparison registers one translation
+        return reference, before, start, None
+    predicted = predict_reference(
+        reference, fit, depth_m, reference_range_m=before, occlusion_m=settings.depth_jump_m, about_shift=True
+    )
+    matrix = np.eye(3)
+    matrix[0, 2], matrix[1, 2] = fit.shift_xy
+    aligned = Registration(
+        model="translation",
+        matrix=matrix,
+        gain=gain,
+        bias=bias,
+        converged=fit.converged,
+        reason="converged" if fit.converged else "max_iterations",
+        iterations=fit.iterations,
+        residual_rms=fit.residual_sigma,
+        shift_std_px=(float(np.sqrt(fit.covariance[0, 0])), float(np.sqrt(fit.covariance[1, 1]))),
+        elapsed_s=0.0,
+    )
+    return predicted.reference, predicted.range_m, fit.shift_xy, aligned
 
 
 def _without_discoloured(
@@ -261,8 +368,11 @@ def _without_discoloured(
         _restricted(image, ~changed)
         for image in (comparison.reference, comparison.second, comparison.inspection)
     )
+    # registered again: the photometric fit leaves the discoloured pixels
     pair = compare(reference, inspection, p_false_alarm, settings, comparison.scale)
-    return _Comparison(reference, second, inspection, comparison.scale, pair)
+    return replace(
+        comparison, reference=reference, second=second, inspection=inspection, pair=pair, aligned=(None, None)
+    )
 
 
 def _new_blobs(
@@ -285,7 +395,12 @@ def _new_blobs(
     if not looks:
         return looks
     other = compare(
-        comparison.second, comparison.inspection, settings.p_preliminary, settings, comparison.scale
+        comparison.second,
+        comparison.inspection,
+        settings.p_preliminary,
+        settings,
+        comparison.scale,
+        registration=comparison.aligned[1],
     )
     for look in looks:
         look.score = min(look.score, second_look_score(other, view, look.position_m))
@@ -317,10 +432,9 @@ def _broad(look: Look, settings: MissionSettings) -> bool:
 
 
 def _second_looks(
-    comparison: _Comparison,
+    stored: StoredView,
     looks: list[Look],
     point: PlanPoint,
-    world: World,
     *,
     limits: Thresholds,
     settings: MissionSettings,
@@ -338,10 +452,12 @@ def _second_looks(
         return (0, 0, 0)
     second = sense(tour.visit(point.name, point.vista, state="inspection", truth=False))
     image = _restricted(strobe_image(second), inspection_region(second, settings))
-    # against both pristine visits again: an artefact of one reference's sampling would confirm itself
+    # against both pristine visits again, each seen from this viewpoint: an artefact of one reference's
+    # sampling would confirm itself
+    seen = in_depth(stored, image, second, settings)
     pairs = [
-        compare(reference, image, settings.p_preliminary, settings, comparison.scale)
-        for reference in (comparison.reference, comparison.second)
+        compare(reference, image, settings.p_preliminary, settings, stored.scale, registration=aligned)
+        for reference, aligned in zip((seen.reference, seen.second), seen.aligned, strict=True)
     ]
     confirmed = 0
     for look in looks:
