@@ -61,10 +61,13 @@ class Sensed:
 
 
 def sense(capture: Capture) -> Sensed:
-    """The stereo range map of a capture (seed §3 D: the ISEE's calibrated pair), searched over the depths
-    the CAD model expects in view, and that map with the model's depth in its holes."""
+    """The capture with its CAD model and believed pose placed on the frame (:func:`placed`), the stereo
+    range map of its calibrated pair (seed §3 D) searched over the depths the model expects in view, and
+    that map with the model's depth in its holes."""
+    from rsi.imaging.compensation import compensate_field_pair
     from rsi.imaging.stereo import range_map
 
+    capture = placed(capture, compensate_field_pair(*capture.frames).image)
     expected = capture.cad.expected_depth_m
     surface = expected < FAR_M
     near, far = (
@@ -77,6 +80,108 @@ def sense(capture: Capture) -> Sensed:
         plausible = np.abs(ranges - expected) <= _RANGE_GATE_M
     matched = np.where(plausible, ranges, np.float32(np.nan)).astype(np.float32)
     return Sensed(capture, matched, np.where(plausible, ranges, expected).astype(np.float32))
+
+
+# The model is searched this far over the frame for the visit's viewpoint error: "space" repeatability moves
+# the image by up to 12 px at the standoff (rsi.sim.world.REPEATABILITY_PX)
+_PLACE_SEARCH_PX = 16
+# An edge of the model is a step of inverse depth over a 3x3 Sobel of this much (1/m): 2 cm at 0.5 m
+_EDGE_INVERSE_DEPTH = 0.05
+# The model is placed only on enough edges and a distinct peak: its best shift must gather 10 % more of
+# the image's edge strength than any shift 4 px or more away (seeds 3 and 5, space: 1.24-1.86 on the front
+# views, found within 1-2 px of the true error; none on the panel's centre view, which has no edge)
+_MIN_EDGE_PX = 500
+_PEAK_RATIO = 1.1
+
+
+def placed(capture: Capture, image: NDArray[np.float32]) -> Capture:
+    """The capture with its CAD model and believed pose moved by the visit's viewpoint error (seed §2.3).
+
+    The pose the robot believes misses the viewpoint error (repeatability, flexure: lab 1-2 px, space
+    about 10 px at the standoff), so the model drawn from it lies off the frame by as much: sites are
+    looked for in the wrong pixels and findings placed millimetres off. The model's edges (steps of
+    depth, outlines of components and of the truss) are where the strobe image `image` has its edges;
+    the whole-pixel shift that puts the most image edge strength under them is that error. The model's
+    maps move by it, and the believed camera by the lateral offset that moves the surfaces at the
+    model's median depth by as much (a camera moved across by T moves them f T / Z). Without enough
+    model edges in view, or without a distinct best shift, the capture is left as it is.
+    """
+    from dataclasses import replace
+
+    shift = _edge_shift(capture.cad, image)
+    if shift == (0, 0):
+        return capture
+    cad = capture.cad
+    moved = replace(
+        cad,
+        expected_depth_m=_shifted(cad.expected_depth_m, shift, float(FAR_M)),
+        truss=_shifted(cad.truss.astype(np.float32), shift, 0.0) > 0.5,
+        components={
+            name: _shifted(mask.astype(np.float32), shift, 0.0) > 0.5 for name, mask in cad.components.items()
+        },
+    )
+    pose = capture.believed_pose
+    seen = cad.expected_depth_m < FAR_M
+    depth = float(np.median(cad.expected_depth_m[seen])) if seen.any() else 0.5
+    # the content moves left (-x) when the camera moves right (rotation[:, 0]) and down (+row) when it
+    # moves up (rotation[:, 1])
+    dy, dx = shift
+    across = (-dx * pose.rotation[:, 0] + dy * pose.rotation[:, 1]) * depth / pose.focal_px
+    return replace(capture, cad=moved, believed_pose=replace(pose, position_m=pose.position_m + across))
+
+
+def _edge_shift(cad: Any, image: NDArray[np.float32]) -> tuple[int, int]:
+    """(dy, dx): the whole-pixel shift of the model's edges that lands on the most image edge strength."""
+    import cv2
+
+    edges = _model_edges(cad)
+    rows, cols = np.nonzero(edges)
+    if rows.size < _MIN_EDGE_PX:
+        return (0, 0)
+    strength = np.hypot(
+        cv2.Sobel(image.astype(np.float32), cv2.CV_32F, 1, 0, ksize=3),
+        cv2.Sobel(image.astype(np.float32), cv2.CV_32F, 0, 1, ksize=3),
+    )
+    # a pixel of blur: an edge a fraction of a pixel off still counts
+    strength = np.pad(cv2.GaussianBlur(strength, (0, 0), 1.0), _PLACE_SEARCH_PX)
+    reach = 2 * _PLACE_SEARCH_PX + 1
+    score = np.empty((reach, reach))
+    for dy in range(reach):
+        for dx in range(reach):
+            score[dy, dx] = strength[rows + dy, cols + dx].mean()
+    best = np.unravel_index(int(np.argmax(score)), score.shape)
+    away = score.copy()
+    away[max(best[0] - 3, 0) : best[0] + 4, max(best[1] - 3, 0) : best[1] + 4] = -np.inf
+    if score[best] < _PEAK_RATIO * away.max():
+        return (0, 0)
+    return (int(best[0]) - _PLACE_SEARCH_PX, int(best[1]) - _PLACE_SEARCH_PX)
+
+
+def _model_edges(cad: Any) -> NDArray[np.bool_]:
+    """Pixels of the model's depth steps and of its components' and truss's outlines."""
+    import cv2
+
+    inverse = (1.0 / np.minimum(cad.expected_depth_m, FAR_M)).astype(np.float32)
+    steps = np.hypot(
+        cv2.Sobel(inverse, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(inverse, cv2.CV_32F, 0, 1, ksize=3)
+    )
+    labels = np.zeros(inverse.shape, np.uint8)
+    for number, mask in enumerate(cad.components.values(), start=1):
+        labels[mask] = number
+    labels[cad.truss] = 255
+    outlines = cv2.morphologyEx(labels, cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
+    return np.asarray((steps > _EDGE_INVERSE_DEPTH) | outlines, dtype=bool)
+
+
+def _shifted(values: NDArray[np.floating], shift: tuple[int, int], fill: float) -> F32:
+    """`values` moved by whole pixels (dy, dx), `fill` where nothing moved in."""
+    dy, dx = shift
+    out = np.full(values.shape, fill, dtype=np.float32)
+    rows, cols = values.shape
+    out[max(dy, 0) : rows + min(dy, 0), max(dx, 0) : cols + min(dx, 0)] = values[
+        max(-dy, 0) : rows + min(-dy, 0), max(-dx, 0) : cols + min(-dx, 0)
+    ]
+    return out
 
 
 def field_to_world(sensed: Sensed, row: float, col: float) -> tuple[float, float, float] | None:
@@ -189,43 +294,3 @@ def strobe_image(sensed: Sensed) -> Compensated:
     from rsi.imaging.compensation import compensate_field_pair
 
     return compensate_field_pair(*sensed.capture.frames)
-
-
-# The model's depth is searched this far (px) over the frame for the visit's viewpoint error: "space"
-# repeatability moves the image by up to 12 px at the standoff (rsi.sim.world.REPEATABILITY_PX); first every
-# 4 px, then every pixel around the best
-_MODEL_SEARCH_PX = 16
-_MODEL_SEARCH_STEP_PX = 4
-
-
-def model_depth(sensed: Sensed) -> F32:
-    """The CAD model's depth moved onto the frame: the pose the robot believes misses the visit's viewpoint
-    error, so the model's depth, drawn from that pose, is moved by the whole-pixel shift at which it best
-    matches the stereo range map (the median absolute range difference over matched pixels, seed §2.3).
-
-    The model is smooth where the matcher is noisy (dark cells give matches centimetres off inside the
-    3 cm gate): the parallax of every surface is read from it (:mod:`rsi.imaging.parallax`).
-    """
-    import cv2
-
-    expected = sensed.capture.cad.expected_depth_m
-    rows, cols = np.nonzero(np.isfinite(sensed.range_m[::8, ::8]))
-    if rows.size == 0:
-        return expected
-    rows, cols = rows * 8, cols * 8
-    measured = sensed.range_m[rows, cols]
-    height, width = expected.shape
-
-    def miss(shift: tuple[int, int]) -> float:
-        model = expected[np.clip(rows - shift[0], 0, height - 1), np.clip(cols - shift[1], 0, width - 1)]
-        return float(np.median(np.abs(model - measured)))
-
-    coarse = range(-_MODEL_SEARCH_PX, _MODEL_SEARCH_PX + 1, _MODEL_SEARCH_STEP_PX)
-    dy, dx = min(((y, x) for y in coarse for x in coarse), key=miss)
-    near = range(-_MODEL_SEARCH_STEP_PX + 1, _MODEL_SEARCH_STEP_PX)
-    dy, dx = min(((dy + y, dx + x) for y in near for x in near), key=miss)
-    move = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]], dtype=np.float32)
-    moved = cv2.warpAffine(
-        expected, move, (width, height), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE
-    )
-    return np.asarray(moved, dtype=np.float32)

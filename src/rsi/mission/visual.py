@@ -38,7 +38,7 @@ from rsi.mission.evidence import (
 from rsi.mission.exposure import shortened
 from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
 from rsi.mission.settings import MissionSettings
-from rsi.mission.views import Sensed, inspection_region, model_depth, sense, strobe_image
+from rsi.mission.views import Sensed, inspection_region, sense, strobe_image
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -291,12 +291,13 @@ def in_depth(
     One translation registers one depth; after a viewpoint error every other surface stays off by its
     parallax (:mod:`rsi.imaging.parallax`). Each reference is registered once by translation, then the
     rigid-scene motion ``a + b (1/Z - 1/Z0)`` is fitted from there on the CAD model's depth placed on the
-    frame by the stereo range map (:func:`rsi.mission.views.model_depth`); the reference is resampled by
+    frame by its edges (:func:`rsi.mission.views.placed`); the reference is resampled by
     the parallax about ``a`` only (none where a surface lies at the median depth) and registered by ``a``,
     whose sub-pixel resampling the detector models (seed §2.4). Pixels the two viewpoints see past
     different edges (their ranges disagree by more than a depth jump) leave the comparison.
     """
-    looking = _Looking(inspection=inspection, depth_m=model_depth(view), settings=settings)
+    # the CAD model's depth, placed on the frame by its edges (rsi.mission.views.placed)
+    looking = _Looking(inspection=inspection, depth_m=view.capture.cad.expected_depth_m, settings=settings)
     reference, range_m, shift, aligned = _predicted(stored.reference, stored.range_m, stored.scale, looking)
     second, _, _, aligned_second = _predicted(stored.second, stored.second_range_m, stored.scale, looking)
     return _Predicted(reference, second, range_m, shift, (aligned, aligned_second))
