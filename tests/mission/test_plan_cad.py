@@ -19,7 +19,7 @@ from rsi.mission.coverage import CoverageRules, Sight, coverage, inspectable_sam
 from rsi.mission.plan import plan_vistas
 from rsi.mission.plan_cad import CadPlan, add_plan_vistas, generate_plan, tour_order
 from rsi.sim.anomalies import AnomalySet, Candidates, Patch
-from rsi.sim.mockup import Mockup, Part, truss_mockup, vista
+from rsi.sim.mockup import DOOR_HINGE_AXIS, Door, Mockup, Part, truss_mockup, vista
 from rsi.sim.world import World, load
 
 FRONT = (0.0, -1.0, 0.0)
@@ -34,7 +34,10 @@ def _mockup(parts: list[Part], patches: list[Patch], hinge: tuple[float, float, 
     """A mock-up of `parts`; the scene has a door body always: a small door far away unless one is given."""
     if not any(part.component == "A_door" for part in parts):
         parts = [*parts, Part("door", "A_door", "box", (0.01, 0.01, 0.01), FAR_HINGE, "aluminium")]
-    return Mockup(tuple(parts), hinge, Candidates(impact_patches=tuple(patches)), {}, {})
+    door = Door("A_door", "A_door_hinge", hinge, DOOR_HINGE_AXIS, "door")
+    return Mockup(
+        tuple(parts), door, Candidates(impact_patches=tuple(patches)), {}, {}, "test-plate", 1.8, {}, ()
+    )
 
 
 def _plate(half: tuple[float, float] = (0.1, 0.08)) -> tuple[Part, Patch]:
@@ -213,7 +216,7 @@ def test_missionsettings_plan_chooses_the_generator() -> None:
         (lambda: inspectable_samples("truss"), "mockup"),
         (lambda: inspectable_samples(truss_mockup(), 0.0), "spacing_m"),
         (lambda: inspectable_samples(_mockup([], [])), "no inspectable surface"),
-        (lambda: MissionSettings(plan="auto"), "plan must be one of"),
+        (lambda: MissionSettings(plan="manual"), "plan must be one of"),
     ],
 )
 def test_bad_input_is_refused_by_name(call: object, message: str) -> None:
