@@ -16,7 +16,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from rsi.errors import InputError
 from rsi.mission import MissionSettings, PlanPoint
 from rsi.mission.coverage import CoverageRules, Sight, coverage, inspectable_samples
-from rsi.mission.plan import plan_vistas
+from rsi.mission.plan import hand_plan_vistas, panel_vistas, plan_vistas
 from rsi.mission.plan_cad import CadPlan, add_plan_vistas, generate_plan, tour_order
 from rsi.sim.anomalies import AnomalySet, Candidates, Patch
 from rsi.sim.mockup import DOOR_HINGE_AXIS, Door, Mockup, Part, truss_mockup, vista
@@ -247,3 +247,16 @@ def test_the_hand_plan_is_refused_on_another_layout() -> None:
     world = _world(_mockup(*map(list, zip(_plate(), strict=True))))
     with pytest.raises(InputError, match="hand plan is the truss layout's"):
         plan_vistas(world, MissionSettings(plan="hand"))
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: panel_vistas(0.0), "standoff_m"),
+        (lambda: panel_vistas(0.35, (1.0, 2.0)), "centre"),
+        (lambda: hand_plan_vistas(None, MissionSettings()), "world"),  # type: ignore[arg-type]
+    ],
+)
+def test_the_hand_plan_refuses_bad_input_by_name(call: object, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        call()  # type: ignore[operator]

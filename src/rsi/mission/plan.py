@@ -44,7 +44,8 @@ def panel_vistas(standoff_m: float, centre: tuple[float, float, float] | None = 
     """
     from rsi.sim.mockup import truss_mockup, vista
 
-    centre = truss_mockup().vistas["C_panel"].target_m if centre is None else centre
+    standoff_m = v.positive(standoff_m, "standoff_m")
+    centre = truss_mockup().vistas["C_panel"].target_m if centre is None else v.vector3(centre, "centre")
     return tuple(
         vista(name, (centre[0] + dx, centre[1] + dy, centre[2]), (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), standoff_m)
         for name, (dx, dy) in _PANEL_OFFSETS_M.items()
@@ -88,6 +89,10 @@ def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[
 
 def hand_plan_vistas(world: World, settings: MissionSettings) -> tuple[PlanPoint, ...]:
     """Add the hand plan's panel vistas to `world` (once) and return the hand plan (truss layout only)."""
+    from rsi.sim.world import World
+
+    v.instance_of(world, "world", World, none_allowed=False)
+    settings = v.instance_of(settings, "settings", MissionSettings, none_allowed=False)
     if world.mockup.layout != "truss":
         raise InputError(
             f"the hand plan is the truss layout's and this world's mock-up is {world.mockup.layout!r}; "
