@@ -30,6 +30,7 @@ from rsi.errors import InputError
 from rsi.mission.coverage import CoverageRules, coverage
 from rsi.mission.plan import plan_vistas
 from rsi.mission.plan_cad import CadPlan, add_plan_vistas, generate_plan, tour_figures
+from rsi.mission.settings import MissionSettings
 from rsi.sim.anomalies import AnomalySet
 from rsi.sim.world import SCENES, World, load
 
@@ -63,7 +64,7 @@ def _generated(layout: str, world: World, pixel_m: float) -> tuple[str, CadPlan]
 
 def _hand(layout: str, world: World, pixel_m: float, home: np.ndarray) -> str:
     try:
-        points = plan_vistas(world)
+        points = plan_vistas(world, MissionSettings(plan="hand"))  # the truss's ten points, or refused
     except InputError:
         return _row(layout, "hand", pixel_m, ("-",) * 6)
     started = time.perf_counter()
