@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi.errors import InputError
+from rsi.imaging._local import _gradients
 
 if TYPE_CHECKING:
     from rsi.imaging.compensation import Compensated
@@ -237,13 +238,6 @@ def _checked_inputs(
             f"reference, inspection, range_m (and valid) must be 2-D arrays of one shape; got {shapes}."
         )
     return ref, insp, _inverse_depth(depth)
-
-
-def _gradients(image: F32) -> tuple[F32, F32]:
-    # Sobel / 8: a central difference smoothed across the edge, which keeps noise out of the Jacobian
-    grad_x = cv2.Sobel(image, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
-    grad_y = cv2.Sobel(image, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
-    return np.asarray(grad_x, dtype=np.float32), np.asarray(grad_y, dtype=np.float32)
 
 
 def _sample(image: F32, at_x: F32, at_y: F32) -> FloatArray:

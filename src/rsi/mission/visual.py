@@ -298,27 +298,27 @@ def in_depth(
     """
     # the CAD model's depth, placed on the frame by its edges (rsi.mission.views.placed)
     looking = _Looking(inspection=inspection, depth_m=view.capture.cad.expected_depth_m, settings=settings)
-    reference, range_m, shift, aligned = _predicted(stored.reference, stored.range_m, stored.scale, looking)
-    second, _, _, aligned_second = _predicted(stored.second, stored.second_range_m, stored.scale, looking)
+    reference, range_m, shift, aligned = _predicted(stored.reference, stored.range_m, looking)
+    second, _, _, aligned_second = _predicted(stored.second, stored.second_range_m, looking)
     return _Predicted(reference, second, range_m, shift, (aligned, aligned_second))
 
 
 def _predicted(
     reference: Compensated,
     reference_range_m: NDArray[np.float32] | None,
-    scale: NDArray[np.float32],
     looking: _Looking,
 ) -> tuple[Compensated, NDArray[np.float32], tuple[float, float], Registration | None]:
     """One reference with the parallax about its fitted shift taken out, its range map moved alike, the
     shift, and the registration by that shift (the first registration's photometric map, the fit's shift
     uncertainty); the reference itself and no registration where too few ranges allow a fit."""
     from rsi.imaging.parallax import fit_parallax, predict_reference
-    from rsi.imaging.registration import Registration
+    from rsi.imaging.registration import Registration, register
 
     inspection, depth_m, settings = looking["inspection"], looking["depth_m"], looking["settings"]
-    registration = compare(reference, inspection, settings.p_preliminary, settings, scale).registration
-    start = (0.0, 0.0) if registration is None else registration.translation_xy
-    gain, bias = (1.0, 0.0) if registration is None else (registration.gain, registration.bias)
+    # the plain translation the comparison would find (rsi.detection.pair.inspect_pair), without its test
+    registration = register(reference.image, inspection.image, model="translation", mask=reference.valid)
+    start = registration.translation_xy
+    gain, bias = registration.gain, registration.bias
     before = (
         np.full(reference.image.shape, np.nan, np.float32) if reference_range_m is None else reference_range_m
     )
