@@ -207,7 +207,7 @@ def test_the_comparison_finds_dark_and_bright_spots_and_their_contrast(sign: flo
 def test_a_brighter_sun_shortens_the_inspection_shutter_and_leaves_the_strobe_image() -> None:
     from rsi.mission.run import ORBIT_START_S
     from rsi.mission.tour import Tour
-    from rsi.mission.views import inspection_region, sense, strobe_image
+    from rsi.mission.views import inspection_region, sense
     from rsi.sim.world import load
 
     world: Any = load("truss", seed=0, arm=True)
@@ -217,7 +217,7 @@ def test_a_brighter_sun_shortens_the_inspection_shutter_and_leaves_the_strobe_im
         door = sense(tour.visit("A_door", "A_door", state="inspection"))  # sunlit aluminium, seed's shutter
         again, shutter = shortened(tour, door, SETTINGS, shutter=1.0, energy=1.0)
         assert shutter < 1 / 1.5 and ambient_dn(again, SETTINGS) <= 1.05 * SETTINGS.ambient_target_dn
-        before, after = strobe_image(door), strobe_image(again)
+        before, after = door.strobe, again.strobe
         both = before.valid & after.valid & inspection_region(door, SETTINGS)
         # the ~20 us flash fits in any shutter (seed §2.1): the strobe image keeps its level
         assert np.median(after.image[both]) == pytest.approx(np.median(before.image[both]), rel=0.05)
@@ -273,7 +273,7 @@ def test_a_removed_screw_loses_its_head_pattern_and_a_present_one_keeps_it() -> 
     from rsi.mission import plan_vistas
     from rsi.mission.evidence import HEAD_KEPT, head_kept, head_likeness
     from rsi.mission.settings import MISSION_SIZE
-    from rsi.mission.views import sense, strobe_image
+    from rsi.mission.views import sense
     from rsi.sim.anomalies import AnomalySettings
     from rsi.sim.capture import capture
     from rsi.sim.world import load
@@ -288,7 +288,7 @@ def test_a_removed_screw_loses_its_head_pattern_and_a_present_one_keeps_it() -> 
         }
     finally:
         world.close()
-    images = {state: strobe_image(view) for state, view in views.items()}
+    images = {state: view.strobe for state, view in views.items()}
     pair = compare(images["reference"], images["inspection"], SETTINGS.p_false_alarm, SETTINGS)
     sites = {s.name: s for s in world.mockup.candidates.screw_sites}
     seen = views["inspection"]

@@ -50,3 +50,24 @@ def test_a_view_without_model_edges_is_left_as_it_is(world: Any) -> None:
     visit = capture(world, view)
     moved = placed(visit, compensate_field_pair(*visit.frames).image)
     assert moved is visit  # the panel fills the frame: no edge tells where the model lies
+
+
+def test_a_visit_taken_again_keeps_its_placement_and_its_own_strobe_image(world: Any) -> None:
+    from rsi.mission.tour import Tour
+    from rsi.mission.views import reflashed, sense
+
+    tour = Tour(world, seed=5, size=MISSION_SIZE, arm=False, orbit=False)
+    visit = sense(tour.visit("B_tank", "B_tank", state="reference", truth=False))
+    again = tour.reflash(strobe_energy=2.0, shutter=0.5)
+    assert again.believed_pose.position_m != pytest.approx(visit.believed_pose.position_m)  # drawn unplaced
+    taken = reflashed(visit, again)
+    # seed §2.1 metering moves no camera: the frame's placed model and pose are the visit's
+    assert taken.capture.cad is visit.capture.cad
+    assert taken.believed_pose is visit.believed_pose
+    assert taken.range_m is visit.range_m
+    # and the strobe image is the new frames' own: twice the flash, about twice the signal
+    assert taken.capture.frames is again.frames
+    expected = compensate_field_pair(*again.frames)
+    np.testing.assert_array_equal(taken.strobe.image, expected.image)
+    lit = visit.strobe.valid & taken.strobe.valid & (visit.strobe.image > 20.0)
+    assert np.median(taken.strobe.image[lit] / visit.strobe.image[lit]) == pytest.approx(2.0, rel=0.1)

@@ -7,14 +7,13 @@ pre-flash is the ambient alone, and the lit field less that ambient (seed §2.2 
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rsi.mission.settings import MissionSettings
-from rsi.mission.views import Sensed, inspection_region
+from rsi.mission.views import Sensed, inspection_region, reflashed
 
 if TYPE_CHECKING:
     from rsi.imaging.camera import Frame
@@ -130,12 +129,12 @@ def metered(tour: Tour, sensed: Sensed, settings: MissionSettings) -> tuple[Sens
     for _ in range(_METER_TRIES - 1):
         if not clipped(sensed, settings) or taken_at <= MIN_SHUTTER:
             break
-        sensed = replace(sensed, capture=tour.reflash(strobe_energy=1.0, shutter=shutter))
+        sensed = reflashed(sensed, tour.reflash(strobe_energy=1.0, shutter=shutter))
         taken_at = shutter
         shutter = min(metered_shutter(sensed, settings, taken_at), taken_at)
     energy = metered_energy(sensed, settings, shutter, taken_at)
     if energy != 1.0 or shutter != taken_at:
-        sensed = replace(sensed, capture=tour.reflash(strobe_energy=energy, shutter=shutter))
+        sensed = reflashed(sensed, tour.reflash(strobe_energy=energy, shutter=shutter))
     return sensed, shutter, energy
 
 
@@ -158,7 +157,7 @@ def shortened(
         shorter = min(metered_shutter(sensed, settings, taken_at), taken_at)
         if shorter >= taken_at or taken_at <= MIN_SHUTTER:
             break
-        sensed = replace(sensed, capture=tour.reflash(strobe_energy=energy, shutter=shorter))
+        sensed = reflashed(sensed, tour.reflash(strobe_energy=energy, shutter=shorter))
         taken_at = shorter
         if not clipped(sensed, settings):
             break

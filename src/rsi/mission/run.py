@@ -33,7 +33,7 @@ from rsi.mission.score import run_roc
 from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, MissionSettings
 from rsi.mission.surveys import gas_pass, pyrometer_pass
 from rsi.mission.truth import with_truth
-from rsi.mission.views import seen_screws, sense, strobe_image
+from rsi.mission.views import seen_screws, sense
 from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit
 from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.mockup import LAYOUT_NAMES as LAYOUTS
@@ -205,11 +205,11 @@ def _reference_pass(
         # kept for this point's later visits, inspection pass included
         world.set_shutter(shutter)
         world.set_strobe_energy(energy)
-        reference = strobe_image(view)
+        reference = view.strobe
         depth = view.range_m
         reliefs = {site.name: screw_relief_m(depth, view, site) for site in seen_screws(world, view)}
         again = sense(tour.visit(point.name, point.vista, state="reference", truth=False))
-        second = strobe_image(again)
+        second = again.strobe
         scale = nuisance_scale(
             reference,
             second,

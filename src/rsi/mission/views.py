@@ -49,11 +49,17 @@ class Sensed:
         than ``_RANGE_GATE_M`` from the CAD model's expected depth (a false match).
     surface_m : ndarray of shape (M, N), float32
         `range_m`, and the model's depth in its holes: the best range the robot has, to place what it finds.
+    strobe : Compensated
+        The full-resolution strobe image of its two frames, strobes in opposite fields. Seed §2.2
+        intra-frame compensation keeps one field: every other row, 1.3 mm apart at the standoff, so a ~1 mm
+        impact may fall between the lit rows. Two frames with the strobe on the odd and then the even field
+        give every row, each compensated within its own frame.
     """
 
     capture: Capture
     range_m: F32
     surface_m: F32
+    strobe: Compensated
 
     @property
     def believed_pose(self) -> CameraPose:
@@ -67,7 +73,8 @@ def sense(capture: Capture) -> Sensed:
     from rsi.imaging.compensation import compensate_field_pair
     from rsi.imaging.stereo import range_map
 
-    capture = placed(capture, compensate_field_pair(*capture.frames).image)
+    strobe = compensate_field_pair(*capture.frames)
+    capture = placed(capture, strobe.image)
     expected = capture.cad.expected_depth_m
     surface = expected < FAR_M
     near, far = (
@@ -79,7 +86,22 @@ def sense(capture: Capture) -> Sensed:
     with np.errstate(invalid="ignore"):
         plausible = np.abs(ranges - expected) <= _RANGE_GATE_M
     matched = np.where(plausible, ranges, np.float32(np.nan)).astype(np.float32)
-    return Sensed(capture, matched, np.where(plausible, ranges, expected).astype(np.float32))
+    return Sensed(capture, matched, np.where(plausible, ranges, expected).astype(np.float32), strobe)
+
+
+def reflashed(sensed: Sensed, again: Capture) -> Sensed:
+    """The visit with its frames taken again from the same pose (`again`: seed §2.1 metering).
+
+    Nothing moved: the stereo pair, its range maps and the model placed on the frame (:func:`placed`) stay
+    the visit's. `again` comes from the tour with the model where the believed pose draws it, so its own
+    placement would lose the viewpoint error that :func:`placed` found.
+    """
+    from dataclasses import replace
+
+    from rsi.imaging.compensation import compensate_field_pair
+
+    kept = replace(again, cad=sensed.capture.cad, believed_pose=sensed.capture.believed_pose)
+    return replace(sensed, capture=kept, strobe=compensate_field_pair(*again.frames))
 
 
 # The model is searched this far over the frame for the visit's viewpoint error: "space" repeatability moves
@@ -282,15 +304,3 @@ def inspection_region(sensed: Sensed, settings: MissionSettings) -> NDArray[np.b
         near = np.minimum(depth, np.float32(FAR_M))
         off |= (cv2.dilate(near, band) - cv2.erode(near, band) > settings.depth_jump_m) | (depth >= FAR_M)
     return ~off
-
-
-def strobe_image(sensed: Sensed) -> Compensated:
-    """The visit's full-resolution strobe image: its two frames, strobes in opposite fields.
-
-    Seed §2.2 intra-frame compensation keeps one field: every other row, 1.3 mm apart at the standoff, so a
-    ~1 mm impact may fall between the lit rows. Two frames with the strobe on the odd and then the even
-    field give every row, each compensated within its own frame.
-    """
-    from rsi.imaging.compensation import compensate_field_pair
-
-    return compensate_field_pair(*sensed.capture.frames)

@@ -38,7 +38,7 @@ from rsi.mission.evidence import (
 from rsi.mission.exposure import shortened
 from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
 from rsi.mission.settings import MissionSettings
-from rsi.mission.views import Sensed, inspection_region, sense, strobe_image
+from rsi.mission.views import Sensed, inspection_region, sense
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -207,7 +207,7 @@ def inspect_visit(
         energy=stored.strobe_energy,
     )
     world.set_shutter(shutter)  # the second looks' frames too
-    inspection = _restricted(strobe_image(view), inspection_region(view, settings))
+    inspection = _restricted(view.strobe, inspection_region(view, settings))
     p_first = settings.p_preliminary if active else settings.p_false_alarm
     comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
 
@@ -452,7 +452,7 @@ def _second_looks(
     if not looks:
         return (0, 0, 0)
     second = sense(tour.visit(point.name, point.vista, state="inspection", truth=False))
-    image = _restricted(strobe_image(second), inspection_region(second, settings))
+    image = _restricted(second.strobe, inspection_region(second, settings))
     # against both pristine visits again, each seen from this viewpoint: an artefact of one reference's
     # sampling would confirm itself
     seen = in_depth(stored, image, second, settings)
