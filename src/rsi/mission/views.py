@@ -156,7 +156,7 @@ def _edge_shift(cad: Any, image: NDArray[np.float32]) -> tuple[int, int]:
     """(dy, dx): the whole-pixel shift of the model's edges that lands on the most image edge strength."""
     import cv2
 
-    edges = _model_edges(cad)
+    edges = model_edges(cad)
     rows, cols = np.nonzero(edges)
     if rows.size < _MIN_EDGE_PX:
         return (0, 0)
@@ -179,8 +179,8 @@ def _edge_shift(cad: Any, image: NDArray[np.float32]) -> tuple[int, int]:
     return (int(best[0]) - _PLACE_SEARCH_PX, int(best[1]) - _PLACE_SEARCH_PX)
 
 
-def _model_edges(cad: Any) -> NDArray[np.bool_]:
-    """Pixels of the model's depth steps and of its components' and truss's outlines."""
+def model_edges(cad: Any) -> NDArray[np.bool_]:
+    """Pixels of the model's depth steps and of its components' and truss's outlines (a CadView's maps)."""
     import cv2
 
     inverse = (1.0 / np.minimum(cad.expected_depth_m, FAR_M)).astype(np.float32)
@@ -281,6 +281,20 @@ def seen_components(world: World, sensed: Sensed) -> list[Site]:
     sites = world.mockup.candidates.component_sites
     seen = visible(sensed, np.asarray([site.position_m for site in sites]), tolerance_m=0.02)
     return [site for site, visible in zip(sites, seen, strict=True) if visible]
+
+
+def near_model_edges(sensed: Sensed, reach_px: int) -> NDArray[np.bool_]:
+    """Pixels within `reach_px` of an edge of the view's placed model (:func:`model_edges`).
+
+    Seed §2.3: the prediction in depth holds the parallax of every surface the model has, but an outline
+    drawn from the model stays off by what placing it leaves (a pixel or two) and the stereo range smooths a
+    step over its window: only there can an edge stay mis-registered by the viewpoint's repeatability.
+    """
+    import cv2
+
+    side = 2 * reach_px + 1
+    edges = model_edges(sensed.capture.cad).astype(np.uint8)
+    return np.asarray(cv2.dilate(edges, np.ones((side, side), np.uint8)) > 0)
 
 
 def inspection_region(sensed: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
