@@ -134,12 +134,18 @@ def placed(capture: Capture, image: NDArray[np.float32]) -> Capture:
     if shift == (0, 0):
         return capture
     cad = capture.cad
+    # the ISEE's own jaws ride with the camera: the viewpoint error moves the scene, not them
+    own = own_body(cad)
+    ahead = _shifted(own.astype(np.float32), shift, 0.0) > 0.5
+    depth = _shifted(cad.expected_depth_m, shift, float(FAR_M))
     moved = replace(
         cad,
-        expected_depth_m=_shifted(cad.expected_depth_m, shift, float(FAR_M)),
-        truss=_shifted(cad.truss.astype(np.float32), shift, 0.0) > 0.5,
+        expected_depth_m=np.where(own, cad.expected_depth_m, depth).astype(np.float32),
+        # what the jaws hid from the model before it moved is unknown: not inspected
+        truss=(_shifted(cad.truss.astype(np.float32), shift, 0.0) > 0.5) | own | ahead,
         components={
-            name: _shifted(mask.astype(np.float32), shift, 0.0) > 0.5 for name, mask in cad.components.items()
+            name: (_shifted(mask.astype(np.float32), shift, 0.0) > 0.5) & ~ahead & ~own
+            for name, mask in cad.components.items()
         },
     )
     pose = capture.believed_pose
@@ -150,6 +156,18 @@ def placed(capture: Capture, image: NDArray[np.float32]) -> Capture:
     dy, dx = shift
     across = (-dx * pose.rotation[:, 0] + dy * pose.rotation[:, 1]) * depth / pose.focal_px
     return replace(capture, cad=moved, believed_pose=replace(pose, position_m=pose.position_m + across))
+
+
+def own_body(cad: Any) -> NDArray[np.bool_]:
+    """Pixels of the ISEE itself in a CadView: nearer than its jaws reach (seed §3.1: 11 cm).
+
+    The jaws and the housing are rigid with the camera, so they sit on the same pixels at every visit
+    whatever the arm's repeatability, and no surface of the mock-up can be nearer: the proximity servo
+    keeps the jaws' tips off it.
+    """
+    from rsi.sim.arm import JAW_LENGTH_M
+
+    return np.asarray(cad.expected_depth_m < JAW_LENGTH_M)
 
 
 def _edge_shift(cad: Any, image: NDArray[np.float32]) -> tuple[int, int]:

@@ -38,7 +38,7 @@ from rsi.mission.evidence import (
 from rsi.mission.exposure import shortened
 from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
 from rsi.mission.settings import MissionSettings
-from rsi.mission.views import Sensed, inspection_region, near_model_edges, sense
+from rsi.mission.views import FAR_M, Sensed, inspection_region, near_model_edges, own_body, sense
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -296,8 +296,11 @@ def in_depth(
     whose sub-pixel resampling the detector models (seed §2.4). Pixels the two viewpoints see past
     different edges (their ranges disagree by more than a depth jump) leave the comparison.
     """
-    # the CAD model's depth, placed on the frame by its edges (rsi.mission.views.placed)
-    looking = _Looking(inspection=inspection, depth_m=view.capture.cad.expected_depth_m, settings=settings)
+    # the CAD model's depth, placed on the frame by its edges (rsi.mission.views.placed); the ISEE's own
+    # jaws ride with the camera: no parallax, as if at the far plane
+    cad = view.capture.cad
+    depth_m = np.where(own_body(cad), np.float32(FAR_M), cad.expected_depth_m).astype(np.float32)
+    looking = _Looking(inspection=inspection, depth_m=depth_m, settings=settings)
     reference, range_m, shift, aligned = _predicted(stored.reference, stored.range_m, looking)
     second, _, _, aligned_second = _predicted(stored.second, stored.second_range_m, looking)
     return _Predicted(reference, second, range_m, shift, (aligned, aligned_second))
