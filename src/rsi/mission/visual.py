@@ -355,7 +355,8 @@ def _predicted(
         shift_std_px=(float(np.sqrt(fit.covariance[0, 0])), float(np.sqrt(fit.covariance[1, 1]))),
         elapsed_s=0.0,
     )
-    return _past_own_body(predicted.reference, fit.shift_xy, looking), predicted.range_m, fit.shift_xy, aligned
+    reference = _past_own_body(predicted.reference, fit.shift_xy, looking)
+    return reference, predicted.range_m, fit.shift_xy, aligned
 
 
 def _past_own_body(reference: Compensated, shift_xy: tuple[float, float], looking: _Looking) -> Compensated:
