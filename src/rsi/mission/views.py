@@ -137,12 +137,12 @@ def placed(capture: Capture, image: NDArray[np.float32]) -> Capture:
     # the ISEE's own jaws ride with the camera: the viewpoint error moves the scene, not them
     own = own_body(cad)
     ahead = _shifted(own.astype(np.float32), shift, 0.0) > 0.5
-    depth = _shifted(cad.expected_depth_m, shift, float(FAR_M))
+    # what the jaws hid from the model before it moved is unknown: no surface to inspect there
+    depth = np.where(ahead, np.float32(FAR_M), _shifted(cad.expected_depth_m, shift, float(FAR_M)))
     moved = replace(
         cad,
         expected_depth_m=np.where(own, cad.expected_depth_m, depth).astype(np.float32),
-        # what the jaws hid from the model before it moved is unknown: not inspected
-        truss=(_shifted(cad.truss.astype(np.float32), shift, 0.0) > 0.5) | own | ahead,
+        truss=((_shifted(cad.truss.astype(np.float32), shift, 0.0) > 0.5) & ~ahead) | own,
         components={
             name: (_shifted(mask.astype(np.float32), shift, 0.0) > 0.5) & ~ahead & ~own
             for name, mask in cad.components.items()

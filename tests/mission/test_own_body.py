@@ -1,0 +1,92 @@
+"""The ISEE's own jaws in its camera's view (seed §3.1): rigid with the camera, never taken for a flaw."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterator
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from rsi.mission import plan_vistas
+from rsi.mission.settings import MISSION_SIZE, MissionSettings
+from rsi.mission.tour import Tour
+from rsi.mission.views import inspection_region, own_body, placed, sense
+from rsi.mission.visual import StoredView, compare, in_depth
+from rsi.sim.arm import JAW_LENGTH_M
+from rsi.sim.world import load
+
+
+@pytest.fixture(scope="module")
+def tour() -> Iterator[Any]:
+    # seed 1302 at the D tubing: a jaw's bright edge crosses the tank, 1-2 px off after registration
+    world = load("truss", seed=1302, repeatability="space", arm=True)
+    plan_vistas(world)
+    yield Tour(world, seed=1302, size=MISSION_SIZE, arm=True, orbit=False)
+    world.close()
+
+
+def test_the_jaws_are_the_only_model_nearer_than_their_length(tour: Any) -> None:
+    visit = tour.visit("D_tubing", "D_tubing", state="reference", truth=False)
+    own = own_body(visit.cad)
+    assert own.any()  # the jaws are in view at every vista of this plan
+    assert np.all(visit.cad.truss[own])  # the model names them the robot's own, not inspected surface
+    surface = visit.cad.expected_depth_m[~own & (visit.cad.expected_depth_m < 5.0)]
+    assert surface.min() > 3 * JAW_LENGTH_M  # the mock-up lies at the standoff, far beyond the jaws
+
+
+def test_placing_the_model_moves_the_scene_and_leaves_the_jaws(tour: Any) -> None:
+    from rsi.imaging.compensation import compensate_field_pair
+
+    visit = tour.visit("D_tubing", "D_tubing", state="inspection", truth=False)
+    moved = placed(visit, compensate_field_pair(*visit.frames).image)
+    assert moved is not visit  # space repeatability: the scene is found several pixels off
+    own = own_body(visit.cad)
+    np.testing.assert_array_equal(own_body(moved.cad), own)
+    np.testing.assert_array_equal(moved.cad.expected_depth_m[own], visit.cad.expected_depth_m[own])
+    for name, mask in visit.cad.components.items():
+        assert not np.array_equal(moved.cad.components[name], mask)  # the components moved with the scene
+        assert not (moved.cad.components[name] & own).any()
+
+
+def _comparison(tour: Any) -> tuple[Any, Any, Any]:
+    """(view, pair, shift) of a flaw-free inspection of the D tubing against two pristine visits."""
+    settings = MissionSettings()
+    reference = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
+    second = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
+    view = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
+    stored = StoredView(
+        reference.strobe,
+        second.strobe,
+        np.ones(reference.strobe.image.shape, np.float32),
+        reference.range_m,
+        {},
+        1.0,
+        1.0,
+        second_range_m=second.range_m,
+    )
+    inspection = replace(view.strobe, valid=view.strobe.valid & inspection_region(view, settings))
+    seen = in_depth(stored, inspection, view, settings)
+    return (
+        view,
+        compare(seen.reference, inspection, 1e-6, settings, registration=seen.aligned[0]),
+        seen.shift_xy,
+    )
+
+
+@pytest.mark.parametrize("draw", range(3))
+def test_no_compared_pixel_shows_the_references_jaws_moved_by_the_registration(tour: Any, draw: int) -> None:
+    view, pair, shift = _comparison(tour)
+    assert math.hypot(*shift) > 3.0  # space repeatability: the scene moved past the guard band (2 px)
+    # the jaws lie on the same pixels in both visits; the registration draws the reference's ones `shift`
+    # off, where the inspection sees the surface: none of them may be compared
+    jaws = own_body(view.capture.cad).astype(np.float32)
+    registration = pair.detection.registration
+    moved, _ = registration.warp(jaws, photometric=False)
+    assert moved.max() > 0.5
+    assert not (pair.detection.valid & (moved > 0.01)).any()
