@@ -48,9 +48,10 @@ class MissionSettings:
         window of 0.66 mm pixels sees as >= 0.08 for a 1 mm impact on the dark solar cells, and a bright
         spall gains ``(1 - r) c / r`` of a surface of reflectance r (>= 0.1 for aluminium's 0.63 at c = 0.2).
     local_shift_px : float
-        Largest translation of the prediction around a small blob that may explain it as a mis-registered
-        edge (:func:`rsi.mission.evidence.shift_explained`): the lab's ~1 mm repeatability is 1.5 pixels of
-        0.66 mm, the most a surface off the registered plane stays shifted after registration.
+        Largest translation of the prediction around a small blob near an edge of the placed model that may
+        explain it as a mis-registered edge (:func:`rsi.mission.evidence.shift_explained`): the lab's ~1 mm
+        repeatability is 1.5 pixels of 0.66 mm, the most an outline stays off after registration. Away from
+        the model's edges the bound is three ``misregistration_std_px``.
     surround_px : int
         Ring around a blob read as the surface it lies on (the blob's own pixels may be a decal).
     discoloured_margin_px : int
