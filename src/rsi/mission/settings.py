@@ -93,7 +93,11 @@ class MissionSettings:
         Fraction of the seed's 1.3 lm s never undercut: a dimmer flash loses more to noise than it saves
         from saturation (measured, seeds 0-19).
     thermal_threshold_k : float
-        Pyrometer noise 0.1 K; a Peltier spot is tens of kelvin (seed §4): 30 sigma.
+        A Kapton circle's reading off the room's temperature beyond which it is a hot or cold spot: the
+        pyrometer's 0.1 K noise at the mission's false-alarm probability (1e-9, two-sided: 6.1 sigma,
+        0.61 K) plus what the Kapton reads off when its emissivity is 0.01 lower and the room 7 K warmer
+        than the instrument assumes (0.2 K, docs/sensors-and-proximity-law.md), rounded up. A spot of 2 K
+        (the wide draw's faintest) reads about 1.7 K through the aim's miss: the old 3 K missed it.
     gas_threshold_ppm : float
         MOS noise is ~0.02 ppm in clean air (seed §3 H): 100 sigma.
     gas_standoff_m, gas_station_spacing_m, gas_dwell_s, gas_survey_start_s : float
@@ -140,7 +144,7 @@ class MissionSettings:
     meter_percentile: float = 99.5
     ambient_target_dn: float = 40.0
     min_strobe_energy: float = 1.0
-    thermal_threshold_k: float = 3.0
+    thermal_threshold_k: float = 1.0
     gas_threshold_ppm: float = 2.0
     gas_standoff_m: float = 0.1
     gas_station_spacing_m: float = 0.01
