@@ -174,14 +174,16 @@ def _edge_shift(cad: Any, image: NDArray[np.float32]) -> tuple[int, int]:
     """(dy, dx): the whole-pixel shift of the model's edges that lands on the most image edge strength."""
     import cv2
 
-    edges = model_edges(cad)
-    rows, cols = np.nonzero(edges)
+    # the jaws' edges ride with the camera (own_body): they would vote for no shift at all
+    jaws = cv2.dilate(own_body(cad).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    rows, cols = np.nonzero(model_edges(cad) & ~jaws)
     if rows.size < _MIN_EDGE_PX:
         return (0, 0)
     strength = np.hypot(
         cv2.Sobel(image.astype(np.float32), cv2.CV_32F, 1, 0, ksize=3),
         cv2.Sobel(image.astype(np.float32), cv2.CV_32F, 0, 1, ksize=3),
     )
+    strength[jaws] = 0.0
     # a pixel of blur: an edge a fraction of a pixel off still counts
     strength = np.pad(cv2.GaussianBlur(strength, (0, 0), 1.0), _PLACE_SEARCH_PX)
     reach = 2 * _PLACE_SEARCH_PX + 1
