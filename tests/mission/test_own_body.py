@@ -54,6 +54,31 @@ def test_placing_the_model_moves_the_scene_and_leaves_the_jaws(tour: Any) -> Non
         assert not (moved.cad.components[name] & own).any()
 
 
+def test_the_jaws_edges_do_not_hold_the_model_where_the_robot_believes_it(tour: Any) -> None:
+    from rsi.sim.capture import CadView
+
+    visit = tour.visit("B_tank", "B_tank", state="inspection", truth=False)
+    shape = visit.cad.expected_depth_m.shape
+    # a model of three plates at 0.5 m and a jaw at 5 cm across the lower right corner
+    depth = np.full(shape, 0.5, np.float32)
+    plates = np.zeros(shape, bool)
+    for row, col in ((80, 100), (200, 300), (300, 120)):
+        plates[row : row + 90, col : col + 140] = True
+    jaw = np.zeros(shape, bool)
+    jaw[330:, 420:] = True
+    depth[jaw] = 0.05
+    cad = CadView(depth, jaw, {"plates": plates & ~jaw})
+    # the frame: the plates 6 px down and 5 px left of where the robot believes them, the jaw where it is
+    # (it rides with the camera), its edges much the stronger
+    image = np.full(shape, 40.0, np.float32)
+    image[np.roll(np.roll(plates, 6, axis=0), -5, axis=1)] = 80.0
+    image[jaw] = 250.0
+    moved = placed(replace(visit, cad=cad), image)
+    found = np.argwhere(moved.cad.components["plates"]).min(axis=0) - np.argwhere(plates & ~jaw).min(axis=0)
+    assert tuple(found) == (6, -5)
+    np.testing.assert_array_equal(own_body(moved.cad), jaw)
+
+
 def _comparison(tour: Any) -> tuple[Any, Any, Any]:
     """(view, pair, shift) of a flaw-free inspection of the D tubing against two pristine visits."""
     settings = MissionSettings()
