@@ -653,12 +653,51 @@ class World:
         finally:
             self.data.mocap_pos[mocap], self.data.mocap_quat[mocap] = kept
             self._mujoco.mj_forward(self.model, self.data)
+        if self._arm is not None:
+            depth, segments = self._with_own_body(depth, segments, pose.shape)
         components = {
             site: mask
             for site, ids in self._component_geoms.items()
             if (mask := np.isin(segments, ids)).any()
         }
         return CadView(depth, np.isin(segments, self._truss_geoms), components)
+
+    def _with_own_body(
+        self, depth: F32, segments: NDArray[np.int32], shape: tuple[int, int]
+    ) -> tuple[F32, NDArray[np.int32]]:
+        """The model's maps with the ISEE's own body (housing, jaws) where its own camera sees it.
+
+        The jaws are rigid with the camera (seed §3.1): they lie on the same pixels whatever the pose, as
+        the robot's calibration knows them. Drawn from the believed pose they would lie off by the pose
+        error's parallax at a few centimetres (tens of pixels); the surface they hide there is unknown to
+        the model (the far plane: no surface).
+        """
+        own_ids = self._own_geoms()
+        misdrawn = np.isin(segments, own_ids)
+        own_depth, own_segments = self._renderer(shape).depth_and_segments(
+            self.data, self._arm.camera_name("left"), state="reference"
+        )
+        own = np.isin(own_segments, own_ids)
+        far = np.float32(self.model.vis.map.zfar * self.model.stat.extent)  # where the renderer hits nothing
+        depth = np.where(own, own_depth, np.where(misdrawn, far, depth))
+        segments = np.where(own, own_segments, np.where(misdrawn, -1, segments))
+        return depth.astype(np.float32), segments.astype(np.int32)
+
+    def _own_geoms(self) -> list[int]:
+        """Geoms of the arm's ISEE body and everything it carries (palm, jaws)."""
+        from rsi.sim.arm import WORLD_ARM_PREFIX
+
+        model = self.model
+        isee = self._id("body", f"{WORLD_ARM_PREFIX}isee")
+
+        def carried(body: int) -> bool:
+            while body > 0:
+                if body == isee:
+                    return True
+                body = int(model.body_parentid[body])
+            return False
+
+        return [geom for geom in range(model.ngeom) if carried(int(model.geom_bodyid[geom]))]
 
     def next_frame(self, view: View, *, lit_field: str = "even") -> Frame:
         """The visit's next video frame: same pose and light, new camera noise, the strobe in `lit_field`.
