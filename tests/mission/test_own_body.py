@@ -54,6 +54,18 @@ def test_placing_the_model_moves_the_scene_and_leaves_the_jaws(tour: Any) -> Non
         assert not (moved.cad.components[name] & own).any()
 
 
+@pytest.mark.parametrize("vista", ["D_tubing", "A_door"])
+def test_the_model_draws_the_jaws_where_the_camera_sees_them_whatever_the_pose(tour: Any, vista: str) -> None:
+    visit = tour.visit(vista, vista, state="reference", truth=True)
+    truth = tour.views[-1][1].depth_m
+    assert truth is not None
+    seen = truth < JAW_LENGTH_M  # the jaws in the rendered frame
+    drawn = own_body(visit.cad)
+    assert seen.sum() > 1000
+    # the pose error is ~10 px at the standoff and tens of pixels at the jaws' few centimetres
+    assert (seen & drawn).sum() / (seen | drawn).sum() > 0.99
+
+
 def test_the_jaws_edges_do_not_hold_the_model_where_the_robot_believes_it(tour: Any) -> None:
     from rsi.sim.capture import CadView
 
