@@ -37,7 +37,7 @@ from rsi._validate import (
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
-from rsi.imaging._components import labelled, labelled_with_stats, occupied
+from rsi.imaging._components import labelled, labelled_with_stats, nonzero_pixels, occupied
 from rsi.imaging.registration import REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
@@ -369,7 +369,7 @@ def group_defects(
     count, labels, stats, _ = labelled_with_stats(joined, 8)
     stats[:, cv2.CC_STAT_LEFT] += left
     stats[:, cv2.CC_STAT_TOP] += top
-    rows, cols = np.nonzero(pixels[top:bottom, left:right])
+    rows, cols = nonzero_pixels(pixels[top:bottom, left:right])
     owner = labels[rows, cols]
     rows, cols = rows + top, cols + left
     area = np.bincount(owner, minlength=count).astype(np.float64)

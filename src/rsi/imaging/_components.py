@@ -10,6 +10,12 @@ order, and the statistics and centroids are shifted back exactly (tests compare 
 statistics, on one thread, it takes a quarter of the time of the default algorithm (Spaghetti) on a 640 x 640
 detection mask (4.0 against 1.1 ms), for the same labels in the same order (a test compares them on
 thousands of random masks).
+
+OpenCV 5.0 computes BBDT's statistics about three times slower when a side of the image is odd (0.9 against
+3.0 ms on 640 x 640 and 593 x 593 masks, one thread): :func:`labelled_with_stats` pads such a mask with one
+row or column of background, which changes no component, and restores the background's own statistics.
+``np.nonzero`` of a large, sparse uint8 mask takes 1.5 ms on 640 x 640 (numpy 2.4); :func:`nonzero_pixels`
+finds the same pixels in the same order by OpenCV in a fifth of that.
 """
 
 from __future__ import annotations
@@ -50,10 +56,41 @@ def labelled(mask: NDArray[np.uint8], connectivity: int) -> tuple[int, NDArray[n
     return int(count), np.asarray(labels, dtype=np.int32)
 
 
+def nonzero_pixels(mask: NDArray[np.uint8]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """``np.nonzero(mask)`` of a 2-D uint8 mask: the same (rows, cols), row by row, at a fifth of the time."""
+    found = cv2.findNonZero(mask)
+    if found is None:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty.copy()
+    points = found.reshape(-1, 2).astype(np.intp)
+    return points[:, 1], points[:, 0]
+
+
 def labelled_with_stats(
     mask: NDArray[np.uint8], connectivity: int
 ) -> tuple[int, NDArray[np.int32], NDArray[np.int32], NDArray[np.float64]]:
-    """``cv2.connectedComponentsWithStats(mask, connectivity=connectivity)``, by the faster algorithm."""
+    """``cv2.connectedComponentsWithStats(mask, connectivity=connectivity)``, by the faster algorithm.
+
+    A mask with an odd side is labelled padded with background to even sides (OpenCV's slow path; see the
+    module's notes): the components are the same, and the background's statistics are recomputed exactly.
+    """
+    rows, cols = mask.shape
+    odd = (rows % 2, cols % 2)
+    if any(odd) and cv2.countNonZero(mask) < mask.size:
+        # (A mask without background keeps OpenCV's own placeholder statistics for label 0.)
+        padded = np.asarray(
+            cv2.copyMakeBorder(mask, 0, odd[0], 0, odd[1], cv2.BORDER_CONSTANT, value=0), dtype=np.uint8
+        )
+        count, labels, stats, centroids = _with_stats(padded, connectivity)
+        labels = labels[:rows, :cols]
+        _restore_background(mask, stats, centroids)
+        return count, labels, stats, centroids
+    return _with_stats(mask, connectivity)
+
+
+def _with_stats(
+    mask: NDArray[np.uint8], connectivity: int
+) -> tuple[int, NDArray[np.int32], NDArray[np.int32], NDArray[np.float64]]:
     count, labels, stats, centroids = cv2.connectedComponentsWithStatsWithAlgorithm(
         mask, connectivity, cv2.CV_32S, _algorithm(connectivity)
     )
@@ -63,6 +100,26 @@ def labelled_with_stats(
         np.asarray(stats, dtype=np.int32),
         np.asarray(centroids, dtype=np.float64),
     )
+
+
+def _restore_background(
+    mask: NDArray[np.uint8], stats: NDArray[np.int32], centroids: NDArray[np.float64]
+) -> None:
+    """Label 0's statistics and centroid as OpenCV gives them on the unpadded `mask`, in place.
+
+    Its area is what the components leave, its box that of the zero pixels, and its centroid the exact
+    integer sums of the zero pixels' coordinates (the frame's less the components') over its area, as
+    OpenCV divides them.
+    """
+    rows, cols = mask.shape
+    area = stats[1:, cv2.CC_STAT_AREA].astype(np.int64)
+    # Component sums of x and y are exact integers: OpenCV's centroid is (integer sum) / area.
+    sums = np.rint(centroids[1:] * area[:, None]).sum(axis=0)
+    background = rows * cols - int(area.sum())
+    frame = np.array([rows * cols * (cols - 1) / 2, rows * cols * (rows - 1) / 2])
+    left, top, width, height = cv2.boundingRect(np.asarray(mask == 0, dtype=np.uint8))
+    stats[0] = (left, top, width, height, background)
+    centroids[0] = (frame - sums) / np.float64(background)
 
 
 def components_with_stats(
