@@ -46,6 +46,7 @@ from rsi.datasets.evaluate import (
     leave_one_group_out,
     match_counts,
     name_defects,
+    predicted_template,
     register_pair,
     sparse_above,
 )
@@ -215,8 +216,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
         lap("detect")
         found = group_detection(detection, settings)
         lap("group")
-        template = np.where(detection.valid, inspection - detection.difference, inspection)
-        name_defects(found, template, inspection)
+        name_defects(found, predicted_template(detection, inspection), inspection)
         lap("name")
         stages["total"].append(time.thread_time() - start)
     _speed_table(stages, settings, len(pairs))

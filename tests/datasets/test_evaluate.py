@@ -23,6 +23,7 @@ from rsi.datasets.evaluate import (
     group_defects,
     iou_match,
     leave_one_group_out,
+    predicted_template,
     register_pair,
 )
 from rsi.errors import InputError
@@ -352,3 +353,29 @@ def test_register_pair_falls_back_to_the_identity_when_no_fit_is_plausible(
 def test_detect_defects_refuses_a_classifier_of_the_wrong_type() -> None:
     with pytest.raises(InputError, match="classifier"):
         detect_defects(np.zeros((8, 8)), np.zeros((8, 8)), classifier="forest")  # type: ignore[arg-type]
+
+
+def test_predicted_template_is_the_prediction_where_valid_and_the_test_elsewhere() -> None:
+    from rsi.detection.detect import detect
+
+    # A shifted board: the warped template leaves invalid columns at one side.
+    rng = np.random.default_rng(4)
+    reference = np.where(rng.random((40, 40)) > 0.5, 255.0, 0.0).repeat(4, 0).repeat(4, 1).astype(np.float32)
+    inspection = np.roll(reference, 3, axis=1)
+    detection = detect(
+        reference,
+        inspection,
+        flaw_model="uniform",
+        method="erosion",
+        noise_sigma=40.0,
+        registration_model="affine",
+    )
+    # The erosion test's validity is narrower than the prediction's: there d is not 0, yet the template is
+    # the test's own pixels.
+    assert np.any(~detection.valid & (detection.difference != 0))
+    expected = np.where(detection.valid, inspection - detection.difference, inspection)
+    np.testing.assert_array_equal(predicted_template(detection, inspection), expected)
+    with pytest.raises(InputError, match="inspection"):
+        predicted_template(detection, inspection[:-1])
+    with pytest.raises(InputError, match="detection"):
+        predicted_template("detection", inspection)  # type: ignore[arg-type]

@@ -519,9 +519,21 @@ def detect_defects(
         sparse_above=sparse_above(chosen),
     )
     found = group_detection(detection, chosen)
-    # The template as the detector predicted it in the test's frame: inspection less the difference.
-    template = np.where(detection.valid, inspection_image - detection.difference, inspection_image)
-    return name_defects(found, template, inspection_image, classifier)
+    return name_defects(found, predicted_template(detection, inspection_image), inspection_image, classifier)
+
+
+def predicted_template(detection: Detection, inspection: NDArray[np.floating]) -> NDArray[np.floating]:
+    """The template as the detector predicted it in the test's frame: the inspection less the difference
+    where the test is valid, the inspection's own pixels elsewhere (``np.where(valid, inspection - d,
+    inspection)``, without its full-size temporaries)."""
+    from rsi.detection.detect import Detection
+
+    instance_of(detection, "detection", Detection, none_allowed=False)
+    test = as_image(inspection, "inspection")
+    same_shape(test, detection.difference, ("inspection", "detection.difference"))
+    template: NDArray[np.floating] = test - detection.difference
+    np.copyto(template, test, where=~detection.valid)
+    return template
 
 
 def _single_pixel_threshold(settings: DeepPcbSettings) -> float:

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from rsi._validate import as_float_array, as_image, same_shape
 from rsi.errors import InputError
+from rsi.imaging._components import labelled
 
 COPPER_BELOW_DN = 127.5  # DeepPCB's images are binarised: copper dark (0), board light (255)
 OPEN, SHORT, MOUSEBITE, SPUR, SPURIOUS_COPPER, PIN_HOLE = 1, 2, 3, 4, 5, 6
@@ -43,16 +44,15 @@ FloatArray = NDArray[np.float64]
 def _copper_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
     """(copper pieces, holes): 8-connected copper components and 4-connected board components off the
     window's border, each of at least _MIN_PIECE_PX (a sliver cut off at the window's edge is no piece)."""
-    count, _, stats, _ = cv2.connectedComponentsWithStats(copper, connectivity=8)
-    pieces = int((stats[1:, cv2.CC_STAT_AREA] >= _MIN_PIECE_PX).sum())
-    board = (1 - copper).astype(np.uint8)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(board, connectivity=4)
-    edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
-    enclosed = np.ones(count, dtype=bool)
+    # Areas from the labels (OpenCV's statistics cost more than the labelling on these small windows).
+    count, labels = labelled(copper, 8)
+    pieces = int(np.count_nonzero(np.bincount(labels.ravel(), minlength=count)[1:] >= _MIN_PIECE_PX))
+    count, labels = labelled((1 - copper).astype(np.uint8), 4)
+    enclosed = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
     enclosed[0] = False
-    enclosed[edge] = False
-    holes = int((enclosed & (stats[:, cv2.CC_STAT_AREA] >= _MIN_PIECE_PX)).sum())
-    return pieces, holes
+    for edge in (labels[0], labels[-1], labels[:, 0], labels[:, -1]):
+        enclosed[edge] = False
+    return pieces, int(np.count_nonzero(enclosed))
 
 
 def _window(value: object, name: str) -> NDArray[np.float64]:
@@ -136,13 +136,14 @@ def classify_copper(
             raise InputError(
                 f"{name} must be a (pieces, holes) tuple of two whole numbers >= 0; got {counts!r:.80}."
             )
-    added = int(cv2.morphologyEx(after & (1 - before), cv2.MORPH_OPEN, _OPENING).sum())
-    removed = int(cv2.morphologyEx(before & (1 - after), cv2.MORPH_OPEN, _OPENING).sum())
+    # The windows are 0/1: pixel sums are counts.
+    added = np.count_nonzero(cv2.morphologyEx(after & (1 - before), cv2.MORPH_OPEN, _OPENING))
+    removed = np.count_nonzero(cv2.morphologyEx(before & (1 - after), cv2.MORPH_OPEN, _OPENING))
     if added == removed == 0:
         # Nothing survives the opening: decide on the raw difference (a thin defect).
-        added, removed = int((after & (1 - before)).sum()), int((before & (1 - after)).sum())
-    core = float(cv2.erode(before ^ after, _CORE).sum())
-    return _name(added > removed, pieces_before, pieces_after), core
+        added, removed = np.count_nonzero(after & (1 - before)), np.count_nonzero(before & (1 - after))
+    core = float(np.count_nonzero(cv2.erode(before ^ after, _CORE)))
+    return _name(bool(added > removed), pieces_before, pieces_after), core
 
 
 def _name(grown: bool, before: tuple[int, int], after: tuple[int, int]) -> int:

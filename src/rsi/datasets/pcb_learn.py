@@ -24,6 +24,7 @@ from rsi.datasets.deeppcb import DeepPcbPair, read_pair
 from rsi.datasets.evaluate import OFFICIAL_IOU, DeepPcbSettings, PcbDetections, box_iou, detect_defects
 from rsi.datasets.pcb_classes import COPPER_BELOW_DN, _boxes_inside, _copper_pieces, classify_copper
 from rsi.errors import InputError
+from rsi.imaging._components import labelled
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -48,18 +49,19 @@ def _window_features(
     opened_added = cv2.morphologyEx(added, cv2.MORPH_OPEN, _SQUARE)
     opened_removed = cv2.morphologyEx(removed, cv2.MORPH_OPEN, _SQUARE)
     (pieces_before, holes_before), (pieces_after, holes_after) = pieces
+    # The windows are 0/1: sums are counts (and the mean the count over the size, as numpy divides it).
     return [
-        float(added.sum()),
-        float(removed.sum()),
-        float(opened_added.sum()),
-        float(opened_removed.sum()),
+        float(np.count_nonzero(added)),
+        float(np.count_nonzero(removed)),
+        float(np.count_nonzero(opened_added)),
+        float(np.count_nonzero(opened_removed)),
         pieces_before,
         pieces_after,
         holes_before,
         holes_after,
         pieces_after - pieces_before,
         holes_after - holes_before,
-        float(before.mean()),
+        np.count_nonzero(before) / before.size,
     ]
 
 
@@ -71,8 +73,8 @@ def _surroundings(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[f
         ring = np.asarray(cv2.dilate(change, _SQUARE), dtype=np.uint8) & (1 - change)
         touching = (around & ring).astype(np.uint8)
         features += [
-            float(touching.sum()) / max(float(ring.sum()), 1.0),
-            float(cv2.connectedComponents(touching, connectivity=8)[0] - 1),
+            float(np.count_nonzero(touching)) / max(float(np.count_nonzero(ring)), 1.0),
+            float(labelled(touching, 8)[0] - 1),
         ]
     # Width of the copper a removal bites into, and of the board an addition grows into.
     for change, material in ((before & (1 - after), before), (after & (1 - before), 1 - before)):
@@ -91,14 +93,26 @@ def _box_features(
     x1, y1, x2, y2 = (int(value) for value in box)
     rows, cols = test.shape
     features = [float(x2 - x1), float(y2 - y1), strength, area]
+    # Every window lies in the largest (the box grown by the largest growth, clipped): copper is found there
+    # once and each window is a view of it.
+    grown = max(_WINDOW_GROWTH_PX)
+    outer_top, outer_left = max(0, y1 - grown), max(0, x1 - grown)
+    outer = (
+        slice(outer_top, min(rows, y2 + 1 + grown)),
+        slice(outer_left, min(cols, x2 + 1 + grown)),
+    )
+    copper_before = (template[outer] < COPPER_BELOW_DN).astype(np.uint8)
+    copper_after = (test[outer] < COPPER_BELOW_DN).astype(np.uint8)
     for growth in _WINDOW_GROWTH_PX:
         top, bottom = max(0, y1 - growth), min(rows, y2 + 1 + growth)
         left, right = max(0, x1 - growth), min(cols, x2 + 1 + growth)
         if bottom - top < _MIN_WINDOW_PX or right - left < _MIN_WINDOW_PX:
             top, bottom, left, right = y1, y2 + 1, x1, x2 + 1
-        window = (slice(top, bottom), slice(left, right))
-        before = (template[window] < COPPER_BELOW_DN).astype(np.uint8)
-        after = (test[window] < COPPER_BELOW_DN).astype(np.uint8)
+        window = (
+            slice(top - outer_top, bottom - outer_top),
+            slice(left - outer_left, right - outer_left),
+        )
+        before, after = copper_before[window], copper_after[window]
         pieces = (_copper_pieces(before), _copper_pieces(after))
         features += _window_features(before, after, pieces)
         if growth == 0:
