@@ -7,6 +7,7 @@ import numpy as np
 
 from rsi.imaging._components import (
     components_with_stats,
+    flat_nonzero,
     labelled,
     labelled_with_stats,
     nonzero_pixels,
@@ -99,3 +100,12 @@ def test_nonzero_pixels_are_numpys_in_numpys_order() -> None:
         assert rows.dtype == expected_rows.dtype
         np.testing.assert_array_equal(rows, expected_rows)
         np.testing.assert_array_equal(cols, expected_cols)
+
+
+def test_flat_nonzero_is_numpys() -> None:
+    rng = np.random.default_rng(7)
+    for trial in range(200):
+        mask = rng.random((int(rng.integers(1, 50)), int(rng.integers(1, 50)))) < (0.0, 0.05, 0.5)[trial % 3]
+        view = mask[::2] if trial % 2 else mask  # strided rows, as the registration's used rows
+        np.testing.assert_array_equal(flat_nonzero(view), np.flatnonzero(view))
+        np.testing.assert_array_equal(flat_nonzero(view.astype(np.uint8)), np.flatnonzero(view))

@@ -337,6 +337,39 @@ def test_affine_validity_runs_equal_mapping_every_pixel() -> None:
         np.testing.assert_array_equal(module._preimage_inside(affine, shape, source), general)
 
 
+def test_row_runs_fill_exactly_the_runs() -> None:
+    # Near-identity warps take the filled path (every row's run holds a common middle), others one slice
+    # per row: both give each row's columns start <= col < stop, empty runs included.
+    from rsi.imaging import registration as module
+
+    rng = np.random.default_rng(8)
+    for trial in range(500):
+        rows, cols = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+        spread = (2, cols)[trial % 2]
+        start = rng.integers(0, min(spread, cols) + 1, rows)
+        stop = cols - rng.integers(0, min(spread, cols) + 1, rows)
+        expected = np.zeros((rows, cols), dtype=bool)
+        for row in range(rows):
+            expected[row, start[row] : stop[row]] = True
+        np.testing.assert_array_equal(module._row_runs(start, stop, (rows, cols)), expected)
+
+
+def test_near_identity_affine_validity_equals_mapping_every_pixel() -> None:
+    # DeepPCB's warps: within 1-3 % of the identity, a few pixels of shift.
+    from rsi.imaging import registration as module
+
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        affine = np.eye(3)
+        affine[:2, :2] += rng.uniform(-0.03, 0.03, (2, 2))
+        affine[:2, 2] = rng.uniform(-5, 5, 2)
+        shape = (int(rng.integers(1, 80)), int(rng.integers(1, 80)))
+        not_affine = affine.copy()
+        not_affine[2, 0] = 1e-300
+        general = module._preimage_inside(not_affine, shape, shape)
+        np.testing.assert_array_equal(module._preimage_inside(affine, shape, shape), general)
+
+
 @pytest.mark.parametrize(
     "matrix",
     [

@@ -36,7 +36,7 @@ from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
 from rsi.errors import InputError
-from rsi.imaging._components import components_with_stats, nonzero_pixels
+from rsi.imaging._components import components_with_stats, flat_nonzero, nonzero_pixels
 from rsi.imaging.compensation import Compensated
 from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
 
@@ -388,8 +388,7 @@ def _signed(bright: Float32Array, dark: Float32Array, valid: BoolArray) -> Float
 
 def _peaks(labels: NDArray[np.int32], mask: BoolArray, score: Float32Array) -> dict[int, int]:
     """Flat index of the highest-scoring pixel of each component, from the mask pixels only (few)."""
-    rows, cols = nonzero_pixels(mask.view(np.uint8))
-    pixels = rows * mask.shape[1] + cols
+    pixels = flat_nonzero(mask)
     order = pixels[np.argsort(-score.ravel()[pixels], kind="stable")]
     found, first = np.unique(labels.ravel()[order], return_index=True)
     return dict(zip(found.tolist(), order[first].tolist(), strict=True))

@@ -66,6 +66,13 @@ def nonzero_pixels(mask: NDArray[np.uint8]) -> tuple[NDArray[np.intp], NDArray[n
     return points[:, 1], points[:, 0]
 
 
+def flat_nonzero(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> NDArray[np.intp]:
+    """``np.flatnonzero(mask)`` of a 2-D bool or uint8 mask (strided views too), by :func:`nonzero_pixels`."""
+    rows, cols = nonzero_pixels(mask.view(np.uint8))
+    flat: NDArray[np.intp] = rows * mask.shape[1] + cols
+    return flat
+
+
 def labelled_with_stats(
     mask: NDArray[np.uint8], connectivity: int
 ) -> tuple[int, NDArray[np.int32], NDArray[np.int32], NDArray[np.float64]]:

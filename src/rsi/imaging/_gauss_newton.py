@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi.imaging._components import flat_nonzero
 from rsi.imaging._pyramid import Estimate, Level
 from rsi.imaging._warps import (
     Allocate,
@@ -256,7 +257,7 @@ def _build(level: Level, terms: Terms, matrix: Matrix) -> _Problem | None:
     used = None
     if inside is not None:
         used = inside[first * step - row0 :: step]
-        hessian -= _outer(jacobian[:, _band_index(np.flatnonzero(~used), col1 - col0, col0, width)])
+        hessian -= _outer(jacobian[:, _band_index(flat_nonzero(~used), col1 - col0, col0, width)])
     if level.mask is not None:
         # Masked pixels have zero Jacobian columns already: they only leave the statistics and trimming.
         user = level.mask[first * step : row1 : step, col0:col1]
@@ -359,7 +360,7 @@ def _trim(
     outliers = np.equal(inside, 0, out=scratch("outliers", box.shape, np.bool_))
     if problem.weights is not None:
         outliers &= problem.weights > 0
-    index = _band_index(np.flatnonzero(outliers), col1 - col0, col0, problem.terms.width)
+    index = _band_index(flat_nonzero(outliers), col1 - col0, col0, problem.terms.width)
     if index.size == 0:
         return None
     dropped = problem.jacobian[:, index]
