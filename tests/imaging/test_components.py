@@ -109,3 +109,20 @@ def test_flat_nonzero_is_numpys() -> None:
         view = mask[::2] if trial % 2 else mask  # strided rows, as the registration's used rows
         np.testing.assert_array_equal(flat_nonzero(view), np.flatnonzero(view))
         np.testing.assert_array_equal(flat_nonzero(view.astype(np.uint8)), np.flatnonzero(view))
+
+
+def test_statistics_from_the_pixels_are_opencvs() -> None:
+    # Sparse boxes take their statistics from their pixels: OpenCV's, background and centroids included.
+    from rsi.imaging._components import _stats_of_pixels
+
+    rng = np.random.default_rng(9)
+    for _ in range(400):
+        shape = (int(rng.integers(1, 70)), int(rng.integers(1, 70)))
+        mask = _sparse_mask(rng, shape, int(rng.integers(0, 8)))
+        mask[0, 0] = 0  # some background: what the sparse path is for
+        for connectivity in (4, 8):
+            expected = cv2.connectedComponentsWithStats(mask, connectivity=connectivity)
+            got = _stats_of_pixels(mask, connectivity)
+            assert got[0] == expected[0]
+            for got_array, expected_array in zip(got[1:], expected[1:], strict=True):
+                np.testing.assert_array_equal(got_array, expected_array)

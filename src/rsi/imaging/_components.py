@@ -78,9 +78,13 @@ def labelled_with_stats(
 ) -> tuple[int, NDArray[np.int32], NDArray[np.int32], NDArray[np.float64]]:
     """``cv2.connectedComponentsWithStats(mask, connectivity=connectivity)``, by the faster algorithm.
 
-    A mask with an odd side is labelled padded with background to even sides (OpenCV's slow path; see the
-    module's notes): the components are the same, and the background's statistics are recomputed exactly.
+    A sparse mask (at most a quarter foreground) gets its statistics from its pixels
+    (:func:`_stats_of_pixels`). Another with an odd side is labelled padded with background to even sides
+    (OpenCV's slow path; see the module's notes): the components are the same, and the background's
+    statistics are recomputed exactly.
     """
+    if cv2.countNonZero(mask) <= _SPARSE_FRACTION * mask.size:
+        return _stats_of_pixels(mask, connectivity)
     rows, cols = mask.shape
     odd = (rows % 2, cols % 2)
     if any(odd) and cv2.countNonZero(mask) < mask.size:
@@ -127,6 +131,41 @@ def _restore_background(
     left, top, width, height = cv2.boundingRect(np.asarray(mask == 0, dtype=np.uint8))
     stats[0] = (left, top, width, height, background)
     centroids[0] = (frame - sums) / np.float64(background)
+
+
+# A box whose pixels are at most this fraction foreground gets its statistics from its pixels.
+_SPARSE_FRACTION = 0.25
+
+
+def _stats_of_pixels(
+    mask: NDArray[np.uint8], connectivity: int
+) -> tuple[int, NDArray[np.int32], NDArray[np.int32], NDArray[np.float64]]:
+    """:func:`labelled_with_stats` of a sparse mask (some background): the labelling without OpenCV's
+    statistics (a third of its time on a 640 x 640 mask), then each component's box, area and centroid from
+    its few pixels; the centroid is (integer sum of coordinates) / area, as OpenCV divides it."""
+    count, labels = labelled(mask, connectivity)
+    rows, cols = nonzero_pixels(mask)
+    owner = labels[rows, cols]
+    stats = np.zeros((count, 5), dtype=np.int32)
+    for start, end, coordinate in (
+        (cv2.CC_STAT_LEFT, cv2.CC_STAT_WIDTH, cols),
+        (cv2.CC_STAT_TOP, cv2.CC_STAT_HEIGHT, rows),
+    ):
+        low = np.full(count, np.iinfo(np.intp).max, dtype=np.intp)
+        high = np.full(count, -1, dtype=np.intp)
+        np.minimum.at(low, owner, coordinate)
+        np.maximum.at(high, owner, coordinate)
+        stats[1:, start], stats[1:, end] = low[1:], high[1:] - low[1:] + 1
+    area = np.bincount(owner, minlength=count)
+    stats[:, cv2.CC_STAT_AREA] = area
+    centroids = np.zeros((count, 2), dtype=np.float64)
+    sums = (
+        np.bincount(owner, cols.astype(np.float64), count),
+        np.bincount(owner, rows.astype(np.float64), count),
+    )
+    centroids[1:] = np.column_stack([sums[0][1:], sums[1][1:]]) / area[1:, None].astype(np.float64)
+    _restore_background(mask, stats, centroids)
+    return count, labels, stats, centroids
 
 
 def components_with_stats(
