@@ -36,7 +36,7 @@ from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
 from rsi.errors import InputError
-from rsi.imaging._components import components_with_stats, flat_nonzero, nonzero_pixels
+from rsi.imaging._components import components_with_stats, flat_nonzero, labelled, nonzero_pixels
 from rsi.imaging.compensation import Compensated
 from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
 
@@ -493,11 +493,19 @@ def _sparse_boxes(
     # The components of the strong pixels, the flagged ones and what their erosion reads (the dilation by
     # the reflected footprint) that hold a flagged pixel.
     read = cv2.bitwise_or(flagged, cv2.dilate(flagged, np.ascontiguousarray(footprint[::-1, ::-1])))
-    joined = cv2.bitwise_or(beyond(above), read)
-    _, labels, stats, _, (top, left, _, _) = components_with_stats(np.asarray(joined, np.uint8), 8)
-    rows, cols = nonzero_pixels(np.asarray(flagged, np.uint8))
-    held = np.unique(labels[rows - top, cols - left])
-    boxes: list[tuple[int, int, int, int]] = [tuple(stats[label, :4].tolist()) for label in held]
+    joined = np.asarray(cv2.bitwise_or(beyond(above), read), np.uint8)
+    # Only the components holding a flagged pixel are boxed: from the joined pixels (few), not OpenCV's
+    # statistics of every component.
+    _, labels = labelled(joined, 8)
+    rows, cols = nonzero_pixels(joined)
+    owner = labels[rows, cols]
+    held = np.unique(owner[flagged[rows, cols] != 0])
+    boxes = []
+    for label in held.tolist():
+        inside = owner == label
+        top, bottom = int(rows[inside][0]), int(rows[inside][-1])  # row-major order
+        left, right = int(cols[inside].min()), int(cols[inside].max())
+        boxes.append((left, top, right - left + 1, bottom - top + 1))
     return boxes
 
 

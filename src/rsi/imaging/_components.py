@@ -57,7 +57,27 @@ def labelled(mask: NDArray[np.uint8], connectivity: int) -> tuple[int, NDArray[n
 
 
 def nonzero_pixels(mask: NDArray[np.uint8]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """``np.nonzero(mask)`` of a 2-D uint8 mask: the same (rows, cols), row by row, at a fifth of the time."""
+    """``np.nonzero(mask)`` of a 2-D uint8 mask: the same (rows, cols), row by row, at a fifth of the time.
+
+    When at most half the rows hold a pixel (a few defects on a board), only those rows are searched: they
+    are found eight bytes at a time, where the width allows it.
+    """
+    rows, cols = mask.shape
+    empty = np.zeros(0, dtype=np.intp)
+    if mask.size == 0:
+        return empty, empty.copy()
+    if mask.flags.c_contiguous and cols % 8 == 0:
+        occupied_rows = np.flatnonzero(mask.view(np.uint64).any(axis=1))
+        if occupied_rows.size == 0:
+            return empty, empty.copy()
+        if occupied_rows.size <= rows // 2:
+            found_rows, found_cols = _found(mask[occupied_rows])
+            return occupied_rows[found_rows], found_cols
+    return _found(mask)
+
+
+def _found(mask: NDArray[np.uint8]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """(rows, cols) of the non-zero pixels by cv2.findNonZero, in row-major order."""
     found = cv2.findNonZero(mask)
     if found is None:
         empty = np.zeros(0, dtype=np.intp)
