@@ -198,7 +198,11 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
         reference, inspection = read_pair(pair)
         lap("read")
         fit = register_pair(
-            reference, inspection, settings.registration_model, settings.registration_finest_level
+            reference,
+            inspection,
+            settings.registration_model,
+            settings.registration_finest_level,
+            settings.registration_coarsest_level,
         )
         lap("register")
         detection = detect(
@@ -278,12 +282,20 @@ def main(argv: list[str] | None = None) -> int:
         help="registration_finest_level (default: DeepPcbSettings()'s); 0 refines at full resolution",
     )
     parser.add_argument(
+        "--coarsest-level",
+        default=None,
+        help="registration_coarsest_level (default: DeepPcbSettings()'s); 'all' for the whole pyramid",
+    )
+    parser.add_argument(
         "--whole-frame", action="store_true", help="sparse=False: the detector's maps on the whole frame"
     )
     args = parser.parse_args(argv)
     default = DeepPcbSettings()
     if args.finest_level is not None:
         default = dataclasses.replace(default, registration_finest_level=args.finest_level)
+    if args.coarsest_level is not None:
+        coarsest = None if args.coarsest_level == "all" else int(args.coarsest_level)
+        default = dataclasses.replace(default, registration_coarsest_level=coarsest)
     if args.whole_frame:
         default = dataclasses.replace(default, sparse=False)
     if not (args.root / "PCBData").is_dir():

@@ -137,6 +137,7 @@ def test_group_defects_rejects_non_2d_mask() -> None:
         ("noise_sigma", 0.0),
         ("misregistration_std_px", -1.0),
         ("registration_finest_level", -1),
+        ("registration_coarsest_level", 0),  # finer than the finest level (1)
         ("merge_gap_px", -2),
         ("min_area_px", 0),
         ("border_px", -1),

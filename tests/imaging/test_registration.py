@@ -619,6 +619,39 @@ def test_finest_level_beyond_the_pyramid_refines_the_coarsest_level() -> None:
     )
 
 
+@pytest.mark.parametrize("model", ["translation", "affine"])
+def test_a_single_level_from_a_close_start_recovers_a_known_warp(model: str) -> None:
+    # coarsest_level = finest_level = 1: no quarter-size level before the half-size one; from the identity
+    # (pre-aligned images) the fit is as good as the two-level one.
+    reference = texture()
+    inspection = warped(reference, TRUTHS[model])
+    two_levels = register(reference, inspection, model=model, finest_level=1, initial=np.eye(3))
+    one_level = register(
+        reference, inspection, model=model, finest_level=1, coarsest_level=1, initial=np.eye(3)
+    )
+    assert one_level.converged
+    assert corner_error_px(one_level.matrix, TRUTHS[model]) < HALF_RESOLUTION_PX
+    assert corner_error_px(one_level.matrix, two_levels.matrix) < HALF_RESOLUTION_PX / 2
+
+
+def test_coarsest_level_none_or_beyond_the_pyramid_is_the_whole_pyramid_bit_for_bit() -> None:
+    reference = texture()  # 256 px: levels 0 and 1 only
+    inspection = warped(reference, TRUTHS["affine"])
+    default = register(reference, inspection, model="affine")
+    for coarsest in (None, 1, 7):
+        explicit = register(reference, inspection, model="affine", coarsest_level=coarsest)
+        np.testing.assert_array_equal(explicit.matrix, default.matrix)
+        assert explicit.iterations == default.iterations
+
+
+def test_coarsest_level_finer_than_the_finest_is_refused() -> None:
+    reference = texture()
+    with pytest.raises(InputError, match="coarsest_level=0 is finer than finest_level=1"):
+        register(reference, reference, finest_level=1, coarsest_level=0)
+    with pytest.raises(InputError, match="coarsest_level"):
+        register(reference, reference, coarsest_level=-1)
+
+
 def test_finest_level_one_trims_a_flaw_there() -> None:
     reference = texture()
     inspection = shifted(reference, (3.7, -2.2))

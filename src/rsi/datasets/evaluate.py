@@ -76,6 +76,11 @@ class DeepPcbSettings:
         the full-resolution fit for the median trainval pair (0.26 px at the 90th percentile, at the image
         corners), far inside the 3 px mis-registration floor the detector adds as noise, and the trainval
         figures do not move (``docs/deeppcb.md``). 2 (quarter size) costs 7 more false alarms in 1,000.
+    registration_coarsest_level : int or None
+        Coarsest pyramid level the registration refines (:func:`rsi.register`'s ``coarsest_level``; None:
+        down to 128 px a side). 1: the fit starts and ends on the half-size images, from the identity (the
+        pairs come pre-aligned, within a few pixels), without the quarter-size level before it; the fits
+        lie within 0.01 px of the two-level ones for the median pair (``docs/deeppcb.md``).
     flaw_model, size, method : str, int, str
         Passed to :func:`rsi.detect`. The erosion variant of the uniform multi-pixel model: every pixel of
         a ``size`` x ``size`` window must change the same way, which a 1-px edge residual never does.
@@ -113,6 +118,7 @@ class DeepPcbSettings:
 
     registration_model: str = "affine"
     registration_finest_level: int = 1
+    registration_coarsest_level: int | None = 1
     flaw_model: str = "uniform"
     size: int = 3
     method: str = "erosion"
@@ -129,6 +135,12 @@ class DeepPcbSettings:
     def __post_init__(self) -> None:
         choice(self.registration_model, "registration_model", REGISTRATION_MODELS)
         positive_int(self.registration_finest_level, "registration_finest_level", minimum=0)
+        if self.registration_coarsest_level is not None:
+            positive_int(
+                self.registration_coarsest_level,
+                "registration_coarsest_level",
+                minimum=self.registration_finest_level,
+            )
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
@@ -419,6 +431,7 @@ def register_pair(
     inspection: NDArray[np.floating],
     model: str,
     finest_level: int = 0,
+    coarsest_level: int | None = None,
 ) -> Registration:
     """Register a DeepPCB pair: start at the identity (the pairs are pre-aligned), keep a plausible fit.
 
@@ -426,7 +439,8 @@ def register_pair(
     :func:`rsi.register` pick a wrong peak; 20 of the 1,000 trainval pairs then diverged or locked onto a
     5-40 % scale, and every defect of the pair was missed. From the identity, the model's fit is kept if
     plausible, else a translation's, else the identity itself (``reason="implausible"``). `finest_level`
-    is :func:`rsi.register`'s (``DeepPcbSettings.registration_finest_level``).
+    and `coarsest_level` are :func:`rsi.register`'s (``DeepPcbSettings.registration_finest_level`` and
+    ``registration_coarsest_level``).
     """
     from rsi.imaging.registration import register
 
@@ -434,7 +448,12 @@ def register_pair(
     inspection_image = as_image(inspection, "inspection")
     for candidate in (choice(model, "model", REGISTRATION_MODELS), "translation"):
         fit = register(
-            reference_image, inspection_image, model=candidate, initial=np.eye(3), finest_level=finest_level
+            reference_image,
+            inspection_image,
+            model=candidate,
+            initial=np.eye(3),
+            finest_level=finest_level,
+            coarsest_level=coarsest_level,
         )
         if _plausible(fit):
             return fit
@@ -501,7 +520,11 @@ def detect_defects(
     reference_image = as_image(reference, "reference")
     inspection_image = as_image(inspection, "inspection")
     fit = register_pair(
-        reference_image, inspection_image, chosen.registration_model, chosen.registration_finest_level
+        reference_image,
+        inspection_image,
+        chosen.registration_model,
+        chosen.registration_finest_level,
+        chosen.registration_coarsest_level,
     )
     detection = detect(
         reference_image,

@@ -311,6 +311,19 @@ def _finest_level(finest_level: object, count: int) -> int:
     return min(positive_int(finest_level, "finest_level", minimum=0), count - 1)
 
 
+def _level_count(coarsest_level: object, finest_level: int, count: int) -> int:
+    """Levels built: the pyramid's `count`, or fewer so that the coarsest is `coarsest_level` (None: all)."""
+    if coarsest_level is None:
+        return count
+    coarsest = positive_int(coarsest_level, "coarsest_level", minimum=0)
+    if coarsest < finest_level:
+        raise InputError(
+            f"coarsest_level={coarsest} is finer than finest_level={finest_level}. Pass a coarsest_level "
+            "at least finest_level, or None for the whole pyramid."
+        )
+    return min(count, coarsest + 1)
+
+
 def _check_prepared(prepared: PreparedReference, model: object, photometric: object, mask: object) -> None:
     """A prepared reference fixes the model, the photometric fit and the mask: the call may not differ."""
     if model is not None and choice(model, "model", MODELS) != prepared.model:
@@ -568,6 +581,7 @@ def register(
     initial: NDArray[np.floating] | Registration | None = None,
     tile_px: int | None = None,
     finest_level: int = 0,
+    coarsest_level: int | None = None,
 ) -> Registration:
     """Register `reference` to `inspection` by coarse-to-fine inverse-compositional Gauss-Newton.
 
@@ -606,6 +620,12 @@ def register(
         pixels; `tolerance` is then in that level's pixels, and flaws are trimmed there. Level 1 costs about
         half of level 0 and is typically within 0.1 px of it (``docs/registration.md``): enough when the
         detector's mis-registration floor is far larger (DeepPCB's 3 px, ``docs/deeppcb.md``).
+    coarsest_level : int, optional
+        Coarsest pyramid level refined, >= `finest_level`; None (default): the coarsest that keeps at least
+        128 px a side. Coarse levels widen the basin of convergence; a start already close to the answer
+        (`initial` on pre-aligned images) needs none: with ``finest_level=coarsest_level=1`` DeepPCB's pairs
+        are registered on their half-size images alone (``docs/deeppcb.md``). Without `initial`, phase
+        correlation then runs on that level.
 
     Returns
     -------
@@ -653,6 +673,7 @@ def register(
                 deadline_s=deadline_s,
                 initial=initial,
                 finest_level=finest_level,
+                coarsest_level=coarsest_level,
             ),
             mask=mask,
             tile_px=_DEFAULT_TILE_PX if tile_px is None else tile_px,
@@ -665,11 +686,13 @@ def register(
         _check_prepared(reference, model, photometric, mask)
         count = min(len(reference.images), level_count(reference.shape, inspection_image.shape))
         finest = _finest_level(finest_level, count)
+        count = _level_count(coarsest_level, finest_level, count)
         prepared = _from_level(reference, finest)
     else:
         reference_image = _as_float32(reference, "reference")
         count = level_count(reference_image.shape, inspection_image.shape)
         finest = _finest_level(finest_level, count)
+        count = _level_count(coarsest_level, finest_level, count)
         # One code path: the cold call prepares the reference, only the levels it needs, in this thread's
         # scratch buffers (it never leaves the call: the pages of the last call are reused, not faulted).
         prepared = _prepare(
