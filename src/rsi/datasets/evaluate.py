@@ -474,15 +474,19 @@ def register_pair(
 def _grown(seeds: BoolArray, extent: BoolArray) -> BoolArray:
     """Pixels of `extent` 8-connected to a seed (morphological reconstruction by labelling)."""
     union = (extent | seeds).view(np.uint8)
-    # Only the box holding the pixels is labelled: the components, hence the pixels kept, are the same.
+    # Only the box holding the pixels is labelled: the components, hence the pixels kept, are the same; and
+    # only its pixels (a few per cent of it) are read and written.
     top, left, bottom, right = occupied(union)
-    inside = (slice(top, bottom), slice(left, right))
-    count, labels = labelled(np.ascontiguousarray(union[inside]), 8)
+    crop = np.ascontiguousarray(union[top:bottom, left:right])
+    count, labels = labelled(crop, 8)
+    rows, cols = nonzero_pixels(crop)
+    owner = labels[rows, cols]
+    rows, cols = rows + top, cols + left
     keep = np.zeros(count, dtype=bool)
-    keep[labels[seeds[inside]]] = True
-    keep[0] = False
+    keep[owner[seeds[rows, cols]]] = True
+    chosen = keep[owner]
     grown: BoolArray = np.zeros(seeds.shape, dtype=bool)
-    grown[inside] = keep[labels]
+    grown[rows[chosen], cols[chosen]] = True
     return grown
 
 
@@ -582,12 +586,14 @@ def group_detection(detection: Detection, settings: DeepPcbSettings) -> PcbDetec
     mask = detection.mask.copy()
     _clear_border(mask, settings.border_px)
     # seed §2.4: the per-pixel statistic d / sigma, with the same noise model (mis-registration included).
-    pixel_z = np.abs(detection.difference) / np.maximum(detection.sigma, np.float32(1e-6))
+    pixel_z = np.abs(detection.difference)
+    np.divide(pixel_z, np.maximum(detection.sigma, np.float32(1e-6)), out=pixel_z)
     # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
     undo_erosion = settings.size // 2 if settings.method == "erosion" else 0
     if settings.grow_to_changes:
         single = _single_pixel_threshold(settings)
-        extent = (pixel_z > single) & detection.valid
+        extent = np.greater(pixel_z, single)
+        extent &= detection.valid
         _clear_border(extent, settings.border_px)
         mask, undo_erosion = _grown(mask, extent), 0
     return group_defects(
