@@ -136,14 +136,32 @@ def classify_copper(
             raise InputError(
                 f"{name} must be a (pieces, holes) tuple of two whole numbers >= 0; got {counts!r:.80}."
             )
+    added, removed = after & (1 - before), before & (1 - after)
     # The windows are 0/1: pixel sums are counts.
-    added = np.count_nonzero(cv2.morphologyEx(after & (1 - before), cv2.MORPH_OPEN, _OPENING))
-    removed = np.count_nonzero(cv2.morphologyEx(before & (1 - after), cv2.MORPH_OPEN, _OPENING))
+    changed = (
+        np.count_nonzero(added),
+        np.count_nonzero(removed),
+        np.count_nonzero(cv2.morphologyEx(added, cv2.MORPH_OPEN, _OPENING)),
+        np.count_nonzero(cv2.morphologyEx(removed, cv2.MORPH_OPEN, _OPENING)),
+    )
+    return class_of_change(changed, pieces_before, pieces_after), core_px(before, after)
+
+
+def class_of_change(
+    changed: tuple[float, float, float, float], pieces_before: tuple[int, int], pieces_after: tuple[int, int]
+) -> int:
+    """:func:`classify_copper`'s class from the changed pixels counted already: copper added and removed,
+    raw and after the 3 x 3 opening (:mod:`rsi.datasets.pcb_learn`'s first window features)."""
+    added, removed = changed[2], changed[3]
     if added == removed == 0:
         # Nothing survives the opening: decide on the raw difference (a thin defect).
-        added, removed = np.count_nonzero(after & (1 - before)), np.count_nonzero(before & (1 - after))
-    core = float(np.count_nonzero(cv2.erode(before ^ after, _CORE)))
-    return _name(bool(added > removed), pieces_before, pieces_after), core
+        added, removed = changed[0], changed[1]
+    return _name(bool(added > removed), pieces_before, pieces_after)
+
+
+def core_px(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> float:
+    """Pixels that changed copper state and survive a 5 x 5 erosion (:func:`classify_window`'s confidence)."""
+    return float(np.count_nonzero(cv2.erode(before ^ after, _CORE)))
 
 
 def _name(grown: bool, before: tuple[int, int], after: tuple[int, int]) -> int:

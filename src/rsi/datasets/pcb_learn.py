@@ -22,7 +22,13 @@ from numpy.typing import NDArray
 from rsi._validate import as_float_array, as_image, instance_of, instance_or_default, same_shape
 from rsi.datasets.deeppcb import DeepPcbPair, read_pair
 from rsi.datasets.evaluate import OFFICIAL_IOU, DeepPcbSettings, PcbDetections, box_iou, detect_defects
-from rsi.datasets.pcb_classes import COPPER_BELOW_DN, _boxes_inside, _copper_pieces, classify_copper
+from rsi.datasets.pcb_classes import (
+    COPPER_BELOW_DN,
+    _boxes_inside,
+    _copper_pieces,
+    class_of_change,
+    core_px,
+)
 from rsi.errors import InputError
 from rsi.imaging._components import labelled
 
@@ -42,10 +48,12 @@ _RULE_COLUMN = 32
 def _window_features(
     before: NDArray[np.uint8],
     after: NDArray[np.uint8],
+    changes: tuple[NDArray[np.uint8], NDArray[np.uint8]],
     pieces: tuple[tuple[int, int], tuple[int, int]],
 ) -> list[float]:
-    """Changed copper (raw and after a 3x3 opening) and the (pieces, holes) before and after."""
-    added, removed = after & (1 - before), before & (1 - after)
+    """Changed copper (raw and after a 3x3 opening) and the (pieces, holes) before and after; `changes` are
+    the copper added and removed."""
+    added, removed = changes
     opened_added = cv2.morphologyEx(added, cv2.MORPH_OPEN, _SQUARE)
     opened_removed = cv2.morphologyEx(removed, cv2.MORPH_OPEN, _SQUARE)
     (pieces_before, holes_before), (pieces_after, holes_after) = pieces
@@ -65,11 +73,16 @@ def _window_features(
     ]
 
 
-def _surroundings(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[float]:
-    """What surrounds the change in the template: a spur touches copper once, a short twice, spurious
-    copper never; a pin-hole is all copper around, a mousebite board on one side, an open on two."""
+def _surroundings(
+    before: NDArray[np.uint8], changes: tuple[NDArray[np.uint8], NDArray[np.uint8]]
+) -> list[float]:
+    """What surrounds the change (copper added, removed) in the template: a spur touches copper once, a
+    short twice, spurious copper never; a pin-hole is all copper around, a mousebite board on one side, an
+    open on two."""
+    added, removed = changes
+    board = 1 - before
     features = []
-    for change, around in ((after & (1 - before), before), (before & (1 - after), 1 - before)):
+    for change, around in ((added, before), (removed, board)):
         ring = np.asarray(cv2.dilate(change, _SQUARE), dtype=np.uint8) & (1 - change)
         touching = (around & ring).astype(np.uint8)
         features += [
@@ -77,7 +90,7 @@ def _surroundings(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[f
             float(labelled(touching, 8)[0] - 1),
         ]
     # Width of the copper a removal bites into, and of the board an addition grows into.
-    for change, material in ((before & (1 - after), before), (after & (1 - before), 1 - before)):
+    for change, material in ((removed, before), (added, board)):
         distance = cv2.distanceTransform(material.astype(np.uint8), cv2.DIST_L2, 3)
         features.append(float(distance[change > 0].max()) if change.any() else 0.0)
     return features
@@ -114,12 +127,14 @@ def _box_features(
         )
         before, after = copper_before[window], copper_after[window]
         pieces = (_copper_pieces(before), _copper_pieces(after))
-        features += _window_features(before, after, pieces)
+        changes = (after & (1 - before), before & (1 - after))
+        counted = _window_features(before, after, changes, pieces)
+        features += counted
         if growth == 0:
-            features += _surroundings(before, after)
-            # The rules' class on the same window and pieces (classify_window, without counting again).
-            rule, core = classify_copper(before, after, *pieces)
-            features += [float(rule), core]
+            features += _surroundings(before, changes)
+            # The rules' class on the same window, pieces and changes (classify_window, counted once).
+            rule = class_of_change((counted[0], counted[1], counted[2], counted[3]), *pieces)
+            features += [float(rule), core_px(before, after)]
     return features
 
 
