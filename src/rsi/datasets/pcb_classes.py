@@ -139,10 +139,10 @@ def classify_copper(
     added, removed = after & (1 - before), before & (1 - after)
     # The windows are 0/1: pixel sums are counts.
     changed = (
-        np.count_nonzero(added),
-        np.count_nonzero(removed),
-        np.count_nonzero(cv2.morphologyEx(added, cv2.MORPH_OPEN, _OPENING)),
-        np.count_nonzero(cv2.morphologyEx(removed, cv2.MORPH_OPEN, _OPENING)),
+        float(np.count_nonzero(added)),
+        float(np.count_nonzero(removed)),
+        float(np.count_nonzero(cv2.morphologyEx(added, cv2.MORPH_OPEN, _OPENING))),
+        float(np.count_nonzero(cv2.morphologyEx(removed, cv2.MORPH_OPEN, _OPENING))),
     )
     return class_of_change(changed, pieces_before, pieces_after), core_px(before, after)
 
