@@ -48,6 +48,7 @@ from rsi.datasets.evaluate import (
     name_defects,
     predicted_template,
     register_pair,
+    registration_options,
     sparse_above,
 )
 from rsi.datasets.official import OfficialTally
@@ -197,13 +198,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
         start = clock[0]
         reference, inspection = read_pair(pair)
         lap("read")
-        fit = register_pair(
-            reference,
-            inspection,
-            settings.registration_model,
-            settings.registration_finest_level,
-            settings.registration_coarsest_level,
-        )
+        fit = register_pair(reference, inspection, **registration_options(settings))
         lap("register")
         detection = detect(
             reference,
@@ -287,6 +282,16 @@ def main(argv: list[str] | None = None) -> int:
         help="registration_coarsest_level (default: DeepPcbSettings()'s); 'all' for the whole pyramid",
     )
     parser.add_argument(
+        "--row-step",
+        default=None,
+        help="registration_row_step (default: DeepPcbSettings()'s); 'auto' for rsi.register's default",
+    )
+    parser.add_argument(
+        "--photometric",
+        action="store_true",
+        help="registration_photometric=True: fit a gain and bias (the code before the third step)",
+    )
+    parser.add_argument(
         "--whole-frame", action="store_true", help="sparse=False: the detector's maps on the whole frame"
     )
     args = parser.parse_args(argv)
@@ -296,6 +301,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.coarsest_level is not None:
         coarsest = None if args.coarsest_level == "all" else int(args.coarsest_level)
         default = dataclasses.replace(default, registration_coarsest_level=coarsest)
+    if args.row_step is not None:
+        row_step = None if args.row_step == "auto" else int(args.row_step)
+        default = dataclasses.replace(default, registration_row_step=row_step)
+    if args.photometric:
+        default = dataclasses.replace(default, registration_photometric=True)
     if args.whole_frame:
         default = dataclasses.replace(default, sparse=False)
     if not (args.root / "PCBData").is_dir():

@@ -138,6 +138,8 @@ def test_group_defects_rejects_non_2d_mask() -> None:
         ("misregistration_std_px", -1.0),
         ("registration_finest_level", -1),
         ("registration_coarsest_level", 0),  # finer than the finest level (1)
+        ("registration_row_step", 0),
+        ("registration_photometric", "no"),
         ("merge_gap_px", -2),
         ("min_area_px", 0),
         ("border_px", -1),

@@ -675,3 +675,39 @@ def test_prepared_reference_at_finest_level_one_gives_the_cold_answer(model: str
 def test_finest_level_must_be_a_non_negative_int(value: object) -> None:
     with pytest.raises(InputError, match="finest_level"):
         register(texture(), texture(), finest_level=value)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("model", ["translation", "affine"])
+def test_every_other_row_recovers_a_known_warp(model: str) -> None:
+    # row_step=2 on a 256-row level (every row by default): half the samples, the same answer within the
+    # half-resolution tolerance.
+    reference = texture()
+    inspection = warped(reference, TRUTHS[model])
+    every_row = register(reference, inspection, model=model)
+    every_other = register(reference, inspection, model=model, row_step=2)
+    assert every_other.converged
+    assert corner_error_px(every_other.matrix, TRUTHS[model]) < HALF_RESOLUTION_PX
+    assert not np.array_equal(every_other.matrix, every_row.matrix)  # fewer rows: another (close) answer
+
+
+def test_a_prepared_reference_keeps_its_row_step() -> None:
+    reference = texture(sigma_px=2.0)
+    inspection = warped(reference, TRUTHS["affine"])
+    prepared = prepare_reference(reference, model="affine", row_step=2)
+    cold = register(reference, inspection, model="affine", row_step=2)
+    warm = register(prepared, inspection)
+    np.testing.assert_allclose(warm.matrix, cold.matrix, atol=1e-6)
+    assert warm.iterations == cold.iterations
+    np.testing.assert_array_equal(register(prepared, inspection, row_step=2).matrix, warm.matrix)
+    with pytest.raises(InputError, match="row_step=3 differs from the prepared reference's row_step=2"):
+        register(prepared, inspection, row_step=3)
+    with pytest.raises(InputError, match="row_step=1 differs"):
+        register(prepare_reference(reference, model="affine"), inspection, row_step=1)
+
+
+@pytest.mark.parametrize("value", [0, -2, 1.5, "2"])
+def test_row_step_must_be_a_positive_int(value: object) -> None:
+    with pytest.raises(InputError, match="row_step"):
+        register(texture(), texture(), row_step=value)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="row_step"):
+        prepare_reference(texture(), row_step=value)  # type: ignore[arg-type]

@@ -81,6 +81,14 @@ class DeepPcbSettings:
         down to 128 px a side). 1: the fit starts and ends on the half-size images, from the identity (the
         pairs come pre-aligned, within a few pixels), without the quarter-size level before it; the fits
         lie within 0.01 px of the two-level ones for the median pair (``docs/deeppcb.md``).
+    registration_row_step : int or None
+        Rows the registration samples (:func:`rsi.register`'s ``row_step``; None: every row below 512).
+        2: every other row of the half-size images, half the work; the fits move by 0.04 px for the median
+        pair (0.2 px at the 90th percentile), far inside the 3 px floor.
+    registration_photometric : bool
+        Fit a gain and bias (:func:`rsi.register`'s ``photometric``). False: the images are binarised to 0
+        and 255, so there is no exposure difference to fit, and the two photometric unknowns are a quarter of
+        an affine fit's work. Measured on trainval, not tuned: a yes-or-no choice (``docs/deeppcb.md``).
     flaw_model, size, method : str, int, str
         Passed to :func:`rsi.detect`. The erosion variant of the uniform multi-pixel model: every pixel of
         a ``size`` x ``size`` window must change the same way, which a 1-px edge residual never does.
@@ -119,6 +127,8 @@ class DeepPcbSettings:
     registration_model: str = "affine"
     registration_finest_level: int = 1
     registration_coarsest_level: int | None = 1
+    registration_row_step: int | None = 2
+    registration_photometric: bool = False
     flaw_model: str = "uniform"
     size: int = 3
     method: str = "erosion"
@@ -141,6 +151,9 @@ class DeepPcbSettings:
                 "registration_coarsest_level",
                 minimum=self.registration_finest_level,
             )
+        if self.registration_row_step is not None:
+            positive_int(self.registration_row_step, "registration_row_step")
+        instance_of(self.registration_photometric, "registration_photometric", bool, none_allowed=False)
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
@@ -432,15 +445,18 @@ def register_pair(
     model: str,
     finest_level: int = 0,
     coarsest_level: int | None = None,
+    *,
+    row_step: int | None = None,
+    photometric: bool = True,
 ) -> Registration:
     """Register a DeepPCB pair: start at the identity (the pairs are pre-aligned), keep a plausible fit.
 
     A sparse board (a few traces on blank board) lets the coarse phase-correlation start of
     :func:`rsi.register` pick a wrong peak; 20 of the 1,000 trainval pairs then diverged or locked onto a
     5-40 % scale, and every defect of the pair was missed. From the identity, the model's fit is kept if
-    plausible, else a translation's, else the identity itself (``reason="implausible"``). `finest_level`
-    and `coarsest_level` are :func:`rsi.register`'s (``DeepPcbSettings.registration_finest_level`` and
-    ``registration_coarsest_level``).
+    plausible, else a translation's, else the identity itself (``reason="implausible"``). `finest_level`,
+    `coarsest_level`, `row_step` and `photometric` are :func:`rsi.register`'s (``DeepPcbSettings``'s
+    ``registration_*``; :func:`registration_options` gives them).
     """
     from rsi.imaging.registration import register
 
@@ -454,6 +470,8 @@ def register_pair(
             initial=np.eye(3),
             finest_level=finest_level,
             coarsest_level=coarsest_level,
+            row_step=row_step,
+            photometric=photometric,
         )
         if _plausible(fit):
             return fit
@@ -523,13 +541,7 @@ def detect_defects(
         instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
     reference_image = as_image(reference, "reference")
     inspection_image = as_image(inspection, "inspection")
-    fit = register_pair(
-        reference_image,
-        inspection_image,
-        chosen.registration_model,
-        chosen.registration_finest_level,
-        chosen.registration_coarsest_level,
-    )
+    fit = register_pair(reference_image, inspection_image, **registration_options(chosen))
     detection = detect(
         reference_image,
         inspection_image,
@@ -561,6 +573,18 @@ def predicted_template(detection: Detection, inspection: NDArray[np.floating]) -
     template: NDArray[np.floating] = test - detection.difference
     np.copyto(template, test, where=~detection.valid)
     return template
+
+
+def registration_options(settings: DeepPcbSettings) -> dict[str, Any]:
+    """:func:`register_pair`'s arguments for these settings (model, pyramid levels, rows, photometric)."""
+    instance_of(settings, "settings", DeepPcbSettings, none_allowed=False)
+    return {
+        "model": settings.registration_model,
+        "finest_level": settings.registration_finest_level,
+        "coarsest_level": settings.registration_coarsest_level,
+        "row_step": settings.registration_row_step,
+        "photometric": settings.registration_photometric,
+    }
 
 
 def _single_pixel_threshold(settings: DeepPcbSettings) -> float:

@@ -153,14 +153,16 @@ def reference_terms(
     *,
     allocate: Allocate = owned,
     role: str = "jacobian",
+    row_step: int | None = None,
 ) -> Terms:
     """Steepest-descent images and Hessian of one smoothed reference level (`mask` True = usable).
 
     The Jacobian is a new array, or the `role` :func:`~rsi.imaging._warps.scratch` buffer (`allocate`) for a
-    reference used in one call only.
+    reference used in one call only. `row_step`: every row_step-th row is used (None: :func:`_row_step`).
     """
     rows, cols = reference.shape
-    row_step, from_pixels, n_params = _row_step(reference.shape), normaliser((rows, cols)), model.n_params
+    row_step = _row_step(reference.shape) if row_step is None else row_step
+    from_pixels, n_params = normaliser((rows, cols)), model.n_params
     shape = (n_params + 2 * photometric, len(range(0, rows, row_step)), cols)
     jacobian = allocate(role, shape, np.float32)
     # Used rows 1 .. last (reference rows row_step .. last * row_step) have both neighbours.

@@ -194,6 +194,8 @@ class PreparedReference:
         The usable pixels of each level (None without a mask).
     terms : tuple of Terms
         Per level, the steepest-descent images on its whole frame and their Hessian.
+    row_step : int or None
+        The rows sampled (:func:`register`'s `row_step`).
     """
 
     model: str
@@ -202,6 +204,7 @@ class PreparedReference:
     images: tuple[Image, ...]
     masks: tuple[NDArray[np.bool_] | None, ...]
     terms: tuple[Terms, ...]
+    row_step: int | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -216,6 +219,7 @@ def prepare_reference(
     model: str = "translation",
     photometric: bool = True,
     mask: NDArray[np.generic] | None = None,
+    row_step: int | None = None,
 ) -> PreparedReference:
     """Precompute the reference side of :func:`register`: its pyramid, Jacobian and Hessian per level.
 
@@ -229,6 +233,8 @@ def prepare_reference(
         Also fit ``inspection ~= gain * reference + bias``.
     mask : ndarray of shape (M, N), bool, optional
         Reference pixels that may be used (True = use).
+    row_step : int, optional
+        Rows sampled, as :func:`register`'s `row_step`.
 
     Returns
     -------
@@ -252,7 +258,15 @@ def prepare_reference(
     [3.7, -2.2]
     """
     image = _as_float32(reference, "reference")
-    return _prepare(image, model, photometric, mask, level_count(image.shape), allocate=owned)
+    return _prepare(
+        image,
+        model,
+        photometric,
+        mask,
+        level_count(image.shape),
+        allocate=owned,
+        row_step=_chosen_row_step(row_step),
+    )
 
 
 def _prepare(
@@ -264,6 +278,7 @@ def _prepare(
     *,
     allocate: Allocate,
     finest: int = 0,
+    row_step: int | None = None,
 ) -> PreparedReference:
     """Prepare the reference in arrays from `allocate`: owned ones, or scratch for one cold call.
 
@@ -286,12 +301,18 @@ def _prepare(
             bool(photometric),
             allocate=allocate,
             role=f"jacobian{index}",
+            row_step=row_step,
         )
         for index, (level, level_mask) in enumerate(zip(images, masks, strict=True))
     )
     return PreparedReference(
-        model, bool(photometric), user_mask is not None, tuple(images), tuple(masks), terms
+        model, bool(photometric), user_mask is not None, tuple(images), tuple(masks), terms, row_step
     )
+
+
+def _chosen_row_step(row_step: object) -> int | None:
+    """None (every row; every other on levels of 512 rows or more), or an int >= 1."""
+    return None if row_step is None else positive_int(row_step, "row_step")
 
 
 def _from_level(prepared: PreparedReference, finest: int) -> PreparedReference:
@@ -324,8 +345,16 @@ def _level_count(coarsest_level: object, finest_level: int, count: int) -> int:
     return min(count, coarsest + 1)
 
 
-def _check_prepared(prepared: PreparedReference, model: object, photometric: object, mask: object) -> None:
-    """A prepared reference fixes the model, the photometric fit and the mask: the call may not differ."""
+def _check_prepared(
+    prepared: PreparedReference, model: object, photometric: object, mask: object, row_step: object
+) -> None:
+    """A prepared reference fixes the model, the photometric fit, the mask and the rows sampled: the call
+    may not differ."""
+    if row_step is not None and _chosen_row_step(row_step) != prepared.row_step:
+        raise InputError(
+            f"row_step={row_step!r} differs from the prepared reference's row_step={prepared.row_step!r}. "
+            "Omit row_step, or prepare the reference with prepare_reference(reference, row_step=...)."
+        )
     if model is not None and choice(model, "model", MODELS) != prepared.model:
         raise InputError(
             f"model={model!r} differs from the prepared reference's model={prepared.model!r}. Omit model, or "
@@ -582,6 +611,7 @@ def register(
     tile_px: int | None = None,
     finest_level: int = 0,
     coarsest_level: int | None = None,
+    row_step: int | None = None,
 ) -> Registration:
     """Register `reference` to `inspection` by coarse-to-fine inverse-compositional Gauss-Newton.
 
@@ -626,6 +656,11 @@ def register(
         (`initial` on pre-aligned images) needs none: with ``finest_level=coarsest_level=1`` DeepPCB's pairs
         are registered on their half-size images alone (``docs/deeppcb.md``). Without `initial`, phase
         correlation then runs on that level.
+    row_step : int, optional
+        Rows sampled on each level, >= 1: None (default) every row, and every other row on levels of 512 rows
+        or more (their accuracy is limited by interpolation bias, not noise); ``k``: every k-th row on every
+        level, at about 1/k of the work. DeepPCB's half-size images use every other row (``docs/deeppcb.md``).
+        A prepared reference fixes it (:func:`prepare_reference`).
 
     Returns
     -------
@@ -674,6 +709,7 @@ def register(
                 initial=initial,
                 finest_level=finest_level,
                 coarsest_level=coarsest_level,
+                row_step=row_step,
             ),
             mask=mask,
             tile_px=_DEFAULT_TILE_PX if tile_px is None else tile_px,
@@ -683,7 +719,7 @@ def register(
         raise InputError(f"tile_px applies to model='local' only; got model={model!r}. Omit tile_px.")
     inspection_image = _as_float32(inspection, "inspection")
     if isinstance(reference, PreparedReference):
-        _check_prepared(reference, model, photometric, mask)
+        _check_prepared(reference, model, photometric, mask, row_step)
         count = min(len(reference.images), level_count(reference.shape, inspection_image.shape))
         finest = _finest_level(finest_level, count)
         count = _level_count(coarsest_level, finest_level, count)
@@ -703,6 +739,7 @@ def register(
             count,
             allocate=scratch,
             finest=finest,
+            row_step=_chosen_row_step(row_step),
         )
     settings = Settings(
         model=WARP_MODELS[prepared.model],
