@@ -164,9 +164,11 @@ class Registration:
             valid = _preimage_inside(inverse, shape, image.shape)
         else:
             warped, valid = _warp_local(image, self.matrix, self.local, (int(shape[0]), int(shape[1])))
-        # warped is this call's own array: the photometric map and the mask are applied in place.
+        # warped is this call's own array: the photometric map and the mask are applied in place. A gain of
+        # 1 (no photometric fit) changes no value, not even a -0: its pass is skipped.
         if photometric:
-            np.multiply(warped, np.float32(self.gain), out=warped)
+            if self.gain != 1.0:
+                np.multiply(warped, np.float32(self.gain), out=warped)
             np.add(warped, np.float32(self.bias), out=warped)
         warped[~valid] = 0.0
         return warped, valid
