@@ -47,11 +47,10 @@ def _copper_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
     # Areas from the labels (OpenCV's statistics cost more than the labelling on these small windows).
     count, labels = labelled(copper, 8)
     pieces = int(np.count_nonzero(np.bincount(labels.ravel(), minlength=count)[1:] >= _MIN_PIECE_PX))
-    count, labels = labelled((1 - copper).astype(np.uint8), 4)
+    count, labels = labelled(1 - copper, 4)  # uint8: the scalar takes the array's type
     enclosed = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
     enclosed[0] = False
-    for edge in (labels[0], labels[-1], labels[:, 0], labels[:, -1]):
-        enclosed[edge] = False
+    enclosed[np.concatenate((labels[0], labels[-1], labels[:, 0], labels[:, -1]))] = False
     return pieces, int(np.count_nonzero(enclosed))
 
 
