@@ -711,3 +711,38 @@ def test_row_step_must_be_a_positive_int(value: object) -> None:
         register(texture(), texture(), row_step=value)  # type: ignore[arg-type]
     with pytest.raises(InputError, match="row_step"):
         prepare_reference(texture(), row_step=value)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("model", ["translation", "affine"])
+def test_without_presmoothing_a_half_size_fit_recovers_a_known_warp(model: str) -> None:
+    # presmooth=False: the half-size level is cv2.pyrDown of the raw image, smoothed by its own Gaussian.
+    reference = texture()
+    inspection = warped(reference, TRUTHS[model])
+    raw = register(reference, inspection, model=model, finest_level=1, presmooth=False)
+    assert raw.converged
+    assert corner_error_px(raw.matrix, TRUTHS[model]) < HALF_RESOLUTION_PX
+    smoothed = register(reference, inspection, model=model, finest_level=1)
+    assert not np.array_equal(raw.matrix, smoothed.matrix)  # other images, a close answer
+
+
+def test_a_prepared_reference_keeps_its_presmoothing() -> None:
+    reference = texture(sigma_px=2.0)
+    inspection = warped(reference, TRUTHS["affine"])
+    prepared = prepare_reference(reference, model="affine", presmooth=False)
+    cold = register(reference, inspection, model="affine", presmooth=False)
+    warm = register(prepared, inspection)
+    np.testing.assert_allclose(warm.matrix, cold.matrix, atol=1e-6)
+    assert warm.iterations == cold.iterations
+    with pytest.raises(InputError, match="presmooth=True differs from the prepared reference's"):
+        register(prepared, inspection, presmooth=True)
+    with pytest.raises(InputError, match="presmooth"):
+        register(reference, inspection, presmooth="no")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="presmooth"):
+        prepare_reference(reference, presmooth=1)  # type: ignore[arg-type]
+
+
+def test_the_caller_s_images_stay_writable_without_presmoothing() -> None:
+    reference, inspection = texture(), shifted(texture(), (1.5, 0.5))
+    register(reference, inspection, presmooth=False)
+    prepare_reference(reference, presmooth=False)
+    assert reference.flags.writeable and inspection.flags.writeable

@@ -89,6 +89,11 @@ class DeepPcbSettings:
         Fit a gain and bias (:func:`rsi.register`'s ``photometric``). False: the images are binarised to 0
         and 255, so there is no exposure difference to fit, and the two photometric unknowns are a quarter of
         an affine fit's work. Measured on trainval, not tuned: a yes-or-no choice (``docs/deeppcb.md``).
+    registration_presmooth : bool
+        Smooth the full-resolution images before the registration's pyramid (:func:`rsi.register`'s
+        ``presmooth``). False: the fit ends on the half-size images, which cv2.pyrDown's own Gaussian
+        smooths; the full-resolution filtering of both images only fed them. Measured on trainval, a
+        yes-or-no choice like the last.
     flaw_model, size, method : str, int, str
         Passed to :func:`rsi.detect`. The erosion variant of the uniform multi-pixel model: every pixel of
         a ``size`` x ``size`` window must change the same way, which a 1-px edge residual never does.
@@ -129,6 +134,7 @@ class DeepPcbSettings:
     registration_coarsest_level: int | None = 1
     registration_row_step: int | None = 2
     registration_photometric: bool = False
+    registration_presmooth: bool = False
     flaw_model: str = "uniform"
     size: int = 3
     method: str = "erosion"
@@ -154,6 +160,7 @@ class DeepPcbSettings:
         if self.registration_row_step is not None:
             positive_int(self.registration_row_step, "registration_row_step")
         instance_of(self.registration_photometric, "registration_photometric", bool, none_allowed=False)
+        instance_of(self.registration_presmooth, "registration_presmooth", bool, none_allowed=False)
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
@@ -448,6 +455,7 @@ def register_pair(
     *,
     row_step: int | None = None,
     photometric: bool = True,
+    presmooth: bool = True,
 ) -> Registration:
     """Register a DeepPCB pair: start at the identity (the pairs are pre-aligned), keep a plausible fit.
 
@@ -455,8 +463,8 @@ def register_pair(
     :func:`rsi.register` pick a wrong peak; 20 of the 1,000 trainval pairs then diverged or locked onto a
     5-40 % scale, and every defect of the pair was missed. From the identity, the model's fit is kept if
     plausible, else a translation's, else the identity itself (``reason="implausible"``). `finest_level`,
-    `coarsest_level`, `row_step` and `photometric` are :func:`rsi.register`'s (``DeepPcbSettings``'s
-    ``registration_*``; :func:`registration_options` gives them).
+    `coarsest_level`, `row_step`, `photometric` and `presmooth` are :func:`rsi.register`'s
+    (``DeepPcbSettings``'s ``registration_*``; :func:`registration_options` gives them).
     """
     from rsi.imaging.registration import register
 
@@ -472,6 +480,7 @@ def register_pair(
             coarsest_level=coarsest_level,
             row_step=row_step,
             photometric=photometric,
+            presmooth=presmooth,
         )
         if _plausible(fit):
             return fit
@@ -576,7 +585,7 @@ def predicted_template(detection: Detection, inspection: NDArray[np.floating]) -
 
 
 def registration_options(settings: DeepPcbSettings) -> dict[str, Any]:
-    """:func:`register_pair`'s arguments for these settings (model, pyramid levels, rows, photometric)."""
+    """:func:`register_pair`'s arguments for these settings (model, levels, rows, photometric, smoothing)."""
     instance_of(settings, "settings", DeepPcbSettings, none_allowed=False)
     return {
         "model": settings.registration_model,
@@ -584,6 +593,7 @@ def registration_options(settings: DeepPcbSettings) -> dict[str, Any]:
         "coarsest_level": settings.registration_coarsest_level,
         "row_step": settings.registration_row_step,
         "photometric": settings.registration_photometric,
+        "presmooth": settings.registration_presmooth,
     }
 
 

@@ -198,6 +198,8 @@ class PreparedReference:
         Per level, the steepest-descent images on its whole frame and their Hessian.
     row_step : int or None
         The rows sampled (:func:`register`'s `row_step`).
+    presmooth : bool
+        Whether the full resolution was smoothed before the pyramid (:func:`register`'s `presmooth`).
     """
 
     model: str
@@ -207,6 +209,7 @@ class PreparedReference:
     masks: tuple[NDArray[np.bool_] | None, ...]
     terms: tuple[Terms, ...]
     row_step: int | None = None
+    presmooth: bool = True
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -222,6 +225,7 @@ def prepare_reference(
     photometric: bool = True,
     mask: NDArray[np.generic] | None = None,
     row_step: int | None = None,
+    presmooth: bool = True,
 ) -> PreparedReference:
     """Precompute the reference side of :func:`register`: its pyramid, Jacobian and Hessian per level.
 
@@ -237,6 +241,8 @@ def prepare_reference(
         Reference pixels that may be used (True = use).
     row_step : int, optional
         Rows sampled, as :func:`register`'s `row_step`.
+    presmooth : bool
+        Smooth the full resolution before the pyramid, as :func:`register`'s `presmooth`.
 
     Returns
     -------
@@ -268,6 +274,7 @@ def prepare_reference(
         level_count(image.shape),
         allocate=owned,
         row_step=_chosen_row_step(row_step),
+        presmooth=_flag(presmooth, "presmooth"),
     )
 
 
@@ -281,6 +288,7 @@ def _prepare(
     allocate: Allocate,
     finest: int = 0,
     row_step: int | None = None,
+    presmooth: bool = True,
 ) -> PreparedReference:
     """Prepare the reference in arrays from `allocate`: owned ones, or scratch for one cold call.
 
@@ -291,7 +299,7 @@ def _prepare(
     if not isinstance(photometric, (bool, np.bool_)):
         raise InputError(f"photometric must be True or False; got {photometric!r}.")
     user_mask = None if mask is None else as_mask(mask, "mask", image.shape)
-    images, masks = reference_pyramid(image, user_mask, count, allocate)
+    images, masks = reference_pyramid(image, user_mask, count, allocate, presmooth)
     images, masks = images[finest:], masks[finest:]
     for level in images:
         level.setflags(write=False)
@@ -308,8 +316,21 @@ def _prepare(
         for index, (level, level_mask) in enumerate(zip(images, masks, strict=True))
     )
     return PreparedReference(
-        model, bool(photometric), user_mask is not None, tuple(images), tuple(masks), terms, row_step
+        model,
+        bool(photometric),
+        user_mask is not None,
+        tuple(images),
+        tuple(masks),
+        terms,
+        row_step,
+        presmooth,
     )
+
+
+def _flag(value: object, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name} must be True or False; got {value!r}.")
+    return bool(value)
 
 
 def _chosen_row_step(row_step: object) -> int | None:
@@ -348,10 +369,22 @@ def _level_count(coarsest_level: object, finest_level: int, count: int) -> int:
 
 
 def _check_prepared(
-    prepared: PreparedReference, model: object, photometric: object, mask: object, row_step: object
+    prepared: PreparedReference,
+    model: object,
+    photometric: object,
+    mask: object,
+    *,
+    row_step: object,
+    presmooth: object,
 ) -> None:
-    """A prepared reference fixes the model, the photometric fit, the mask and the rows sampled: the call
-    may not differ."""
+    """A prepared reference fixes the model, the photometric fit, the mask, the rows sampled and the
+    smoothing: the call may not differ."""
+    if presmooth is not None and _flag(presmooth, "presmooth") is not prepared.presmooth:
+        raise InputError(
+            f"presmooth={presmooth!r} differs from the prepared reference's "
+            f"presmooth={prepared.presmooth!r}. Omit presmooth, or prepare the reference with "
+            "prepare_reference(reference, presmooth=...)."
+        )
     if row_step is not None and _chosen_row_step(row_step) != prepared.row_step:
         raise InputError(
             f"row_step={row_step!r} differs from the prepared reference's row_step={prepared.row_step!r}. "
@@ -614,6 +647,7 @@ def register(
     finest_level: int = 0,
     coarsest_level: int | None = None,
     row_step: int | None = None,
+    presmooth: bool | None = None,
 ) -> Registration:
     """Register `reference` to `inspection` by coarse-to-fine inverse-compositional Gauss-Newton.
 
@@ -663,6 +697,12 @@ def register(
         or more (their accuracy is limited by interpolation bias, not noise); ``k``: every k-th row on every
         level, at about 1/k of the work. DeepPCB's half-size images use every other row (``docs/deeppcb.md``).
         A prepared reference fixes it (:func:`prepare_reference`).
+    presmooth : bool, optional
+        Smooth both full-resolution images with a 5 x 5 Gaussian before building the pyramid: True by default
+        (it makes bilinear resampling at full resolution accurate to a few thousandths of a pixel), or the
+        prepared reference's choice. False: the pyramid is built from the images as they are, every coarser
+        level smoothed by cv2.pyrDown's own 5-tap Gaussian; for a fit that ends above full resolution
+        (`finest_level` >= 1) this only spares the full-resolution filtering (DeepPCB: ``docs/deeppcb.md``).
 
     Returns
     -------
@@ -712,6 +752,7 @@ def register(
                 finest_level=finest_level,
                 coarsest_level=coarsest_level,
                 row_step=row_step,
+                presmooth=presmooth,
             ),
             mask=mask,
             tile_px=_DEFAULT_TILE_PX if tile_px is None else tile_px,
@@ -721,7 +762,7 @@ def register(
         raise InputError(f"tile_px applies to model='local' only; got model={model!r}. Omit tile_px.")
     inspection_image = _as_float32(inspection, "inspection")
     if isinstance(reference, PreparedReference):
-        _check_prepared(reference, model, photometric, mask, row_step)
+        _check_prepared(reference, model, photometric, mask, row_step=row_step, presmooth=presmooth)
         count = min(len(reference.images), level_count(reference.shape, inspection_image.shape))
         finest = _finest_level(finest_level, count)
         count = _level_count(coarsest_level, finest_level, count)
@@ -742,6 +783,7 @@ def register(
             allocate=scratch,
             finest=finest,
             row_step=_chosen_row_step(row_step),
+            presmooth=True if presmooth is None else _flag(presmooth, "presmooth"),
         )
     settings = Settings(
         model=WARP_MODELS[prepared.model],
@@ -759,7 +801,7 @@ def register(
     # From `finest` down the levels are those of both images `finest` times halved: solved as such, the fit
     # is scaled back to full-resolution pixels.
     scale = 2.0**finest
-    inspections = inspection_pyramid(inspection_image, count)[finest:]
+    inspections = inspection_pyramid(inspection_image, count, prepared.presmooth)[finest:]
     levels = [
         Level(index, prepared.images[index], inspections[index], prepared.masks[index])
         for index in range(count - finest)
