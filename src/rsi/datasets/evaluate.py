@@ -37,7 +37,7 @@ from rsi._validate import (
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
-from rsi.imaging._components import labelled, labelled_with_stats, nonzero_pixels, occupied
+from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
 from rsi.imaging.registration import REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
@@ -398,11 +398,13 @@ def group_defects(
         # Dilating by half the gap joins pieces at most the gap apart; the labels are read at mask pixels.
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
         joined = cv2.dilate(joined, disk)
-    count, labels, stats, _ = labelled_with_stats(joined, 8)
-    stats[:, cv2.CC_STAT_LEFT] += left
-    stats[:, cv2.CC_STAT_TOP] += top
+    # The dilated groups as pixels (their boxes), and the label of each mask pixel among them: the mask's
+    # pixels are the dilation's too, found in both in row-major order.
+    count, joined_rows, joined_cols, joined_owner = pixel_components(joined, 8)
+    stats, _ = component_stats(count, joined_rows + top, joined_cols + left, joined_owner)
     rows, cols = nonzero_pixels(pixels[top:bottom, left:right])
-    owner = labels[rows, cols]
+    width = right - left
+    owner = joined_owner[np.searchsorted(joined_rows * width + joined_cols, rows * width + cols)]
     rows, cols = rows + top, cols + left
     area = np.bincount(owner, minlength=count).astype(np.float64)
     keep = (np.arange(count) > 0) & (area >= positive_int(min_area_px, "min_area_px"))
@@ -504,10 +506,7 @@ def _grown(seeds: BoolArray, extent: BoolArray) -> BoolArray:
     # Only the box holding the pixels is labelled: the components, hence the pixels kept, are the same; and
     # only its pixels (a few per cent of it) are read and written.
     top, left, bottom, right = occupied(union)
-    crop = np.ascontiguousarray(union[top:bottom, left:right])
-    count, labels = labelled(crop, 8)
-    rows, cols = nonzero_pixels(crop)
-    owner = labels[rows, cols]
+    count, rows, cols, owner = pixel_components(np.ascontiguousarray(union[top:bottom, left:right]), 8)
     rows, cols = rows + top, cols + left
     keep = np.zeros(count, dtype=bool)
     keep[owner[seeds[rows, cols]]] = True

@@ -36,7 +36,7 @@ from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
 from rsi.errors import InputError
-from rsi.imaging._components import components_with_stats, flat_nonzero, labelled, nonzero_pixels
+from rsi.imaging._components import component_stats, occupied, pixel_components
 from rsi.imaging.compensation import Compensated
 from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
 
@@ -386,41 +386,39 @@ def _signed(bright: Float32Array, dark: Float32Array, valid: BoolArray) -> Float
     return np.asarray(signed, dtype=np.float32)
 
 
-def _peaks(labels: NDArray[np.int32], mask: BoolArray, score: Float32Array) -> dict[int, int]:
-    """Flat index of the highest-scoring pixel of each component, from the mask pixels only (few)."""
-    pixels = flat_nonzero(mask)
-    order = pixels[np.argsort(-score.ravel()[pixels], kind="stable")]
-    found, first = np.unique(labels.ravel()[order], return_index=True)
+def _peaks(owner: NDArray[np.int32], values: Float32Array) -> dict[int, int]:
+    """Per component, the index (into its pixels, row-major) of its highest-scoring pixel; ties: the first."""
+    order = np.argsort(-values, kind="stable")
+    found, first = np.unique(owner[order], return_index=True)
     return dict(zip(found.tolist(), order[first].tolist(), strict=True))
 
 
 def _flaws(
     mask: BoolArray, score: Float32Array, statistic: Float32Array, min_area_px: int
 ) -> tuple[Flaw, ...]:
-    # Labelled on the box holding the mask's pixels (a few flaws on a large image), as on the whole frame.
-    count, labels, stats, centroids, box = components_with_stats(mask.view(np.uint8), connectivity=8)
-    top, left, bottom, right = box
-    inside = (slice(top, bottom), slice(left, right))
-    peaks_in_box = _peaks(labels, mask[inside], np.ascontiguousarray(score[inside]))
-    width = right - left
-    peaks = {
-        label: (top + index // width) * mask.shape[1] + left + index % width
-        for label, index in peaks_in_box.items()
-    }
+    # Labelled on the box holding the mask's pixels (a few flaws on a large image), its empty rows cut, with
+    # the whole frame's labels; the statistics come from the pixels.
+    top, left, bottom, right = occupied(mask.view(np.uint8))
+    count, rows, cols, owner = pixel_components(
+        np.ascontiguousarray(mask.view(np.uint8)[top:bottom, left:right]), 8
+    )
+    rows, cols = rows + top, cols + left
+    stats, centroids = component_stats(count, rows, cols, owner)
+    peaks = _peaks(owner, score[rows, cols])
     found = []
     for label in range(1, count):
         x, y, width, height, area = (int(value) for value in stats[label])
         if area < min_area_px:
             continue
-        peak = peaks[label]
+        peak = (rows[peaks[label]], cols[peaks[label]])
         found.append(
             Flaw(
                 row=float(centroids[label, 1]),
                 col=float(centroids[label, 0]),
                 bbox=(y, x, y + height, x + width),
                 area_px=area,
-                score=float(score.flat[peak]),
-                polarity="bright" if statistic.flat[peak] > 0 else "dark",
+                score=float(score[peak]),
+                polarity="bright" if statistic[peak] > 0 else "dark",
             )
         )
     return tuple(sorted(found, key=lambda flaw: -flaw.score))
@@ -496,9 +494,7 @@ def _sparse_boxes(
     joined = np.asarray(cv2.bitwise_or(beyond(above), read), np.uint8)
     # Only the components holding a flagged pixel are boxed: from the joined pixels (few), not OpenCV's
     # statistics of every component.
-    _, labels = labelled(joined, 8)
-    rows, cols = nonzero_pixels(joined)
-    owner = labels[rows, cols]
+    _, rows, cols, owner = pixel_components(joined, 8)
     held = np.unique(owner[flagged[rows, cols] != 0])
     boxes = []
     for label in held.tolist():
