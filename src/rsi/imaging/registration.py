@@ -11,6 +11,7 @@ its references: :func:`prepare_reference` computes once what depends on the refe
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -475,29 +476,30 @@ def _affine_inside(
 def _row_runs(start: NDArray[np.int64], stop: NDArray[np.int64], shape: tuple[int, int]) -> Mask:
     """True at columns ``start[r] <= col < stop[r]`` of each row r (both in [0, shape[1]]).
 
-    A near-identity warp's runs differ by a few columns at either end, save a few rows at a tilted edge:
-    the columns that nine rows in ten share are filled at once and only the narrow ends compared, and the
-    rows whose run does not hold those columns are then written one by one.
+    An affine warp's runs change at a few rows only (by a column each, as a tilted edge crosses the columns):
+    each band of rows with the same run is written with three slices. Should the runs change at most rows
+    (a strongly rotated warp), one slice per row.
     """
     rows = shape[0]
-    typical = (rows - 1) // 10
-    low, high = (
-        int(np.partition(start, rows - 1 - typical)[rows - 1 - typical]),
-        int(np.partition(stop, typical)[typical]),
-    )
+    changes = np.flatnonzero((start[1:] != start[:-1]) | (stop[1:] != stop[:-1])) + 1
+    if changes.size > rows // _BANDS_PER_ROW:
+        valid = np.zeros(shape, dtype=bool)
+        for row, (first_col, end_col) in enumerate(zip(start.tolist(), stop.tolist(), strict=True)):
+            valid[row, first_col:end_col] = True
+        return valid
     valid = np.empty(shape, dtype=bool)
-    if low > high:
-        valid[...] = False
-        exceptions = np.arange(rows)
-    else:
-        valid[:, low:high] = True
-        valid[:, :low] = np.arange(low) >= start[:, None]
-        valid[:, high:] = np.arange(high, shape[1]) < stop[:, None]
-        exceptions = np.flatnonzero((start > low) | (stop < high))
-    for row in exceptions.tolist():
-        valid[row] = False
-        valid[row, start[row] : stop[row]] = True
+    bounds = [0, *changes.tolist(), rows]
+    for top, bottom in itertools.pairwise(bounds):
+        first_col = int(start[top])
+        end_col = max(first_col, int(stop[top]))
+        valid[top:bottom, :first_col] = False
+        valid[top:bottom, first_col:end_col] = True
+        valid[top:bottom, end_col:] = False
     return valid
+
+
+# Bands of equal runs are written at once while there are at most a quarter as many as rows.
+_BANDS_PER_ROW = 4
 
 
 def _negated(
