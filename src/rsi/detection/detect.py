@@ -36,7 +36,7 @@ from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
 from rsi.errors import InputError
-from rsi.imaging._components import component_stats, occupied, pixel_components
+from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
 from rsi.imaging.compensation import Compensated
 from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
 
@@ -472,6 +472,9 @@ def _compare(image: Float32Array, bound: float, operation: int) -> NDArray[np.ui
     return np.asarray(cv2.compare(image, bound, operation), dtype=np.uint8)  # type: ignore[call-overload]
 
 
+_UNFILLED, _FILLED = 255, 128  # a joined pixel before and after its component is boxed
+
+
 def _sparse_boxes(
     difference: Float32Array, footprint: NDArray[np.uint8], level: float, above: float
 ) -> list[tuple[int, int, int, int]]:
@@ -492,16 +495,14 @@ def _sparse_boxes(
     # the reflected footprint) that hold a flagged pixel.
     read = cv2.bitwise_or(flagged, cv2.dilate(flagged, np.ascontiguousarray(footprint[::-1, ::-1])))
     joined = np.asarray(cv2.bitwise_or(beyond(above), read), np.uint8)
-    # Only the components holding a flagged pixel are boxed: from the joined pixels (few), not OpenCV's
-    # statistics of every component.
-    _, rows, cols, owner = pixel_components(joined, 8)
-    held = np.unique(owner[flagged[rows, cols] != 0])
+    # Only the components holding a flagged pixel are boxed: each is flood-filled from the first flagged
+    # pixel found in it (a few defects), which returns its box, instead of labelling every component.
+    rows, cols = nonzero_pixels(np.asarray(flagged, np.uint8))
     boxes = []
-    for label in held.tolist():
-        inside = owner == label
-        top, bottom = int(rows[inside][0]), int(rows[inside][-1])  # row-major order
-        left, right = int(cols[inside].min()), int(cols[inside].max())
-        boxes.append((left, top, right - left + 1, bottom - top + 1))
+    for row, col in zip(rows.tolist(), cols.tolist(), strict=True):
+        if joined[row, col] == _UNFILLED:
+            _, _, _, (left, top, width, height) = cv2.floodFill(joined, None, (col, row), _FILLED, flags=8)
+            boxes.append((int(left), int(top), int(width), int(height)))
     return boxes
 
 
