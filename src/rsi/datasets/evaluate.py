@@ -470,12 +470,11 @@ def register_pair(
     """
     from rsi.imaging.registration import register
 
-    reference_image = as_image(reference, "reference")
-    inspection_image = as_image(inspection, "inspection")
+    # rsi.register checks both images (and names them): no second pass over them here.
     for candidate in (choice(model, "model", REGISTRATION_MODELS), "translation"):
         fit = register(
-            reference_image,
-            inspection_image,
+            reference,
+            inspection,
             model=candidate,
             initial=np.eye(3),
             finest_level=finest_level,
