@@ -439,11 +439,17 @@ class _Test:
 
 
 def _test_maps(
-    aligned: _Aligned, difference: Float32Array, valid: BoolArray, test: _Test
+    aligned: _Aligned,
+    difference: Float32Array,
+    valid: BoolArray,
+    test: _Test,
+    errors: tuple[Float32Array, ...] | None = None,
 ) -> tuple[Float32Array, Float32Array, BoolArray, Float32Array]:
-    """Score, signed statistic, the test's validity and sigma of the images given (a whole frame or a box)."""
+    """Score, signed statistic, the test's validity and sigma of the images given (a whole frame or a box);
+    `errors`: the prediction errors on them, if already computed."""
     variance, inverse_variance = _variances(test.variance, valid, ~valid)
-    errors = _prediction_errors(aligned, test.registration, test.shift_floor)
+    if errors is None:
+        errors = _prediction_errors(aligned, test.registration, test.shift_floor)
     statistic = _lrt(difference, inverse_variance, test.test_weights, errors)
     if test.calibrate:
         # Self-calibration: under H0 the statistic is N(0, 1); its robust scale absorbs noise-model error.
@@ -547,18 +553,27 @@ def _sparse_maps(
     halo = 1 + max(footprint.shape) // 2
     rows, cols = difference.shape
     for left, top, width, height in boxes:
-        row0, col0 = max(0, top - halo), max(0, left - halo)
-        col0 -= col0 % _SIMD_COLUMNS
-        col1 = min(cols, -(-(left + width + halo) // _SIMD_COLUMNS) * _SIMD_COLUMNS)
-        crop = (slice(row0, min(rows, top + height + halo)), slice(col0, col1))
-        inner = (slice(top - row0, top - row0 + height), slice(left - col0, left - col0 + width))
-        box = (slice(top, top + height), slice(left, left + width))
+        row0, row1 = max(0, top - halo), min(rows, top + height + halo)
+        tight0, tight1 = max(0, left - halo), min(cols, left + width + halo)
+        # OpenCV's Sobel rounds as on the whole frame only on whole blocks of columns: the prediction errors
+        # are computed on those, the rest (elementwise and erosions, exact anywhere) on the box and its halo.
+        col0 = tight0 - tight0 % _SIMD_COLUMNS
+        col1 = min(cols, -(-tight1 // _SIMD_COLUMNS) * _SIMD_COLUMNS)
+        blocks = dataclasses.replace(aligned, predicted=aligned.predicted[row0:row1, col0:col1])
+        errors = tuple(
+            error[:, tight0 - col0 : tight1 - col0]
+            for error in _prediction_errors(blocks, test.registration, test.shift_floor)
+        )
+        crop = (slice(row0, row1), slice(tight0, tight1))
         maps = _test_maps(
             dataclasses.replace(aligned, predicted=aligned.predicted[crop]),
             difference[crop],
             valid[crop],
             test,
+            errors,
         )
+        inner = (slice(top - row0, top - row0 + height), slice(left - tight0, left - tight0 + width))
+        box = (slice(top, top + height), slice(left, left + width))
         score[box], signed[box], sigma[box] = maps[0][inner], maps[1][inner], maps[3][inner]
     return score, signed, valid_out, sigma
 
