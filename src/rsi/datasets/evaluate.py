@@ -38,6 +38,7 @@ from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
 from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
+from rsi.imaging._warps import scratch
 from rsi.imaging.registration import REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
@@ -386,7 +387,9 @@ def group_defects(
     PcbDetections
         Centres are the centroids of each group's mask pixels; ``areas_px`` their counts.
     """
-    pixels = np.asarray(mask, dtype=np.uint8)
+    # A bool mask is read as its bytes (0/1), without a full-frame copy.
+    is_bool = isinstance(mask, np.ndarray) and mask.dtype == np.bool_
+    pixels = mask.view(np.uint8) if is_bool else np.asarray(mask, dtype=np.uint8)
     if pixels.ndim != 2:
         raise InputError(f"mask must be 2-D (rows, cols); got shape {pixels.shape}. Pass one image's mask.")
     radius = (positive_int(merge_gap_px, "merge_gap_px", minimum=0) + 1) // 2
@@ -501,7 +504,7 @@ def register_pair(
 
 def _grown(seeds: BoolArray, extent: BoolArray) -> BoolArray:
     """Pixels of `extent` 8-connected to a seed (morphological reconstruction by labelling)."""
-    union = (extent | seeds).view(np.uint8)
+    union = np.bitwise_or(extent, seeds, out=scratch("grown union", seeds.shape, np.bool_)).view(np.uint8)
     # Only the box holding the pixels is labelled: the components, hence the pixels kept, are the same; and
     # only its pixels (a few per cent of it) are read and written.
     top, left, bottom, right = occupied(union)
@@ -615,16 +618,21 @@ def group_detection(detection: Detection, settings: DeepPcbSettings) -> PcbDetec
 
     instance_of(detection, "detection", Detection, none_allowed=False)
     instance_of(settings, "settings", DeepPcbSettings, none_allowed=False)
-    mask = detection.mask.copy()
+    # The full-frame maps here are temporaries of this call: this thread's scratch buffers, whose pages stay
+    # mapped from one pair to the next (a fresh full-frame array costs its page faults, as much as its pass).
+    shape = detection.mask.shape
+    mask = scratch("group mask", shape, np.bool_)
+    np.copyto(mask, detection.mask)
     _clear_border(mask, settings.border_px)
     # seed §2.4: the per-pixel statistic d / sigma, with the same noise model (mis-registration included).
-    pixel_z = np.abs(detection.difference)
-    np.divide(pixel_z, np.maximum(detection.sigma, np.float32(1e-6)), out=pixel_z)
+    pixel_z = np.abs(detection.difference, out=scratch("group z", shape, np.float32))
+    floored = np.maximum(detection.sigma, np.float32(1e-6), out=scratch("group sigma", shape, np.float32))
+    np.divide(pixel_z, floored, out=pixel_z)
     # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
     undo_erosion = settings.size // 2 if settings.method == "erosion" else 0
     if settings.grow_to_changes:
         single = _single_pixel_threshold(settings)
-        extent = np.greater(pixel_z, single)
+        extent = np.greater(pixel_z, single, out=scratch("group extent", shape, np.bool_))
         extent &= detection.valid
         _clear_border(extent, settings.border_px)
         mask, undo_erosion = _grown(mask, extent), 0

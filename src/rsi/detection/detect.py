@@ -37,6 +37,7 @@ from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
 from rsi.errors import InputError
 from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
+from rsi.imaging._warps import scratch
 from rsi.imaging.compensation import Compensated
 from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
 
@@ -472,10 +473,12 @@ _SPARSE_MARGIN = 1.0 - 1e-5
 _SIMD_COLUMNS = 16
 
 
-def _compare(image: Float32Array, bound: float, operation: int) -> NDArray[np.uint8]:
-    """255 where ``image <operation> bound``, else 0: one pass, straight to uint8."""
+def _compare(image: Float32Array, bound: float, operation: int, role: str) -> NDArray[np.uint8]:
+    """255 where ``image <operation> bound``, else 0: one pass, straight to uint8, into this thread's
+    `role` buffer (:func:`~rsi.imaging._warps.scratch`: a temporary of this call only)."""
+    out = scratch(role, image.shape, np.uint8)
     # cv2.compare takes a float as a scalar (its stubs list arrays only).
-    return np.asarray(cv2.compare(image, bound, operation), dtype=np.uint8)  # type: ignore[call-overload]
+    return np.asarray(cv2.compare(image, bound, operation, dst=out), dtype=np.uint8)  # type: ignore[call-overload]
 
 
 _UNFILLED, _FILLED = 255, 128  # a joined pixel before and after its component is boxed
@@ -487,20 +490,26 @@ def _sparse_boxes(
     """Boxes (left, top, width, height) covering what may be flagged (every footprint pixel's |d| beyond
     `level`), the footprint each reads, and the pixels with |d| beyond `above` 8-connected to them."""
 
-    def beyond(bound: float) -> NDArray[np.uint8]:
-        return np.asarray(
-            cv2.bitwise_or(_compare(difference, bound, cv2.CMP_GT), _compare(difference, -bound, cv2.CMP_LT)),
-            np.uint8,
-        )
+    # Every map here is a temporary of this call: this thread's scratch buffers, whose pages stay mapped
+    # from one pair to the next (a fresh full-frame array costs its page faults, as much as its pass).
+    shape = difference.shape
 
-    flagged = cv2.bitwise_or(
-        cv2.erode(_compare(difference, level, cv2.CMP_GT), footprint),
-        cv2.erode(_compare(difference, -level, cv2.CMP_LT), footprint),
-    )
+    def buffer(role: str) -> NDArray[np.uint8]:
+        return scratch(f"sparse {role}", shape, np.uint8)
+
+    bright = cv2.erode(_compare(difference, level, cv2.CMP_GT, "sparse >"), footprint, dst=buffer("bright"))
+    dark = cv2.erode(_compare(difference, -level, cv2.CMP_LT, "sparse <"), footprint, dst=buffer("dark"))
+    flagged = cv2.bitwise_or(bright, dark, dst=buffer("flagged"))
     # The components of the strong pixels, the flagged ones and what their erosion reads (the dilation by
     # the reflected footprint) that hold a flagged pixel.
-    read = cv2.bitwise_or(flagged, cv2.dilate(flagged, np.ascontiguousarray(footprint[::-1, ::-1])))
-    joined = np.asarray(cv2.bitwise_or(beyond(above), read), np.uint8)
+    reflected = np.ascontiguousarray(footprint[::-1, ::-1])
+    read = cv2.bitwise_or(flagged, cv2.dilate(flagged, reflected, dst=buffer("dilated")), dst=buffer("read"))
+    strong = cv2.bitwise_or(
+        _compare(difference, above, cv2.CMP_GT, "sparse >"),
+        _compare(difference, -above, cv2.CMP_LT, "sparse <"),
+        dst=buffer("strong"),
+    )
+    joined = np.asarray(cv2.bitwise_or(strong, read, dst=buffer("joined")), np.uint8)
     # Only the components holding a flagged pixel are boxed: each is flood-filled from the first flagged
     # pixel found in it (a few defects), which returns its box, instead of labelling every component.
     rows, cols = nonzero_pixels(np.asarray(flagged, np.uint8))
