@@ -392,7 +392,28 @@ def group_defects(
     pixels = mask.view(np.uint8) if is_bool else np.asarray(mask, dtype=np.uint8)
     if pixels.ndim != 2:
         raise InputError(f"mask must be 2-D (rows, cols); got shape {pixels.shape}. Pass one image's mask.")
-    radius = (positive_int(merge_gap_px, "merge_gap_px", minimum=0) + 1) // 2
+    values = None
+    if score is not None:
+        values = as_image(score, "score")
+        same_shape(values, pixels, ("score", "mask"))
+    return _grouped(
+        pixels,
+        positive_int(merge_gap_px, "merge_gap_px", minimum=0),
+        positive_int(min_area_px, "min_area_px"),
+        positive_int(grow_px, "grow_px", minimum=0),
+        values,
+    )
+
+
+def _grouped(
+    pixels: NDArray[np.uint8],
+    merge_gap_px: int,
+    min_area_px: int,
+    grow_px: int,
+    values: NDArray[np.floating] | None,
+) -> PcbDetections:
+    """:func:`group_defects` of a checked 0/1 mask and score map (the DeepPCB grouping's own, finite)."""
+    radius = (merge_gap_px + 1) // 2
     # Only the box holding the mask's pixels and their dilation is labelled (a few defects on a large
     # image); it starts on an even row and column, so the labels come in the whole frame's order.
     top, left, bottom, right = occupied(pixels, radius)
@@ -410,17 +431,14 @@ def group_defects(
     owner = joined_owner[np.searchsorted(joined_rows * width + joined_cols, rows * width + cols)]
     rows, cols = rows + top, cols + left
     area = np.bincount(owner, minlength=count).astype(np.float64)
-    keep = (np.arange(count) > 0) & (area >= positive_int(min_area_px, "min_area_px"))
+    keep = (np.arange(count) > 0) & (area >= min_area_px)
     safe_area = np.maximum(area, 1.0)
     centres = np.column_stack(
         [np.bincount(owner, cols, count) / safe_area, np.bincount(owner, rows, count) / safe_area]
     )[keep]
-    grow = positive_int(grow_px, "grow_px", minimum=0)
-    boxes = _grown_boxes(stats[keep], radius - grow, (int(pixels.shape[0]), int(pixels.shape[1])))
+    boxes = _grown_boxes(stats[keep], radius - grow_px, (int(pixels.shape[0]), int(pixels.shape[1])))
     strengths = None
-    if score is not None:
-        values = as_image(score, "score")
-        same_shape(values, pixels, ("score", "mask"))
+    if values is not None:
         peak = np.zeros(count)
         np.maximum.at(peak, np.asarray(owner, dtype=np.intp), values[rows, cols])
         strengths = peak[keep]
@@ -568,7 +586,8 @@ def detect_defects(
         sparse_above=sparse_above(chosen),
     )
     found = group_detection(detection, chosen)
-    return name_defects(found, predicted_template(detection, inspection_image), inspection_image, classifier)
+    # The images were checked above, and the template is made from them: named without checking again.
+    return _named(found, _template(detection, inspection_image), inspection_image, classifier)
 
 
 def predicted_template(detection: Detection, inspection: NDArray[np.floating]) -> NDArray[np.floating]:
@@ -580,6 +599,11 @@ def predicted_template(detection: Detection, inspection: NDArray[np.floating]) -
     instance_of(detection, "detection", Detection, none_allowed=False)
     test = as_image(inspection, "inspection")
     same_shape(test, detection.difference, ("inspection", "detection.difference"))
+    return _template(detection, test)
+
+
+def _template(detection: Detection, test: NDArray[np.floating]) -> NDArray[np.floating]:
+    """:func:`predicted_template` of a checked test image."""
     template: NDArray[np.floating] = test - detection.difference
     np.copyto(template, test, where=~detection.valid)
     return template
@@ -636,12 +660,13 @@ def group_detection(detection: Detection, settings: DeepPcbSettings) -> PcbDetec
         extent &= detection.valid
         _clear_border(extent, settings.border_px)
         mask, undo_erosion = _grown(mask, extent), 0
-    return group_defects(
-        mask,
-        merge_gap_px=settings.merge_gap_px,
-        min_area_px=settings.min_area_px,
-        grow_px=undo_erosion + settings.box_padding_px,
-        score=pixel_z,
+    # |d| / sigma is finite by construction (sigma floored): the grouping need not check it again.
+    return _grouped(
+        mask.view(np.uint8),
+        settings.merge_gap_px,
+        settings.min_area_px,
+        undo_erosion + settings.box_padding_px,
+        pixel_z,
     )
 
 
@@ -652,14 +677,29 @@ def name_defects(
     classifier: DefectClassifier | None = None,
 ) -> PcbDetections:
     """`found` with its topology features, classes and confidences (the classifier's, or the rules')."""
-    from rsi.datasets.pcb_learn import DefectClassifier, defect_features, rule_classes
+    from rsi.datasets.pcb_learn import DefectClassifier
 
     instance_of(found, "found", PcbDetections, none_allowed=False)
     if classifier is not None:
         instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
     if found.strengths is None or found.areas_px is None:
         raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
-    features = defect_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
+    template_image = as_image(template, "template")
+    test_image = as_image(test, "test")
+    same_shape(template_image, test_image, ("template", "test"))
+    return _named(found, template_image, test_image, classifier)
+
+
+def _named(
+    found: PcbDetections,
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    classifier: DefectClassifier | None,
+) -> PcbDetections:
+    """:func:`name_defects` of checked images and detections that hold strengths and areas."""
+    from rsi.datasets.pcb_learn import checked_features, rule_classes
+
+    features = checked_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
     if classifier is None:
         # The features hold the rules' naming of each box (classify_defects), counted once.
         classes, confidences = rule_classes(features)

@@ -91,8 +91,11 @@ def _surroundings(
         ]
     # Width of the copper a removal bites into, and of the board an addition grows into.
     for change, material in ((removed, before), (added, board)):
+        if not change.any():  # nothing changed this way: no width, and no transform to compute
+            features.append(0.0)
+            continue
         distance = cv2.distanceTransform(material.astype(np.uint8), cv2.DIST_L2, 3)
-        features.append(float(distance[change > 0].max()) if change.any() else 0.0)
+        features.append(float(distance[change > 0].max()))
     return features
 
 
@@ -163,6 +166,19 @@ def defect_features(
     template_image = as_image(template, "template")
     test_image = as_image(test, "test")
     same_shape(template_image, test_image, ("template", "test"))
+    return checked_features(template_image, test_image, boxes_xyxy, strengths, areas)
+
+
+def checked_features(
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    boxes_xyxy: NDArray[np.integer],
+    strengths: object,
+    areas: object,
+) -> FloatArray:
+    """:func:`defect_features` of images already checked (2-D, finite, the same shape): the boxes and the
+    per-box values are still checked."""
+    template_image, test_image = template, test
     boxes = _boxes_inside(boxes_xyxy, test_image.shape)
     strength_values = as_float_array(strengths, "strengths").reshape(-1)
     area_values = as_float_array(areas, "areas").reshape(-1)
