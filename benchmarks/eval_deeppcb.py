@@ -45,8 +45,7 @@ from rsi.datasets.evaluate import (
     group_of,
     leave_one_group_out,
     match_counts,
-    name_defects,
-    predicted_template,
+    name_detection,
     register_pair,
     registration_options,
     sparse_above,
@@ -215,7 +214,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
         lap("detect")
         found = group_detection(detection, settings)
         lap("group")
-        name_defects(found, predicted_template(detection, inspection), inspection)
+        name_detection(found, detection, inspection)
         lap("name")
         stages["total"].append(time.thread_time() - start)
     _speed_table(stages, settings, len(pairs))

@@ -21,8 +21,11 @@ from rsi.datasets.evaluate import (
     evaluate_deeppcb,
     evaluate_pairs,
     group_defects,
+    group_detection,
     iou_match,
     leave_one_group_out,
+    name_defects,
+    name_detection,
     predicted_template,
     register_pair,
 )
@@ -383,3 +386,31 @@ def test_predicted_template_is_the_prediction_where_valid_and_the_test_elsewhere
         predicted_template(detection, inspection[:-1])
     with pytest.raises(InputError, match="detection"):
         predicted_template("detection", inspection)  # type: ignore[arg-type]
+
+
+def test_name_detection_is_name_defects_on_the_predicted_template() -> None:
+    from rsi.detection.detect import detect
+
+    reference, inspection = _thin_scratch()
+    settings = DeepPcbSettings()
+    detection = detect(
+        reference,
+        inspection,
+        flaw_model="uniform",
+        method="erosion",
+        noise_sigma=40.0,
+        registration=None,
+        misregistration_std_px=3.0,
+    )
+    found = group_detection(detection, settings)
+    named = name_detection(found, detection, inspection)
+    expected = name_defects(found, predicted_template(detection, inspection), inspection)
+    assert named.features is not None and expected.features is not None
+    np.testing.assert_array_equal(named.features, expected.features)
+    np.testing.assert_array_equal(named.classes, expected.classes)
+    with pytest.raises(InputError, match="strengths"):
+        name_detection(dataclasses.replace(found, strengths=None), detection, inspection)
+    with pytest.raises(InputError, match="inspection"):
+        name_detection(found, detection, inspection[:-1])
+    with pytest.raises(InputError, match="found"):
+        name_detection("found", detection, inspection)  # type: ignore[arg-type]

@@ -585,9 +585,7 @@ def detect_defects(
         misregistration_std_px=chosen.misregistration_std_px,
         sparse_above=sparse_above(chosen),
     )
-    found = group_detection(detection, chosen)
-    # The images were checked above, and the template is made from them: named without checking again.
-    return _named(found, _template(detection, inspection_image), inspection_image, classifier)
+    return name_detection(group_detection(detection, chosen), detection, inspection_image, classifier)
 
 
 def predicted_template(detection: Detection, inspection: NDArray[np.floating]) -> NDArray[np.floating]:
@@ -600,6 +598,29 @@ def predicted_template(detection: Detection, inspection: NDArray[np.floating]) -
     test = as_image(inspection, "inspection")
     same_shape(test, detection.difference, ("inspection", "detection.difference"))
     return _template(detection, test)
+
+
+def name_detection(
+    found: PcbDetections,
+    detection: Detection,
+    inspection: NDArray[np.floating],
+    classifier: DefectClassifier | None = None,
+) -> PcbDetections:
+    """:func:`name_defects` of `found` on the template `detection` predicted (:func:`predicted_template`)
+    and the inspection it was run on: the template is made from checked arrays, so only the inspection is
+    checked, once (``detect_defects``' last step)."""
+    from rsi.datasets.pcb_learn import DefectClassifier
+    from rsi.detection.detect import Detection
+
+    instance_of(found, "found", PcbDetections, none_allowed=False)
+    instance_of(detection, "detection", Detection, none_allowed=False)
+    if classifier is not None:
+        instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
+    if found.strengths is None or found.areas_px is None:
+        raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
+    test = as_image(inspection, "inspection")
+    same_shape(test, detection.difference, ("inspection", "detection.difference"))
+    return _named(found, _template(detection, test), test, classifier)
 
 
 def _template(detection: Detection, test: NDArray[np.floating]) -> NDArray[np.floating]:
