@@ -54,15 +54,14 @@ def _window_features(
     """Changed copper (raw and after a 3x3 opening) and the (pieces, holes) before and after; `changes` are
     the copper added and removed."""
     added, removed = changes
-    opened_added = cv2.morphologyEx(added, cv2.MORPH_OPEN, _SQUARE)
-    opened_removed = cv2.morphologyEx(removed, cv2.MORPH_OPEN, _SQUARE)
+    counts = (np.count_nonzero(added), np.count_nonzero(removed))
     (pieces_before, holes_before), (pieces_after, holes_after) = pieces
     # The windows are 0/1: sums are counts (and the mean the count over the size, as numpy divides it).
     return [
-        float(np.count_nonzero(added)),
-        float(np.count_nonzero(removed)),
-        float(np.count_nonzero(opened_added)),
-        float(np.count_nonzero(opened_removed)),
+        float(counts[0]),
+        float(counts[1]),
+        opened_count(added, counts[0]),
+        opened_count(removed, counts[1]),
         pieces_before,
         pieces_after,
         holes_before,
@@ -71,6 +70,20 @@ def _window_features(
         holes_after - holes_before,
         np.count_nonzero(before) / before.size,
     ]
+
+
+def opened_count(change: NDArray[np.uint8], count: int) -> float:
+    """Pixels of the 3 x 3 opening of a 0/1 window holding `count` set pixels.
+
+    OpenCV's erosion reads only the pixels inside the window, and every pixel has at least a corner's
+    worth of them (2 x 2, fewer on a window one pixel thin), all of which must be set for it to survive:
+    with fewer set pixels than that the opening is empty, and is not computed (a third of a DeepPCB pair's
+    openings: the slivers on a defect's other side).
+    """
+    corner = min(change.shape[0], 2) * min(change.shape[1], 2)
+    if count < corner:
+        return 0.0
+    return float(np.count_nonzero(cv2.morphologyEx(change, cv2.MORPH_OPEN, _SQUARE)))
 
 
 def _surroundings(
