@@ -54,7 +54,7 @@ def _window_features(
     """Changed copper (raw and after a 3x3 opening) and the (pieces, holes) before and after; `changes` are
     the copper added and removed."""
     added, removed = changes
-    counts = (np.count_nonzero(added), np.count_nonzero(removed))
+    counts = (int(np.count_nonzero(added)), int(np.count_nonzero(removed)))
     (pieces_before, holes_before), (pieces_after, holes_after) = pieces
     # The windows are 0/1: sums are counts (and the mean the count over the size, as numpy divides it).
     return [
