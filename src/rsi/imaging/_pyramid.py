@@ -98,14 +98,9 @@ def _shrink_mask(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
 
 
 def _pyramid(image: Image, count: int, allocate: Allocate, role: str, presmooth: bool = True) -> list[Image]:
-    """`count` levels: `image` smoothed (or copied as it is, without `presmooth`), then cv2.pyrDown of the
-    level above, in arrays from `allocate`."""
-    finest = allocate(f"{role}0", image.shape, np.float32)
-    if presmooth:
-        images = [smooth(image, out=finest)]
-    else:
-        np.copyto(finest, image)
-        images = [finest]
+    """`count` levels: `image` smoothed (or `image` itself, without `presmooth`: the caller copies it if it
+    keeps it), then cv2.pyrDown of the level above, in arrays from `allocate`."""
+    images = [smooth(image, out=allocate(f"{role}0", image.shape, np.float32)) if presmooth else image]
     for index in range(1, count):
         rows, cols = images[-1].shape
         out = allocate(f"{role}{index}", ((rows + 1) // 2, (cols + 1) // 2), np.float32)
@@ -124,7 +119,7 @@ def reference_pyramid(
 
     Only the full resolution is smoothed explicitly; each coarser level is cv2.pyrDown of the smoothed level
     above, whose own 5-tap Gaussian leaves it about as smooth, so four more filter passes are saved. Without
-    `presmooth` the full resolution is taken as it is (pyrDown still smooths every coarser level). The
+    `presmooth` the full resolution is `reference` itself (pyrDown still smooths every coarser level). The
     levels are new arrays, or :func:`~rsi.imaging._warps.scratch` buffers for a reference used in one call.
     """
     images, masks = (

@@ -301,6 +301,11 @@ def _prepare(
         raise InputError(f"photometric must be True or False; got {photometric!r}.")
     user_mask = None if mask is None else as_mask(mask, "mask", image.shape)
     images, masks = reference_pyramid(image, user_mask, count, allocate, presmooth)
+    if finest == 0 and not presmooth:
+        # The full resolution as it is was the caller's array: the prepared reference keeps its own copy.
+        own = allocate("reference0", image.shape, np.float32)
+        np.copyto(own, image)
+        images[0] = own
     images, masks = images[finest:], masks[finest:]
     for level in images:
         level.setflags(write=False)
