@@ -72,3 +72,10 @@ def test_pieces_and_holes_are_counted_as_by_opencvs_statistics() -> None:
             copper = cv2.morphologyEx(copper, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
         window = copper[1:, 1:] if trial % 3 == 0 and min(shape) > 1 else copper
         assert _copper_pieces(window) == _pieces_by_opencv_statistics(np.ascontiguousarray(window))
+    # One piece of copper around one piece of board (the counted-directly case): a hole if 12 px or more.
+    for side, holes in ((4, 1), (3, 0)):
+        copper = np.ones((20, 20), np.uint8)
+        copper[8 : 8 + side, 8 : 8 + side] = 0
+        assert _copper_pieces(copper) == (1, holes) == _pieces_by_opencv_statistics(copper)
+    copper[:, 0] = 0  # the board now reaches the edge too: two pieces of board, one on the edge
+    assert _copper_pieces(copper) == (1, 0) == _pieces_by_opencv_statistics(copper)

@@ -44,13 +44,22 @@ FloatArray = NDArray[np.float64]
 def _copper_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
     """(copper pieces, holes): 8-connected copper components and 4-connected board components off the
     window's border, each of at least _MIN_PIECE_PX (a sliver cut off at the window's edge is no piece)."""
-    # Areas from the labels (OpenCV's statistics cost more than the labelling on these small windows).
+    # Areas from the labels (OpenCV's statistics cost more than the labelling on these small windows); a
+    # window with one piece (most) has it counted directly.
     count, labels = labelled(copper, 8)
-    pieces = int(np.count_nonzero(np.bincount(labels.ravel(), minlength=count)[1:] >= _MIN_PIECE_PX))
-    count, labels = labelled(1 - copper, 4)  # uint8: the scalar takes the array's type
+    if count <= 2:
+        pieces = int(count == 2 and np.count_nonzero(copper) >= _MIN_PIECE_PX)
+    else:
+        pieces = int(np.count_nonzero(np.bincount(labels.ravel(), minlength=count)[1:] >= _MIN_PIECE_PX))
+    board = 1 - copper  # uint8: the scalar takes the array's type
+    count, labels = labelled(board, 4)
+    edges = np.concatenate((labels[0], labels[-1], labels[:, 0], labels[:, -1]))
+    if count <= 2:
+        # No board, or one piece of it: a hole only if it never reaches the window's edge.
+        return pieces, int(count == 2 and not edges.any() and np.count_nonzero(board) >= _MIN_PIECE_PX)
     enclosed = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
     enclosed[0] = False
-    enclosed[np.concatenate((labels[0], labels[-1], labels[:, 0], labels[:, -1]))] = False
+    enclosed[edges] = False
     return pieces, int(np.count_nonzero(enclosed))
 
 
