@@ -25,10 +25,10 @@ from numpy.typing import NDArray
 from rsi._validate import (
     MAX_INTENSITY,
     as_image,
-    as_intensity_image,
     as_mask,
     choice,
     in_range,
+    intensity_range,
     positive_int,
     same_shape,
 )
@@ -128,6 +128,7 @@ class _Input:
     image: Float32Array
     valid: BoolArray | None
     variance: Float32Array | float | None
+    span: tuple[float, float] | None = None  # (min, max) of `image`, when its check found them
 
 
 @dataclass(frozen=True)
@@ -156,15 +157,19 @@ def _unpack(image: object, name: str, noise_sigma: float | None) -> _Input:
             f"{name} must be a numpy array of shape (rows, cols) or a Compensated image; "
             f"got {type(image).__name__}."
         )
-    pixels = as_intensity_image(image, name).astype(np.float32, copy=False)
-    return _Input(pixels, None, None if noise_sigma is None else noise_sigma**2)
+    checked, low, high = intensity_range(image, name)
+    pixels = checked.astype(np.float32, copy=False)
+    # The check's range is the image's own only if it was float32 already (a conversion may round).
+    span = (low, high) if pixels is checked else None
+    return _Input(pixels, None, None if noise_sigma is None else noise_sigma**2, span)
 
 
 def _refuse_uninformative(reference: _Input, inspection: _Input) -> None:
     """A constant inspection against a textured reference (a dark or saturated frame) says nothing about
     flaws: every pixel changed, or none can be seen. Reporting "0 flaws" for it would be silently wrong."""
     pixels = inspection.image
-    if pixels.min() == pixels.max() and reference.image.min() != reference.image.max():
+    low, high = inspection.span if inspection.span is not None else (pixels.min(), pixels.max())
+    if low == high and reference.image.min() != reference.image.max():
         raise InputError(
             f"inspection has one value everywhere ({float(pixels.flat[0]):g}) while the reference is "
             "textured: the pair carries no information about flaws (a dark or saturated frame?). Check the "

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi._validate import as_intensity_image, as_mask, choice, in_range, positive_int
+from rsi._validate import as_intensity_image, as_mask, choice, in_range, intensity_range, positive_int
 from rsi.errors import InputError
 from rsi.imaging._gauss_newton import Settings, Terms, reference_terms, solve_level
 from rsi.imaging._local import LocalField, estimate_field
@@ -74,6 +74,13 @@ Guess = NDArray[np.float64] | None  # where along each row a coordinate reaches 
 def _as_float32(image: object, name: str) -> Image:
     # Images are float32 on this hot path (docs: dtype policy); parameters and sums stay float64.
     return np.asarray(as_intensity_image(image, name), dtype=np.float32)
+
+
+def _checked_float32(image: object, name: str) -> tuple[Image, tuple[float, float] | None]:
+    """:func:`_as_float32` and the image's (min, max) when the check's are its own (no conversion)."""
+    checked, low, high = intensity_range(image, name)
+    converted = np.asarray(checked, dtype=np.float32)
+    return converted, ((low, high) if converted is checked else None)
 
 
 @dataclass(frozen=True)
@@ -614,12 +621,15 @@ def _start(initial: object, photometric: bool) -> Estimate | None:
     return Estimate(matrix / matrix[2, 2], gain=gain, bias=bias)
 
 
-def _flat_image(reference: PreparedReference, inspection: Image) -> str | None:
-    """Which image, if any, holds one value everywhere: no gradient, so no warp can be told from another."""
-    for name, image in (("reference", reference.images[0]), ("inspection", inspection)):
-        if image.min() == image.max():
-            return name
-    return None
+def _flat_image(
+    reference: PreparedReference, inspection: Image, inspection_span: tuple[float, float] | None
+) -> str | None:
+    """Which image, if any, holds one value everywhere: no gradient, so no warp can be told from another.
+    `inspection_span`: the inspection's (min, max) when its check found them."""
+    if reference.images[0].min() == reference.images[0].max():
+        return "reference"
+    low, high = inspection_span if inspection_span is not None else (inspection.min(), inspection.max())
+    return "inspection" if low == high else None
 
 
 def _untextured(flat: str, reference: PreparedReference, inspection: Image, started: float) -> Registration:
@@ -767,7 +777,7 @@ def register(
         )
     if tile_px is not None:
         raise InputError(f"tile_px applies to model='local' only; got model={model!r}. Omit tile_px.")
-    inspection_image = _as_float32(inspection, "inspection")
+    inspection_image, inspection_span = _checked_float32(inspection, "inspection")
     if isinstance(reference, PreparedReference):
         _check_prepared(reference, model, photometric, mask, row_step=row_step, presmooth=presmooth)
         count = min(len(reference.images), level_count(reference.shape, inspection_image.shape))
@@ -802,7 +812,7 @@ def register(
         else started + in_range(deadline_s, "deadline_s", low=0.0, low_inclusive=False),
     )
     start = _start(initial, settings.photometric)
-    flat = _flat_image(prepared, inspection_image)
+    flat = _flat_image(prepared, inspection_image, inspection_span)
     if flat is not None:
         return _untextured(flat, prepared, inspection_image, started)
     # From `finest` down the levels are those of both images `finest` times halved: solved as such, the fit
