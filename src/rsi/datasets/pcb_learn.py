@@ -97,17 +97,17 @@ def _surroundings(
     features = []
     for change, around in ((added, before), (removed, board)):
         ring = np.asarray(cv2.dilate(change, _SQUARE), dtype=np.uint8) & (1 - change)
-        touching = (around & ring).astype(np.uint8)
-        features += [
-            float(np.count_nonzero(touching)) / max(float(np.count_nonzero(ring)), 1.0),
-            float(labelled(touching, 8)[0] - 1),
-        ]
+        touching = around & ring  # 0/1 uint8
+        touched = np.count_nonzero(touching)
+        # No pixel touched: no piece of it either (no labelling to run).
+        pieces = labelled(touching, 8)[0] - 1 if touched else 0
+        features += [float(touched) / max(float(np.count_nonzero(ring)), 1.0), float(pieces)]
     # Width of the copper a removal bites into, and of the board an addition grows into.
     for change, material in ((removed, before), (added, board)):
         if not change.any():  # nothing changed this way: no width, and no transform to compute
             features.append(0.0)
             continue
-        distance = cv2.distanceTransform(material.astype(np.uint8), cv2.DIST_L2, 3)
+        distance = cv2.distanceTransform(material, cv2.DIST_L2, 3)  # 0/1 uint8 already
         features.append(float(distance[change > 0].max()))
     return features
 
