@@ -45,8 +45,9 @@ from rsi.datasets.evaluate import (
     group_of,
     leave_one_group_out,
     match_counts,
-    name_defects,
+    name_detection,
     register_pair,
+    registration_options,
     sparse_above,
 )
 from rsi.datasets.official import OfficialTally
@@ -196,9 +197,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
         start = clock[0]
         reference, inspection = read_pair(pair)
         lap("read")
-        fit = register_pair(
-            reference, inspection, settings.registration_model, settings.registration_finest_level
-        )
+        fit = register_pair(reference, inspection, **registration_options(settings))
         lap("register")
         detection = detect(
             reference,
@@ -215,8 +214,7 @@ def profile(pairs: Sequence[DeepPcbPair], settings: DeepPcbSettings) -> None:
         lap("detect")
         found = group_detection(detection, settings)
         lap("group")
-        template = np.where(detection.valid, inspection - detection.difference, inspection)
-        name_defects(found, template, inspection)
+        name_detection(found, detection, inspection)
         lap("name")
         stages["total"].append(time.thread_time() - start)
     _speed_table(stages, settings, len(pairs))
@@ -250,6 +248,26 @@ def _speed_table(stages: dict[str, list[float]], settings: DeepPcbSettings, pair
     print(f"\nissue 12's target, <= {TARGET_MS:.1f} ms per pair on one thread: {verdict}")
 
 
+def _chosen_settings(args: argparse.Namespace) -> DeepPcbSettings:
+    """DeepPcbSettings() with the registration and sparse options of the command line."""
+    default = DeepPcbSettings()
+    if args.finest_level is not None:
+        default = dataclasses.replace(default, registration_finest_level=args.finest_level)
+    if args.coarsest_level is not None:
+        coarsest = None if args.coarsest_level == "all" else int(args.coarsest_level)
+        default = dataclasses.replace(default, registration_coarsest_level=coarsest)
+    if args.row_step is not None:
+        row_step = None if args.row_step == "auto" else int(args.row_step)
+        default = dataclasses.replace(default, registration_row_step=row_step)
+    if args.photometric:
+        default = dataclasses.replace(default, registration_photometric=True)
+    if args.presmooth:
+        default = dataclasses.replace(default, registration_presmooth=True)
+    if args.whole_frame:
+        default = dataclasses.replace(default, sparse=False)
+    return default
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -278,14 +296,30 @@ def main(argv: list[str] | None = None) -> int:
         help="registration_finest_level (default: DeepPcbSettings()'s); 0 refines at full resolution",
     )
     parser.add_argument(
+        "--coarsest-level",
+        default=None,
+        help="registration_coarsest_level (default: DeepPcbSettings()'s); 'all' for the whole pyramid",
+    )
+    parser.add_argument(
+        "--row-step",
+        default=None,
+        help="registration_row_step (default: DeepPcbSettings()'s); 'auto' for rsi.register's default",
+    )
+    parser.add_argument(
+        "--photometric",
+        action="store_true",
+        help="registration_photometric=True: fit a gain and bias (the code before the third step)",
+    )
+    parser.add_argument(
+        "--presmooth",
+        action="store_true",
+        help="registration_presmooth=True: smooth the full-resolution images first (before the third step)",
+    )
+    parser.add_argument(
         "--whole-frame", action="store_true", help="sparse=False: the detector's maps on the whole frame"
     )
     args = parser.parse_args(argv)
-    default = DeepPcbSettings()
-    if args.finest_level is not None:
-        default = dataclasses.replace(default, registration_finest_level=args.finest_level)
-    if args.whole_frame:
-        default = dataclasses.replace(default, sparse=False)
+    default = _chosen_settings(args)
     if not (args.root / "PCBData").is_dir():
         print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
         return 1

@@ -103,7 +103,11 @@ def read_regular_file(
         if status.st_size > max_bytes:
             raise error(f"path {str(file)!r} is {status.st_size} bytes, over {max_bytes}: {too_big}.")
         with os.fdopen(os.dup(descriptor), "rb") as stream:
-            data = stream.read(max_bytes + 1)
+            # The size it has, and one byte more to see it grow (reading max_bytes + 1 at once would first
+            # allocate that many: a gigabyte for an image's limit, a third of reading a DeepPCB JPEG).
+            data = stream.read(min(status.st_size, max_bytes) + 1)
+            if len(data) > status.st_size:
+                data += stream.read(max_bytes + 1 - len(data))
     except OSError as failure:
         raise error(f"path {str(file)!r} cannot be read: {failure.strerror or failure}.") from failure
     finally:

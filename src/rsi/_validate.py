@@ -74,6 +74,12 @@ intensities and their sums over the image, so 1e15 keeps every sum finite (any c
 
 def as_intensity_image(image: object, name: str) -> FloatArray:
     """:func:`as_image`, and every pixel's magnitude at most :data:`MAX_INTENSITY`."""
+    return intensity_range(image, name)[0]
+
+
+def intensity_range(image: object, name: str) -> tuple[FloatArray, float, float]:
+    """:func:`as_intensity_image` and the image's (min, max), found by the same pass (callers that also need
+    the range, e.g. to see a constant image, need not read the image again)."""
     result = as_image(image, name, allow_nan=True)
     # One min and one max serve both checks (this runs several times per image on the detection path).
     low, high = _finite_range(result, name)
@@ -83,7 +89,7 @@ def as_intensity_image(image: object, name: str) -> FloatArray:
             f"{name} holds a pixel of magnitude {peak:.3g}, over {MAX_INTENSITY:g}: registration and "
             "detection work in float32 and square intensities: divide both images by one constant."
         )
-    return result
+    return result, low, high
 
 
 def as_mask(mask: object, name: str, shape: tuple[int, ...]) -> NDArray[np.bool_]:

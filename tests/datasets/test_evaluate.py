@@ -21,8 +21,12 @@ from rsi.datasets.evaluate import (
     evaluate_deeppcb,
     evaluate_pairs,
     group_defects,
+    group_detection,
     iou_match,
     leave_one_group_out,
+    name_defects,
+    name_detection,
+    predicted_template,
     register_pair,
 )
 from rsi.errors import InputError
@@ -136,6 +140,10 @@ def test_group_defects_rejects_non_2d_mask() -> None:
         ("noise_sigma", 0.0),
         ("misregistration_std_px", -1.0),
         ("registration_finest_level", -1),
+        ("registration_coarsest_level", 0),  # finer than the finest level (1)
+        ("registration_row_step", 0),
+        ("registration_photometric", "no"),
+        ("registration_presmooth", 1),
         ("merge_gap_px", -2),
         ("min_area_px", 0),
         ("border_px", -1),
@@ -352,3 +360,57 @@ def test_register_pair_falls_back_to_the_identity_when_no_fit_is_plausible(
 def test_detect_defects_refuses_a_classifier_of_the_wrong_type() -> None:
     with pytest.raises(InputError, match="classifier"):
         detect_defects(np.zeros((8, 8)), np.zeros((8, 8)), classifier="forest")  # type: ignore[arg-type]
+
+
+def test_predicted_template_is_the_prediction_where_valid_and_the_test_elsewhere() -> None:
+    from rsi.detection.detect import detect
+
+    # A shifted board: the warped template leaves invalid columns at one side.
+    rng = np.random.default_rng(4)
+    reference = np.where(rng.random((40, 40)) > 0.5, 255.0, 0.0).repeat(4, 0).repeat(4, 1).astype(np.float32)
+    inspection = np.roll(reference, 3, axis=1)
+    detection = detect(
+        reference,
+        inspection,
+        flaw_model="uniform",
+        method="erosion",
+        noise_sigma=40.0,
+        registration_model="affine",
+    )
+    # The erosion test's validity is narrower than the prediction's: there d is not 0, yet the template is
+    # the test's own pixels.
+    assert np.any(~detection.valid & (detection.difference != 0))
+    expected = np.where(detection.valid, inspection - detection.difference, inspection)
+    np.testing.assert_array_equal(predicted_template(detection, inspection), expected)
+    with pytest.raises(InputError, match="inspection"):
+        predicted_template(detection, inspection[:-1])
+    with pytest.raises(InputError, match="detection"):
+        predicted_template("detection", inspection)  # type: ignore[arg-type]
+
+
+def test_name_detection_is_name_defects_on_the_predicted_template() -> None:
+    from rsi.detection.detect import detect
+
+    reference, inspection = _thin_scratch()
+    settings = DeepPcbSettings()
+    detection = detect(
+        reference,
+        inspection,
+        flaw_model="uniform",
+        method="erosion",
+        noise_sigma=40.0,
+        registration=None,
+        misregistration_std_px=3.0,
+    )
+    found = group_detection(detection, settings)
+    named = name_detection(found, detection, inspection)
+    expected = name_defects(found, predicted_template(detection, inspection), inspection)
+    assert named.features is not None and expected.features is not None
+    np.testing.assert_array_equal(named.features, expected.features)
+    np.testing.assert_array_equal(named.classes, expected.classes)
+    with pytest.raises(InputError, match="strengths"):
+        name_detection(dataclasses.replace(found, strengths=None), detection, inspection)
+    with pytest.raises(InputError, match="inspection"):
+        name_detection(found, detection, inspection[:-1])
+    with pytest.raises(InputError, match="found"):
+        name_detection("found", detection, inspection)  # type: ignore[arg-type]

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import cv2
 import numpy as np
 import pytest
 
 from rsi.datasets.deeppcb import DEFECT_TYPES
-from rsi.datasets.pcb_classes import classify_copper, classify_defects, classify_window
+from rsi.datasets.pcb_classes import _copper_pieces, classify_copper, classify_defects, classify_window
 from rsi.errors import InputError
 
 BOARD, COPPER = 255.0, 0.0
@@ -47,3 +48,34 @@ def test_boxes_are_classified_in_place(drawn_defect: Drawn) -> None:
 def test_classify_copper_refuses_what_is_not_counted_copper(arguments: tuple, named: str) -> None:
     with pytest.raises(InputError, match=named):
         classify_copper(*arguments)
+
+
+def _pieces_by_opencv_statistics(copper: np.ndarray) -> tuple[int, int]:
+    """The count as first written: OpenCV's statistics and a set of the border's labels."""
+    _, _, stats, _ = cv2.connectedComponentsWithStats(copper, connectivity=8)
+    pieces = int((stats[1:, cv2.CC_STAT_AREA] >= 12).sum())
+    count, labels, stats, _ = cv2.connectedComponentsWithStats((1 - copper).astype(np.uint8), connectivity=4)
+    edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    enclosed = np.ones(count, dtype=bool)
+    enclosed[[0, *edge]] = False
+    return pieces, int((enclosed & (stats[:, cv2.CC_STAT_AREA] >= 12)).sum())
+
+
+def test_pieces_and_holes_are_counted_as_by_opencvs_statistics() -> None:
+    # _copper_pieces reads areas from the labels (faster): the same counts on random copper windows,
+    # blobs and rings of every size (pieces and holes on both sides of the 12 px cut-off), views included.
+    rng = np.random.default_rng(12)
+    for trial in range(400):
+        shape = (int(rng.integers(1, 70)), int(rng.integers(1, 70)))
+        copper = (rng.random(shape) < (0.3, 0.5, 0.7, 0.0, 1.0)[trial % 5]).astype(np.uint8)
+        if trial % 2:
+            copper = cv2.morphologyEx(copper, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+        window = copper[1:, 1:] if trial % 3 == 0 and min(shape) > 1 else copper
+        assert _copper_pieces(window) == _pieces_by_opencv_statistics(np.ascontiguousarray(window))
+    # One piece of copper around one piece of board (the counted-directly case): a hole if 12 px or more.
+    for side, holes in ((4, 1), (3, 0)):
+        copper = np.ones((20, 20), np.uint8)
+        copper[8 : 8 + side, 8 : 8 + side] = 0
+        assert _copper_pieces(copper) == (1, holes) == _pieces_by_opencv_statistics(copper)
+    copper[:, 0] = 0  # the board now reaches the edge too: two pieces of board, one on the edge
+    assert _copper_pieces(copper) == (1, 0) == _pieces_by_opencv_statistics(copper)

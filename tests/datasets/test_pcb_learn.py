@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -15,6 +16,7 @@ from rsi.datasets.pcb_learn import (
     FEATURES,
     defect_features,
     fit_classifier,
+    opened_count,
     rule_classes,
     train_classifier,
     training_labels,
@@ -99,3 +101,19 @@ def test_train_classifier_refuses_what_is_not_a_list_of_pairs() -> None:
     for pairs in ("trainval", []):
         with pytest.raises(InputError, match="pairs must be a non-empty list of DeepPcbPair"):
             train_classifier(pairs)  # type: ignore[arg-type]
+
+
+def test_the_opened_count_skips_only_openings_that_are_empty() -> None:
+    # opened_count skips the opening when too few pixels are set for any to survive the erosion (a corner's
+    # worth): the same counts as OpenCV's opening on random windows of every shape, one pixel thin included.
+    rng = np.random.default_rng(14)
+    square = np.ones((3, 3), np.uint8)
+    for trial in range(3000):
+        shape = (int(rng.integers(1, 9)), int(rng.integers(1, 9)))
+        change = np.zeros(shape, np.uint8)
+        spots = rng.integers(0, change.size, int(rng.integers(0, 6)))
+        change.flat[spots] = 1
+        if trial % 3 == 0:
+            change[: int(rng.integers(1, 3)), : int(rng.integers(1, 3))] = 1  # a block in the corner
+        expected = float(np.count_nonzero(cv2.morphologyEx(change, cv2.MORPH_OPEN, square)))
+        assert opened_count(change, int(np.count_nonzero(change))) == expected

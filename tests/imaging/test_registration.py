@@ -337,6 +337,39 @@ def test_affine_validity_runs_equal_mapping_every_pixel() -> None:
         np.testing.assert_array_equal(module._preimage_inside(affine, shape, source), general)
 
 
+def test_row_runs_fill_exactly_the_runs() -> None:
+    # Near-identity warps take the filled path (every row's run holds a common middle), others one slice
+    # per row: both give each row's columns start <= col < stop, empty runs included.
+    from rsi.imaging import registration as module
+
+    rng = np.random.default_rng(8)
+    for trial in range(500):
+        rows, cols = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+        spread = (2, cols)[trial % 2]
+        start = rng.integers(0, min(spread, cols) + 1, rows)
+        stop = cols - rng.integers(0, min(spread, cols) + 1, rows)
+        expected = np.zeros((rows, cols), dtype=bool)
+        for row in range(rows):
+            expected[row, start[row] : stop[row]] = True
+        np.testing.assert_array_equal(module._row_runs(start, stop, (rows, cols)), expected)
+
+
+def test_near_identity_affine_validity_equals_mapping_every_pixel() -> None:
+    # DeepPCB's warps: within 1-3 % of the identity, a few pixels of shift.
+    from rsi.imaging import registration as module
+
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        affine = np.eye(3)
+        affine[:2, :2] += rng.uniform(-0.03, 0.03, (2, 2))
+        affine[:2, 2] = rng.uniform(-5, 5, 2)
+        shape = (int(rng.integers(1, 80)), int(rng.integers(1, 80)))
+        not_affine = affine.copy()
+        not_affine[2, 0] = 1e-300
+        general = module._preimage_inside(not_affine, shape, shape)
+        np.testing.assert_array_equal(module._preimage_inside(affine, shape, shape), general)
+
+
 @pytest.mark.parametrize(
     "matrix",
     [
@@ -586,6 +619,39 @@ def test_finest_level_beyond_the_pyramid_refines_the_coarsest_level() -> None:
     )
 
 
+@pytest.mark.parametrize("model", ["translation", "affine"])
+def test_a_single_level_from_a_close_start_recovers_a_known_warp(model: str) -> None:
+    # coarsest_level = finest_level = 1: no quarter-size level before the half-size one; from the identity
+    # (pre-aligned images) the fit is as good as the two-level one.
+    reference = texture()
+    inspection = warped(reference, TRUTHS[model])
+    two_levels = register(reference, inspection, model=model, finest_level=1, initial=np.eye(3))
+    one_level = register(
+        reference, inspection, model=model, finest_level=1, coarsest_level=1, initial=np.eye(3)
+    )
+    assert one_level.converged
+    assert corner_error_px(one_level.matrix, TRUTHS[model]) < HALF_RESOLUTION_PX
+    assert corner_error_px(one_level.matrix, two_levels.matrix) < HALF_RESOLUTION_PX / 2
+
+
+def test_coarsest_level_none_or_beyond_the_pyramid_is_the_whole_pyramid_bit_for_bit() -> None:
+    reference = texture()  # 256 px: levels 0 and 1 only
+    inspection = warped(reference, TRUTHS["affine"])
+    default = register(reference, inspection, model="affine")
+    for coarsest in (None, 1, 7):
+        explicit = register(reference, inspection, model="affine", coarsest_level=coarsest)
+        np.testing.assert_array_equal(explicit.matrix, default.matrix)
+        assert explicit.iterations == default.iterations
+
+
+def test_coarsest_level_finer_than_the_finest_is_refused() -> None:
+    reference = texture()
+    with pytest.raises(InputError, match="coarsest_level=0 is finer than finest_level=1"):
+        register(reference, reference, finest_level=1, coarsest_level=0)
+    with pytest.raises(InputError, match="coarsest_level"):
+        register(reference, reference, coarsest_level=-1)
+
+
 def test_finest_level_one_trims_a_flaw_there() -> None:
     reference = texture()
     inspection = shifted(reference, (3.7, -2.2))
@@ -609,3 +675,74 @@ def test_prepared_reference_at_finest_level_one_gives_the_cold_answer(model: str
 def test_finest_level_must_be_a_non_negative_int(value: object) -> None:
     with pytest.raises(InputError, match="finest_level"):
         register(texture(), texture(), finest_level=value)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("model", ["translation", "affine"])
+def test_every_other_row_recovers_a_known_warp(model: str) -> None:
+    # row_step=2 on a 256-row level (every row by default): half the samples, the same answer within the
+    # half-resolution tolerance.
+    reference = texture()
+    inspection = warped(reference, TRUTHS[model])
+    every_row = register(reference, inspection, model=model)
+    every_other = register(reference, inspection, model=model, row_step=2)
+    assert every_other.converged
+    assert corner_error_px(every_other.matrix, TRUTHS[model]) < HALF_RESOLUTION_PX
+    assert not np.array_equal(every_other.matrix, every_row.matrix)  # fewer rows: another (close) answer
+
+
+def test_a_prepared_reference_keeps_its_row_step() -> None:
+    reference = texture(sigma_px=2.0)
+    inspection = warped(reference, TRUTHS["affine"])
+    prepared = prepare_reference(reference, model="affine", row_step=2)
+    cold = register(reference, inspection, model="affine", row_step=2)
+    warm = register(prepared, inspection)
+    np.testing.assert_allclose(warm.matrix, cold.matrix, atol=1e-6)
+    assert warm.iterations == cold.iterations
+    np.testing.assert_array_equal(register(prepared, inspection, row_step=2).matrix, warm.matrix)
+    with pytest.raises(InputError, match="row_step=3 differs from the prepared reference's row_step=2"):
+        register(prepared, inspection, row_step=3)
+    with pytest.raises(InputError, match="row_step=1 differs"):
+        register(prepare_reference(reference, model="affine"), inspection, row_step=1)
+
+
+@pytest.mark.parametrize("value", [0, -2, 1.5, "2"])
+def test_row_step_must_be_a_positive_int(value: object) -> None:
+    with pytest.raises(InputError, match="row_step"):
+        register(texture(), texture(), row_step=value)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="row_step"):
+        prepare_reference(texture(), row_step=value)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("model", ["translation", "affine"])
+def test_without_presmoothing_a_half_size_fit_recovers_a_known_warp(model: str) -> None:
+    # presmooth=False: the half-size level is cv2.pyrDown of the raw image, smoothed by its own Gaussian.
+    reference = texture()
+    inspection = warped(reference, TRUTHS[model])
+    raw = register(reference, inspection, model=model, finest_level=1, presmooth=False)
+    assert raw.converged
+    assert corner_error_px(raw.matrix, TRUTHS[model]) < HALF_RESOLUTION_PX
+    smoothed = register(reference, inspection, model=model, finest_level=1)
+    assert not np.array_equal(raw.matrix, smoothed.matrix)  # other images, a close answer
+
+
+def test_a_prepared_reference_keeps_its_presmoothing() -> None:
+    reference = texture(sigma_px=2.0)
+    inspection = warped(reference, TRUTHS["affine"])
+    prepared = prepare_reference(reference, model="affine", presmooth=False)
+    cold = register(reference, inspection, model="affine", presmooth=False)
+    warm = register(prepared, inspection)
+    np.testing.assert_allclose(warm.matrix, cold.matrix, atol=1e-6)
+    assert warm.iterations == cold.iterations
+    with pytest.raises(InputError, match="presmooth=True differs from the prepared reference's"):
+        register(prepared, inspection, presmooth=True)
+    with pytest.raises(InputError, match="presmooth"):
+        register(reference, inspection, presmooth="no")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="presmooth"):
+        prepare_reference(reference, presmooth=1)  # type: ignore[arg-type]
+
+
+def test_the_caller_s_images_stay_writable_without_presmoothing() -> None:
+    reference, inspection = texture(), shifted(texture(), (1.5, 0.5))
+    register(reference, inspection, presmooth=False)
+    prepare_reference(reference, presmooth=False)
+    assert reference.flags.writeable and inspection.flags.writeable

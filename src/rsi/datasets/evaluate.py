@@ -37,7 +37,8 @@ from rsi._validate import (
 from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
-from rsi.imaging._components import labelled, labelled_with_stats, occupied
+from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
+from rsi.imaging._warps import scratch
 from rsi.imaging.registration import REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
@@ -76,6 +77,24 @@ class DeepPcbSettings:
         the full-resolution fit for the median trainval pair (0.26 px at the 90th percentile, at the image
         corners), far inside the 3 px mis-registration floor the detector adds as noise, and the trainval
         figures do not move (``docs/deeppcb.md``). 2 (quarter size) costs 7 more false alarms in 1,000.
+    registration_coarsest_level : int or None
+        Coarsest pyramid level the registration refines (:func:`rsi.register`'s ``coarsest_level``; None:
+        down to 128 px a side). 1: the fit starts and ends on the half-size images, from the identity (the
+        pairs come pre-aligned, within a few pixels), without the quarter-size level before it; the fits
+        lie within 0.01 px of the two-level ones for the median pair (``docs/deeppcb.md``).
+    registration_row_step : int or None
+        Rows the registration samples (:func:`rsi.register`'s ``row_step``; None: every row below 512).
+        2: every other row of the half-size images, half the work; the fits move by 0.04 px for the median
+        pair (0.2 px at the 90th percentile), far inside the 3 px floor.
+    registration_photometric : bool
+        Fit a gain and bias (:func:`rsi.register`'s ``photometric``). False: the images are binarised to 0
+        and 255, so there is no exposure difference to fit, and the two photometric unknowns are a quarter of
+        an affine fit's work. Measured on trainval, not tuned: a yes-or-no choice (``docs/deeppcb.md``).
+    registration_presmooth : bool
+        Smooth the full-resolution images before the registration's pyramid (:func:`rsi.register`'s
+        ``presmooth``). False: the fit ends on the half-size images, which cv2.pyrDown's own Gaussian
+        smooths; the full-resolution filtering of both images only fed them. Measured on trainval, a
+        yes-or-no choice like the last.
     flaw_model, size, method : str, int, str
         Passed to :func:`rsi.detect`. The erosion variant of the uniform multi-pixel model: every pixel of
         a ``size`` x ``size`` window must change the same way, which a 1-px edge residual never does.
@@ -113,6 +132,10 @@ class DeepPcbSettings:
 
     registration_model: str = "affine"
     registration_finest_level: int = 1
+    registration_coarsest_level: int | None = 1
+    registration_row_step: int | None = 2
+    registration_photometric: bool = False
+    registration_presmooth: bool = False
     flaw_model: str = "uniform"
     size: int = 3
     method: str = "erosion"
@@ -129,6 +152,16 @@ class DeepPcbSettings:
     def __post_init__(self) -> None:
         choice(self.registration_model, "registration_model", REGISTRATION_MODELS)
         positive_int(self.registration_finest_level, "registration_finest_level", minimum=0)
+        if self.registration_coarsest_level is not None:
+            positive_int(
+                self.registration_coarsest_level,
+                "registration_coarsest_level",
+                minimum=self.registration_finest_level,
+            )
+        if self.registration_row_step is not None:
+            positive_int(self.registration_row_step, "registration_row_step")
+        instance_of(self.registration_photometric, "registration_photometric", bool, none_allowed=False)
+        instance_of(self.registration_presmooth, "registration_presmooth", bool, none_allowed=False)
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
@@ -354,10 +387,33 @@ def group_defects(
     PcbDetections
         Centres are the centroids of each group's mask pixels; ``areas_px`` their counts.
     """
-    pixels = np.asarray(mask, dtype=np.uint8)
+    # A bool mask is read as its bytes (0/1), without a full-frame copy.
+    is_bool = isinstance(mask, np.ndarray) and mask.dtype == np.bool_
+    pixels = mask.view(np.uint8) if is_bool else np.asarray(mask, dtype=np.uint8)
     if pixels.ndim != 2:
         raise InputError(f"mask must be 2-D (rows, cols); got shape {pixels.shape}. Pass one image's mask.")
-    radius = (positive_int(merge_gap_px, "merge_gap_px", minimum=0) + 1) // 2
+    values = None
+    if score is not None:
+        values = as_image(score, "score")
+        same_shape(values, pixels, ("score", "mask"))
+    return _grouped(
+        pixels,
+        positive_int(merge_gap_px, "merge_gap_px", minimum=0),
+        positive_int(min_area_px, "min_area_px"),
+        positive_int(grow_px, "grow_px", minimum=0),
+        values,
+    )
+
+
+def _grouped(
+    pixels: NDArray[np.uint8],
+    merge_gap_px: int,
+    min_area_px: int,
+    grow_px: int,
+    values: NDArray[np.floating] | None,
+) -> PcbDetections:
+    """:func:`group_defects` of a checked 0/1 mask and score map (the DeepPCB grouping's own, finite)."""
+    radius = (merge_gap_px + 1) // 2
     # Only the box holding the mask's pixels and their dilation is labelled (a few defects on a large
     # image); it starts on an even row and column, so the labels come in the whole frame's order.
     top, left, bottom, right = occupied(pixels, radius)
@@ -366,24 +422,23 @@ def group_defects(
         # Dilating by half the gap joins pieces at most the gap apart; the labels are read at mask pixels.
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
         joined = cv2.dilate(joined, disk)
-    count, labels, stats, _ = labelled_with_stats(joined, 8)
-    stats[:, cv2.CC_STAT_LEFT] += left
-    stats[:, cv2.CC_STAT_TOP] += top
-    rows, cols = np.nonzero(pixels[top:bottom, left:right])
-    owner = labels[rows, cols]
+    # The dilated groups as pixels (their boxes), and the label of each mask pixel among them: the mask's
+    # pixels are the dilation's too, found in both in row-major order.
+    count, joined_rows, joined_cols, joined_owner = pixel_components(joined, 8)
+    stats, _ = component_stats(count, joined_rows + top, joined_cols + left, joined_owner)
+    rows, cols = nonzero_pixels(pixels[top:bottom, left:right])
+    width = right - left
+    owner = joined_owner[np.searchsorted(joined_rows * width + joined_cols, rows * width + cols)]
     rows, cols = rows + top, cols + left
     area = np.bincount(owner, minlength=count).astype(np.float64)
-    keep = (np.arange(count) > 0) & (area >= positive_int(min_area_px, "min_area_px"))
+    keep = (np.arange(count) > 0) & (area >= min_area_px)
     safe_area = np.maximum(area, 1.0)
     centres = np.column_stack(
         [np.bincount(owner, cols, count) / safe_area, np.bincount(owner, rows, count) / safe_area]
     )[keep]
-    grow = positive_int(grow_px, "grow_px", minimum=0)
-    boxes = _grown_boxes(stats[keep], radius - grow, (int(pixels.shape[0]), int(pixels.shape[1])))
+    boxes = _grown_boxes(stats[keep], radius - grow_px, (int(pixels.shape[0]), int(pixels.shape[1])))
     strengths = None
-    if score is not None:
-        values = as_image(score, "score")
-        same_shape(values, pixels, ("score", "mask"))
+    if values is not None:
         peak = np.zeros(count)
         np.maximum.at(peak, np.asarray(owner, dtype=np.intp), values[rows, cols])
         strengths = peak[keep]
@@ -419,22 +474,35 @@ def register_pair(
     inspection: NDArray[np.floating],
     model: str,
     finest_level: int = 0,
+    coarsest_level: int | None = None,
+    *,
+    row_step: int | None = None,
+    photometric: bool = True,
+    presmooth: bool = True,
 ) -> Registration:
     """Register a DeepPCB pair: start at the identity (the pairs are pre-aligned), keep a plausible fit.
 
     A sparse board (a few traces on blank board) lets the coarse phase-correlation start of
     :func:`rsi.register` pick a wrong peak; 20 of the 1,000 trainval pairs then diverged or locked onto a
     5-40 % scale, and every defect of the pair was missed. From the identity, the model's fit is kept if
-    plausible, else a translation's, else the identity itself (``reason="implausible"``). `finest_level`
-    is :func:`rsi.register`'s (``DeepPcbSettings.registration_finest_level``).
+    plausible, else a translation's, else the identity itself (``reason="implausible"``). `finest_level`,
+    `coarsest_level`, `row_step`, `photometric` and `presmooth` are :func:`rsi.register`'s
+    (``DeepPcbSettings``'s ``registration_*``; :func:`registration_options` gives them).
     """
     from rsi.imaging.registration import register
 
-    reference_image = as_image(reference, "reference")
-    inspection_image = as_image(inspection, "inspection")
+    # rsi.register checks both images (and names them): no second pass over them here.
     for candidate in (choice(model, "model", REGISTRATION_MODELS), "translation"):
         fit = register(
-            reference_image, inspection_image, model=candidate, initial=np.eye(3), finest_level=finest_level
+            reference,
+            inspection,
+            model=candidate,
+            initial=np.eye(3),
+            finest_level=finest_level,
+            coarsest_level=coarsest_level,
+            row_step=row_step,
+            photometric=photometric,
+            presmooth=presmooth,
         )
         if _plausible(fit):
             return fit
@@ -454,16 +522,17 @@ def register_pair(
 
 def _grown(seeds: BoolArray, extent: BoolArray) -> BoolArray:
     """Pixels of `extent` 8-connected to a seed (morphological reconstruction by labelling)."""
-    union = (extent | seeds).view(np.uint8)
-    # Only the box holding the pixels is labelled: the components, hence the pixels kept, are the same.
+    union = np.bitwise_or(extent, seeds, out=scratch("grown union", seeds.shape, np.bool_)).view(np.uint8)
+    # Only the box holding the pixels is labelled: the components, hence the pixels kept, are the same; and
+    # only its pixels (a few per cent of it) are read and written.
     top, left, bottom, right = occupied(union)
-    inside = (slice(top, bottom), slice(left, right))
-    count, labels = labelled(np.ascontiguousarray(union[inside]), 8)
+    count, rows, cols, owner = pixel_components(np.ascontiguousarray(union[top:bottom, left:right]), 8)
+    rows, cols = rows + top, cols + left
     keep = np.zeros(count, dtype=bool)
-    keep[labels[seeds[inside]]] = True
-    keep[0] = False
+    keep[owner[seeds[rows, cols]]] = True
+    chosen = keep[owner]
     grown: BoolArray = np.zeros(seeds.shape, dtype=bool)
-    grown[inside] = keep[labels]
+    grown[rows[chosen], cols[chosen]] = True
     return grown
 
 
@@ -500,9 +569,7 @@ def detect_defects(
         instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
     reference_image = as_image(reference, "reference")
     inspection_image = as_image(inspection, "inspection")
-    fit = register_pair(
-        reference_image, inspection_image, chosen.registration_model, chosen.registration_finest_level
-    )
+    fit = register_pair(reference_image, inspection_image, **registration_options(chosen))
     detection = detect(
         reference_image,
         inspection_image,
@@ -518,10 +585,62 @@ def detect_defects(
         misregistration_std_px=chosen.misregistration_std_px,
         sparse_above=sparse_above(chosen),
     )
-    found = group_detection(detection, chosen)
-    # The template as the detector predicted it in the test's frame: inspection less the difference.
-    template = np.where(detection.valid, inspection_image - detection.difference, inspection_image)
-    return name_defects(found, template, inspection_image, classifier)
+    return name_detection(group_detection(detection, chosen), detection, inspection_image, classifier)
+
+
+def predicted_template(detection: Detection, inspection: NDArray[np.floating]) -> NDArray[np.floating]:
+    """The template as the detector predicted it in the test's frame: the inspection less the difference
+    where the test is valid, the inspection's own pixels elsewhere (``np.where(valid, inspection - d,
+    inspection)``, without its full-size temporaries)."""
+    from rsi.detection.detect import Detection
+
+    instance_of(detection, "detection", Detection, none_allowed=False)
+    test = as_image(inspection, "inspection")
+    same_shape(test, detection.difference, ("inspection", "detection.difference"))
+    return _template(detection, test)
+
+
+def name_detection(
+    found: PcbDetections,
+    detection: Detection,
+    inspection: NDArray[np.floating],
+    classifier: DefectClassifier | None = None,
+) -> PcbDetections:
+    """:func:`name_defects` of `found` on the template `detection` predicted (:func:`predicted_template`)
+    and the inspection it was run on: the template is made from checked arrays, so only the inspection is
+    checked, once (``detect_defects``' last step)."""
+    from rsi.datasets.pcb_learn import DefectClassifier
+    from rsi.detection.detect import Detection
+
+    instance_of(found, "found", PcbDetections, none_allowed=False)
+    instance_of(detection, "detection", Detection, none_allowed=False)
+    if classifier is not None:
+        instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
+    if found.strengths is None or found.areas_px is None:
+        raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
+    test = as_image(inspection, "inspection")
+    same_shape(test, detection.difference, ("inspection", "detection.difference"))
+    return _named(found, _template(detection, test), test, classifier)
+
+
+def _template(detection: Detection, test: NDArray[np.floating]) -> NDArray[np.floating]:
+    """:func:`predicted_template` of a checked test image."""
+    template: NDArray[np.floating] = test - detection.difference
+    np.copyto(template, test, where=~detection.valid)
+    return template
+
+
+def registration_options(settings: DeepPcbSettings) -> dict[str, Any]:
+    """:func:`register_pair`'s arguments for these settings (model, levels, rows, photometric, smoothing)."""
+    instance_of(settings, "settings", DeepPcbSettings, none_allowed=False)
+    return {
+        "model": settings.registration_model,
+        "finest_level": settings.registration_finest_level,
+        "coarsest_level": settings.registration_coarsest_level,
+        "row_step": settings.registration_row_step,
+        "photometric": settings.registration_photometric,
+        "presmooth": settings.registration_presmooth,
+    }
 
 
 def _single_pixel_threshold(settings: DeepPcbSettings) -> float:
@@ -544,23 +663,31 @@ def group_detection(detection: Detection, settings: DeepPcbSettings) -> PcbDetec
 
     instance_of(detection, "detection", Detection, none_allowed=False)
     instance_of(settings, "settings", DeepPcbSettings, none_allowed=False)
-    mask = detection.mask.copy()
+    # The full-frame maps here are temporaries of this call: this thread's scratch buffers, whose pages stay
+    # mapped from one pair to the next (a fresh full-frame array costs its page faults, as much as its pass).
+    shape = detection.mask.shape
+    mask = scratch("group mask", shape, np.bool_)
+    np.copyto(mask, detection.mask)
     _clear_border(mask, settings.border_px)
     # seed §2.4: the per-pixel statistic d / sigma, with the same noise model (mis-registration included).
-    pixel_z = np.abs(detection.difference) / np.maximum(detection.sigma, np.float32(1e-6))
+    pixel_z = np.abs(detection.difference, out=scratch("group z", shape, np.float32))
+    floored = np.maximum(detection.sigma, np.float32(1e-6), out=scratch("group sigma", shape, np.float32))
+    np.divide(pixel_z, floored, out=pixel_z)
     # The erosion test's mask is the defect eroded by size // 2: grow that back, then pad like DeepPCB.
     undo_erosion = settings.size // 2 if settings.method == "erosion" else 0
     if settings.grow_to_changes:
         single = _single_pixel_threshold(settings)
-        extent = (pixel_z > single) & detection.valid
+        extent = np.greater(pixel_z, single, out=scratch("group extent", shape, np.bool_))
+        extent &= detection.valid
         _clear_border(extent, settings.border_px)
         mask, undo_erosion = _grown(mask, extent), 0
-    return group_defects(
-        mask,
-        merge_gap_px=settings.merge_gap_px,
-        min_area_px=settings.min_area_px,
-        grow_px=undo_erosion + settings.box_padding_px,
-        score=pixel_z,
+    # |d| / sigma is finite by construction (sigma floored): the grouping need not check it again.
+    return _grouped(
+        mask.view(np.uint8),
+        settings.merge_gap_px,
+        settings.min_area_px,
+        undo_erosion + settings.box_padding_px,
+        pixel_z,
     )
 
 
@@ -571,14 +698,29 @@ def name_defects(
     classifier: DefectClassifier | None = None,
 ) -> PcbDetections:
     """`found` with its topology features, classes and confidences (the classifier's, or the rules')."""
-    from rsi.datasets.pcb_learn import DefectClassifier, defect_features, rule_classes
+    from rsi.datasets.pcb_learn import DefectClassifier
 
     instance_of(found, "found", PcbDetections, none_allowed=False)
     if classifier is not None:
         instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
     if found.strengths is None or found.areas_px is None:
         raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
-    features = defect_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
+    template_image = as_image(template, "template")
+    test_image = as_image(test, "test")
+    same_shape(template_image, test_image, ("template", "test"))
+    return _named(found, template_image, test_image, classifier)
+
+
+def _named(
+    found: PcbDetections,
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    classifier: DefectClassifier | None,
+) -> PcbDetections:
+    """:func:`name_defects` of checked images and detections that hold strengths and areas."""
+    from rsi.datasets.pcb_learn import checked_features, rule_classes
+
+    features = checked_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
     if classifier is None:
         # The features hold the rules' naming of each box (classify_defects), counted once.
         classes, confidences = rule_classes(features)

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from rsi._validate import as_float_array, as_image, same_shape
 from rsi.errors import InputError
+from rsi.imaging._components import labelled
 
 COPPER_BELOW_DN = 127.5  # DeepPCB's images are binarised: copper dark (0), board light (255)
 OPEN, SHORT, MOUSEBITE, SPUR, SPURIOUS_COPPER, PIN_HOLE = 1, 2, 3, 4, 5, 6
@@ -43,16 +44,23 @@ FloatArray = NDArray[np.float64]
 def _copper_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
     """(copper pieces, holes): 8-connected copper components and 4-connected board components off the
     window's border, each of at least _MIN_PIECE_PX (a sliver cut off at the window's edge is no piece)."""
-    count, _, stats, _ = cv2.connectedComponentsWithStats(copper, connectivity=8)
-    pieces = int((stats[1:, cv2.CC_STAT_AREA] >= _MIN_PIECE_PX).sum())
-    board = (1 - copper).astype(np.uint8)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(board, connectivity=4)
-    edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
-    enclosed = np.ones(count, dtype=bool)
+    # Areas from the labels (OpenCV's statistics cost more than the labelling on these small windows); a
+    # window with one piece (most) has it counted directly.
+    count, labels = labelled(copper, 8)
+    if count <= 2:
+        pieces = int(count == 2 and np.count_nonzero(copper) >= _MIN_PIECE_PX)
+    else:
+        pieces = int(np.count_nonzero(np.bincount(labels.ravel(), minlength=count)[1:] >= _MIN_PIECE_PX))
+    board = 1 - copper  # uint8: the scalar takes the array's type
+    count, labels = labelled(board, 4)
+    edges = np.concatenate((labels[0], labels[-1], labels[:, 0], labels[:, -1]))
+    if count <= 2:
+        # No board, or one piece of it: a hole only if it never reaches the window's edge.
+        return pieces, int(count == 2 and not edges.any() and np.count_nonzero(board) >= _MIN_PIECE_PX)
+    enclosed = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
     enclosed[0] = False
-    enclosed[edge] = False
-    holes = int((enclosed & (stats[:, cv2.CC_STAT_AREA] >= _MIN_PIECE_PX)).sum())
-    return pieces, holes
+    enclosed[edges] = False
+    return pieces, int(np.count_nonzero(enclosed))
 
 
 def _window(value: object, name: str) -> NDArray[np.float64]:
@@ -136,13 +144,32 @@ def classify_copper(
             raise InputError(
                 f"{name} must be a (pieces, holes) tuple of two whole numbers >= 0; got {counts!r:.80}."
             )
-    added = int(cv2.morphologyEx(after & (1 - before), cv2.MORPH_OPEN, _OPENING).sum())
-    removed = int(cv2.morphologyEx(before & (1 - after), cv2.MORPH_OPEN, _OPENING).sum())
+    added, removed = after & (1 - before), before & (1 - after)
+    # The windows are 0/1: pixel sums are counts.
+    changed = (
+        float(np.count_nonzero(added)),
+        float(np.count_nonzero(removed)),
+        float(np.count_nonzero(cv2.morphologyEx(added, cv2.MORPH_OPEN, _OPENING))),
+        float(np.count_nonzero(cv2.morphologyEx(removed, cv2.MORPH_OPEN, _OPENING))),
+    )
+    return class_of_change(changed, pieces_before, pieces_after), core_px(before, after)
+
+
+def class_of_change(
+    changed: tuple[float, float, float, float], pieces_before: tuple[int, int], pieces_after: tuple[int, int]
+) -> int:
+    """:func:`classify_copper`'s class from the changed pixels counted already: copper added and removed,
+    raw and after the 3 x 3 opening (:mod:`rsi.datasets.pcb_learn`'s first window features)."""
+    added, removed = changed[2], changed[3]
     if added == removed == 0:
         # Nothing survives the opening: decide on the raw difference (a thin defect).
-        added, removed = int((after & (1 - before)).sum()), int((before & (1 - after)).sum())
-    core = float(cv2.erode(before ^ after, _CORE).sum())
-    return _name(added > removed, pieces_before, pieces_after), core
+        added, removed = changed[0], changed[1]
+    return _name(bool(added > removed), pieces_before, pieces_after)
+
+
+def core_px(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> float:
+    """Pixels that changed copper state and survive a 5 x 5 erosion (:func:`classify_window`'s confidence)."""
+    return float(np.count_nonzero(cv2.erode(before ^ after, _CORE)))
 
 
 def _name(grown: bool, before: tuple[int, int], after: tuple[int, int]) -> int:

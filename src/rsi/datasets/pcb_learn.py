@@ -22,8 +22,15 @@ from numpy.typing import NDArray
 from rsi._validate import as_float_array, as_image, instance_of, instance_or_default, same_shape
 from rsi.datasets.deeppcb import DeepPcbPair, read_pair
 from rsi.datasets.evaluate import OFFICIAL_IOU, DeepPcbSettings, PcbDetections, box_iou, detect_defects
-from rsi.datasets.pcb_classes import COPPER_BELOW_DN, _boxes_inside, _copper_pieces, classify_copper
+from rsi.datasets.pcb_classes import (
+    COPPER_BELOW_DN,
+    _boxes_inside,
+    _copper_pieces,
+    class_of_change,
+    core_px,
+)
 from rsi.errors import InputError
+from rsi.imaging._components import labelled
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -41,43 +48,67 @@ _RULE_COLUMN = 32
 def _window_features(
     before: NDArray[np.uint8],
     after: NDArray[np.uint8],
+    changes: tuple[NDArray[np.uint8], NDArray[np.uint8]],
     pieces: tuple[tuple[int, int], tuple[int, int]],
 ) -> list[float]:
-    """Changed copper (raw and after a 3x3 opening) and the (pieces, holes) before and after."""
-    added, removed = after & (1 - before), before & (1 - after)
-    opened_added = cv2.morphologyEx(added, cv2.MORPH_OPEN, _SQUARE)
-    opened_removed = cv2.morphologyEx(removed, cv2.MORPH_OPEN, _SQUARE)
+    """Changed copper (raw and after a 3x3 opening) and the (pieces, holes) before and after; `changes` are
+    the copper added and removed."""
+    added, removed = changes
+    counts = (int(np.count_nonzero(added)), int(np.count_nonzero(removed)))
     (pieces_before, holes_before), (pieces_after, holes_after) = pieces
+    # The windows are 0/1: sums are counts (and the mean the count over the size, as numpy divides it).
     return [
-        float(added.sum()),
-        float(removed.sum()),
-        float(opened_added.sum()),
-        float(opened_removed.sum()),
+        float(counts[0]),
+        float(counts[1]),
+        opened_count(added, counts[0]),
+        opened_count(removed, counts[1]),
         pieces_before,
         pieces_after,
         holes_before,
         holes_after,
         pieces_after - pieces_before,
         holes_after - holes_before,
-        float(before.mean()),
+        np.count_nonzero(before) / before.size,
     ]
 
 
-def _surroundings(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[float]:
-    """What surrounds the change in the template: a spur touches copper once, a short twice, spurious
-    copper never; a pin-hole is all copper around, a mousebite board on one side, an open on two."""
+def opened_count(change: NDArray[np.uint8], count: int) -> float:
+    """Pixels of the 3 x 3 opening of a 0/1 window holding `count` set pixels.
+
+    OpenCV's erosion reads only the pixels inside the window, and every pixel has at least a corner's
+    worth of them (2 x 2, fewer on a window one pixel thin), all of which must be set for it to survive:
+    with fewer set pixels than that the opening is empty, and is not computed (a third of a DeepPCB pair's
+    openings: the slivers on a defect's other side).
+    """
+    corner = min(change.shape[0], 2) * min(change.shape[1], 2)
+    if count < corner:
+        return 0.0
+    return float(np.count_nonzero(cv2.morphologyEx(change, cv2.MORPH_OPEN, _SQUARE)))
+
+
+def _surroundings(
+    before: NDArray[np.uint8], changes: tuple[NDArray[np.uint8], NDArray[np.uint8]]
+) -> list[float]:
+    """What surrounds the change (copper added, removed) in the template: a spur touches copper once, a
+    short twice, spurious copper never; a pin-hole is all copper around, a mousebite board on one side, an
+    open on two."""
+    added, removed = changes
+    board = 1 - before
     features = []
-    for change, around in ((after & (1 - before), before), (before & (1 - after), 1 - before)):
+    for change, around in ((added, before), (removed, board)):
         ring = np.asarray(cv2.dilate(change, _SQUARE), dtype=np.uint8) & (1 - change)
-        touching = (around & ring).astype(np.uint8)
-        features += [
-            float(touching.sum()) / max(float(ring.sum()), 1.0),
-            float(cv2.connectedComponents(touching, connectivity=8)[0] - 1),
-        ]
+        touching = around & ring  # 0/1 uint8
+        touched = np.count_nonzero(touching)
+        # No pixel touched: no piece of it either (no labelling to run).
+        pieces = labelled(touching, 8)[0] - 1 if touched else 0
+        features += [float(touched) / max(float(np.count_nonzero(ring)), 1.0), float(pieces)]
     # Width of the copper a removal bites into, and of the board an addition grows into.
-    for change, material in ((before & (1 - after), before), (after & (1 - before), 1 - before)):
-        distance = cv2.distanceTransform(material.astype(np.uint8), cv2.DIST_L2, 3)
-        features.append(float(distance[change > 0].max()) if change.any() else 0.0)
+    for change, material in ((removed, before), (added, board)):
+        if not change.any():  # nothing changed this way: no width, and no transform to compute
+            features.append(0.0)
+            continue
+        distance = cv2.distanceTransform(material, cv2.DIST_L2, 3)  # 0/1 uint8 already
+        features.append(float(distance[change > 0].max()))
     return features
 
 
@@ -91,21 +122,35 @@ def _box_features(
     x1, y1, x2, y2 = (int(value) for value in box)
     rows, cols = test.shape
     features = [float(x2 - x1), float(y2 - y1), strength, area]
+    # Every window lies in the largest (the box grown by the largest growth, clipped): copper is found there
+    # once and each window is a view of it.
+    grown = max(_WINDOW_GROWTH_PX)
+    outer_top, outer_left = max(0, y1 - grown), max(0, x1 - grown)
+    outer = (
+        slice(outer_top, min(rows, y2 + 1 + grown)),
+        slice(outer_left, min(cols, x2 + 1 + grown)),
+    )
+    copper_before = (template[outer] < COPPER_BELOW_DN).astype(np.uint8)
+    copper_after = (test[outer] < COPPER_BELOW_DN).astype(np.uint8)
     for growth in _WINDOW_GROWTH_PX:
         top, bottom = max(0, y1 - growth), min(rows, y2 + 1 + growth)
         left, right = max(0, x1 - growth), min(cols, x2 + 1 + growth)
         if bottom - top < _MIN_WINDOW_PX or right - left < _MIN_WINDOW_PX:
             top, bottom, left, right = y1, y2 + 1, x1, x2 + 1
-        window = (slice(top, bottom), slice(left, right))
-        before = (template[window] < COPPER_BELOW_DN).astype(np.uint8)
-        after = (test[window] < COPPER_BELOW_DN).astype(np.uint8)
+        window = (
+            slice(top - outer_top, bottom - outer_top),
+            slice(left - outer_left, right - outer_left),
+        )
+        before, after = copper_before[window], copper_after[window]
         pieces = (_copper_pieces(before), _copper_pieces(after))
-        features += _window_features(before, after, pieces)
+        changes = (after & (1 - before), before & (1 - after))
+        counted = _window_features(before, after, changes, pieces)
+        features += counted
         if growth == 0:
-            features += _surroundings(before, after)
-            # The rules' class on the same window and pieces (classify_window, without counting again).
-            rule, core = classify_copper(before, after, *pieces)
-            features += [float(rule), core]
+            features += _surroundings(before, changes)
+            # The rules' class on the same window, pieces and changes (classify_window, counted once).
+            rule = class_of_change((counted[0], counted[1], counted[2], counted[3]), *pieces)
+            features += [float(rule), core_px(before, after)]
     return features
 
 
@@ -134,6 +179,19 @@ def defect_features(
     template_image = as_image(template, "template")
     test_image = as_image(test, "test")
     same_shape(template_image, test_image, ("template", "test"))
+    return checked_features(template_image, test_image, boxes_xyxy, strengths, areas)
+
+
+def checked_features(
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    boxes_xyxy: NDArray[np.integer],
+    strengths: object,
+    areas: object,
+) -> FloatArray:
+    """:func:`defect_features` of images already checked (2-D, finite, the same shape): the boxes and the
+    per-box values are still checked."""
+    template_image, test_image = template, test
     boxes = _boxes_inside(boxes_xyxy, test_image.shape)
     strength_values = as_float_array(strengths, "strengths").reshape(-1)
     area_values = as_float_array(areas, "areas").reshape(-1)

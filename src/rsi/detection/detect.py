@@ -25,10 +25,10 @@ from numpy.typing import NDArray
 from rsi._validate import (
     MAX_INTENSITY,
     as_image,
-    as_intensity_image,
     as_mask,
     choice,
     in_range,
+    intensity_range,
     positive_int,
     same_shape,
 )
@@ -36,7 +36,8 @@ from rsi.detection import noise
 from rsi.detection.flaw_models import FLAW_MODELS, flaw_kernel
 from rsi.detection.roc import METHODS, POLARITIES, thresholds
 from rsi.errors import InputError
-from rsi.imaging._components import components_with_stats
+from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
+from rsi.imaging._warps import scratch
 from rsi.imaging.compensation import Compensated
 from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
 
@@ -127,6 +128,7 @@ class _Input:
     image: Float32Array
     valid: BoolArray | None
     variance: Float32Array | float | None
+    span: tuple[float, float] | None = None  # (min, max) of `image`, when its check found them
 
 
 @dataclass(frozen=True)
@@ -155,15 +157,19 @@ def _unpack(image: object, name: str, noise_sigma: float | None) -> _Input:
             f"{name} must be a numpy array of shape (rows, cols) or a Compensated image; "
             f"got {type(image).__name__}."
         )
-    pixels = as_intensity_image(image, name).astype(np.float32, copy=False)
-    return _Input(pixels, None, None if noise_sigma is None else noise_sigma**2)
+    checked, low, high = intensity_range(image, name)
+    pixels = checked.astype(np.float32, copy=False)
+    # The check's range is the image's own only if it was float32 already (a conversion may round).
+    span = (low, high) if pixels is checked else None
+    return _Input(pixels, None, None if noise_sigma is None else noise_sigma**2, span)
 
 
 def _refuse_uninformative(reference: _Input, inspection: _Input) -> None:
     """A constant inspection against a textured reference (a dark or saturated frame) says nothing about
     flaws: every pixel changed, or none can be seen. Reporting "0 flaws" for it would be silently wrong."""
     pixels = inspection.image
-    if pixels.min() == pixels.max() and reference.image.min() != reference.image.max():
+    low, high = inspection.span if inspection.span is not None else (pixels.min(), pixels.max())
+    if low == high and reference.image.min() != reference.image.max():
         raise InputError(
             f"inspection has one value everywhere ({float(pixels.flat[0]):g}) while the reference is "
             "textured: the pair carries no information about flaws (a dark or saturated frame?). Check the "
@@ -386,41 +392,39 @@ def _signed(bright: Float32Array, dark: Float32Array, valid: BoolArray) -> Float
     return np.asarray(signed, dtype=np.float32)
 
 
-def _peaks(labels: NDArray[np.int32], mask: BoolArray, score: Float32Array) -> dict[int, int]:
-    """Flat index of the highest-scoring pixel of each component, from the mask pixels only (few)."""
-    pixels = np.flatnonzero(mask)
-    order = pixels[np.argsort(-score.ravel()[pixels], kind="stable")]
-    found, first = np.unique(labels.ravel()[order], return_index=True)
+def _peaks(owner: NDArray[np.int32], values: Float32Array) -> dict[int, int]:
+    """Per component, the index (into its pixels, row-major) of its highest-scoring pixel; ties: the first."""
+    order = np.argsort(-values, kind="stable")
+    found, first = np.unique(owner[order], return_index=True)
     return dict(zip(found.tolist(), order[first].tolist(), strict=True))
 
 
 def _flaws(
     mask: BoolArray, score: Float32Array, statistic: Float32Array, min_area_px: int
 ) -> tuple[Flaw, ...]:
-    # Labelled on the box holding the mask's pixels (a few flaws on a large image), as on the whole frame.
-    count, labels, stats, centroids, box = components_with_stats(mask.view(np.uint8), connectivity=8)
-    top, left, bottom, right = box
-    inside = (slice(top, bottom), slice(left, right))
-    peaks_in_box = _peaks(labels, mask[inside], np.ascontiguousarray(score[inside]))
-    width = right - left
-    peaks = {
-        label: (top + index // width) * mask.shape[1] + left + index % width
-        for label, index in peaks_in_box.items()
-    }
+    # Labelled on the box holding the mask's pixels (a few flaws on a large image), its empty rows cut, with
+    # the whole frame's labels; the statistics come from the pixels.
+    top, left, bottom, right = occupied(mask.view(np.uint8))
+    count, rows, cols, owner = pixel_components(
+        np.ascontiguousarray(mask.view(np.uint8)[top:bottom, left:right]), 8
+    )
+    rows, cols = rows + top, cols + left
+    stats, centroids = component_stats(count, rows, cols, owner)
+    peaks = _peaks(owner, score[rows, cols])
     found = []
     for label in range(1, count):
         x, y, width, height, area = (int(value) for value in stats[label])
         if area < min_area_px:
             continue
-        peak = peaks[label]
+        peak = (rows[peaks[label]], cols[peaks[label]])
         found.append(
             Flaw(
                 row=float(centroids[label, 1]),
                 col=float(centroids[label, 0]),
                 bbox=(y, x, y + height, x + width),
                 area_px=area,
-                score=float(score.flat[peak]),
-                polarity="bright" if statistic.flat[peak] > 0 else "dark",
+                score=float(score[peak]),
+                polarity="bright" if statistic[peak] > 0 else "dark",
             )
         )
     return tuple(sorted(found, key=lambda flaw: -flaw.score))
@@ -441,11 +445,17 @@ class _Test:
 
 
 def _test_maps(
-    aligned: _Aligned, difference: Float32Array, valid: BoolArray, test: _Test
+    aligned: _Aligned,
+    difference: Float32Array,
+    valid: BoolArray,
+    test: _Test,
+    errors: tuple[Float32Array, ...] | None = None,
 ) -> tuple[Float32Array, Float32Array, BoolArray, Float32Array]:
-    """Score, signed statistic, the test's validity and sigma of the images given (a whole frame or a box)."""
+    """Score, signed statistic, the test's validity and sigma of the images given (a whole frame or a box);
+    `errors`: the prediction errors on them, if already computed."""
     variance, inverse_variance = _variances(test.variance, valid, ~valid)
-    errors = _prediction_errors(aligned, test.registration, test.shift_floor)
+    if errors is None:
+        errors = _prediction_errors(aligned, test.registration, test.shift_floor)
     statistic = _lrt(difference, inverse_variance, test.test_weights, errors)
     if test.calibrate:
         # Self-calibration: under H0 the statistic is N(0, 1); its robust scale absorbs noise-model error.
@@ -468,10 +478,15 @@ _SPARSE_MARGIN = 1.0 - 1e-5
 _SIMD_COLUMNS = 16
 
 
-def _compare(image: Float32Array, bound: float, operation: int) -> NDArray[np.uint8]:
-    """255 where ``image <operation> bound``, else 0: one pass, straight to uint8."""
+def _compare(image: Float32Array, bound: float, operation: int, role: str) -> NDArray[np.uint8]:
+    """255 where ``image <operation> bound``, else 0: one pass, straight to uint8, into this thread's
+    `role` buffer (:func:`~rsi.imaging._warps.scratch`: a temporary of this call only)."""
+    out = scratch(role, image.shape, np.uint8)
     # cv2.compare takes a float as a scalar (its stubs list arrays only).
-    return np.asarray(cv2.compare(image, bound, operation), dtype=np.uint8)  # type: ignore[call-overload]
+    return np.asarray(cv2.compare(image, bound, operation, dst=out), dtype=np.uint8)  # type: ignore[call-overload]
+
+
+_UNFILLED, _FILLED = 255, 128  # a joined pixel before and after its component is boxed
 
 
 def _sparse_boxes(
@@ -480,24 +495,34 @@ def _sparse_boxes(
     """Boxes (left, top, width, height) covering what may be flagged (every footprint pixel's |d| beyond
     `level`), the footprint each reads, and the pixels with |d| beyond `above` 8-connected to them."""
 
-    def beyond(bound: float) -> NDArray[np.uint8]:
-        return np.asarray(
-            cv2.bitwise_or(_compare(difference, bound, cv2.CMP_GT), _compare(difference, -bound, cv2.CMP_LT)),
-            np.uint8,
-        )
+    # Every map here is a temporary of this call: this thread's scratch buffers, whose pages stay mapped
+    # from one pair to the next (a fresh full-frame array costs its page faults, as much as its pass).
+    shape = difference.shape
 
-    flagged = cv2.bitwise_or(
-        cv2.erode(_compare(difference, level, cv2.CMP_GT), footprint),
-        cv2.erode(_compare(difference, -level, cv2.CMP_LT), footprint),
-    )
+    def buffer(role: str) -> NDArray[np.uint8]:
+        return scratch(f"sparse {role}", shape, np.uint8)
+
+    bright = cv2.erode(_compare(difference, level, cv2.CMP_GT, "sparse >"), footprint, dst=buffer("bright"))
+    dark = cv2.erode(_compare(difference, -level, cv2.CMP_LT, "sparse <"), footprint, dst=buffer("dark"))
+    flagged = cv2.bitwise_or(bright, dark, dst=buffer("flagged"))
     # The components of the strong pixels, the flagged ones and what their erosion reads (the dilation by
     # the reflected footprint) that hold a flagged pixel.
-    read = cv2.bitwise_or(flagged, cv2.dilate(flagged, np.ascontiguousarray(footprint[::-1, ::-1])))
-    joined = cv2.bitwise_or(beyond(above), read)
-    _, labels, stats, _, (top, left, _, _) = components_with_stats(np.asarray(joined, np.uint8), 8)
-    rows, cols = np.nonzero(flagged)
-    held = np.unique(labels[rows - top, cols - left])
-    boxes: list[tuple[int, int, int, int]] = [tuple(stats[label, :4].tolist()) for label in held]
+    reflected = np.ascontiguousarray(footprint[::-1, ::-1])
+    read = cv2.bitwise_or(flagged, cv2.dilate(flagged, reflected, dst=buffer("dilated")), dst=buffer("read"))
+    strong = cv2.bitwise_or(
+        _compare(difference, above, cv2.CMP_GT, "sparse >"),
+        _compare(difference, -above, cv2.CMP_LT, "sparse <"),
+        dst=buffer("strong"),
+    )
+    joined = np.asarray(cv2.bitwise_or(strong, read, dst=buffer("joined")), np.uint8)
+    # Only the components holding a flagged pixel are boxed: each is flood-filled from the first flagged
+    # pixel found in it (a few defects), which returns its box, instead of labelling every component.
+    rows, cols = nonzero_pixels(np.asarray(flagged, np.uint8))
+    boxes = []
+    for row, col in zip(rows.tolist(), cols.tolist(), strict=True):
+        if joined[row, col] == _UNFILLED:
+            _, _, _, (left, top, width, height) = cv2.floodFill(joined, None, (col, row), _FILLED, flags=8)
+            boxes.append((int(left), int(top), int(width), int(height)))
     return boxes
 
 
@@ -542,18 +567,27 @@ def _sparse_maps(
     halo = 1 + max(footprint.shape) // 2
     rows, cols = difference.shape
     for left, top, width, height in boxes:
-        row0, col0 = max(0, top - halo), max(0, left - halo)
-        col0 -= col0 % _SIMD_COLUMNS
-        col1 = min(cols, -(-(left + width + halo) // _SIMD_COLUMNS) * _SIMD_COLUMNS)
-        crop = (slice(row0, min(rows, top + height + halo)), slice(col0, col1))
-        inner = (slice(top - row0, top - row0 + height), slice(left - col0, left - col0 + width))
-        box = (slice(top, top + height), slice(left, left + width))
+        row0, row1 = max(0, top - halo), min(rows, top + height + halo)
+        tight0, tight1 = max(0, left - halo), min(cols, left + width + halo)
+        # OpenCV's Sobel rounds as on the whole frame only on whole blocks of columns: the prediction errors
+        # are computed on those, the rest (elementwise and erosions, exact anywhere) on the box and its halo.
+        col0 = tight0 - tight0 % _SIMD_COLUMNS
+        col1 = min(cols, -(-tight1 // _SIMD_COLUMNS) * _SIMD_COLUMNS)
+        blocks = dataclasses.replace(aligned, predicted=aligned.predicted[row0:row1, col0:col1])
+        errors = tuple(
+            error[:, tight0 - col0 : tight1 - col0]
+            for error in _prediction_errors(blocks, test.registration, test.shift_floor)
+        )
+        crop = (slice(row0, row1), slice(tight0, tight1))
         maps = _test_maps(
             dataclasses.replace(aligned, predicted=aligned.predicted[crop]),
             difference[crop],
             valid[crop],
             test,
+            errors,
         )
+        inner = (slice(top - row0, top - row0 + height), slice(left - tight0, left - tight0 + width))
+        box = (slice(top, top + height), slice(left, left + width))
         score[box], signed[box], sigma[box] = maps[0][inner], maps[1][inner], maps[3][inner]
     return score, signed, valid_out, sigma
 

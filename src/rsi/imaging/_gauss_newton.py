@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi.imaging._components import flat_nonzero
 from rsi.imaging._pyramid import Estimate, Level
 from rsi.imaging._warps import (
     Allocate,
@@ -152,14 +153,16 @@ def reference_terms(
     *,
     allocate: Allocate = owned,
     role: str = "jacobian",
+    row_step: int | None = None,
 ) -> Terms:
     """Steepest-descent images and Hessian of one smoothed reference level (`mask` True = usable).
 
     The Jacobian is a new array, or the `role` :func:`~rsi.imaging._warps.scratch` buffer (`allocate`) for a
-    reference used in one call only.
+    reference used in one call only. `row_step`: every row_step-th row is used (None: :func:`_row_step`).
     """
     rows, cols = reference.shape
-    row_step, from_pixels, n_params = _row_step(reference.shape), normaliser((rows, cols)), model.n_params
+    row_step = _row_step(reference.shape) if row_step is None else row_step
+    from_pixels, n_params = normaliser((rows, cols)), model.n_params
     shape = (n_params + 2 * photometric, len(range(0, rows, row_step)), cols)
     jacobian = allocate(role, shape, np.float32)
     # Used rows 1 .. last (reference rows row_step .. last * row_step) have both neighbours.
@@ -256,7 +259,7 @@ def _build(level: Level, terms: Terms, matrix: Matrix) -> _Problem | None:
     used = None
     if inside is not None:
         used = inside[first * step - row0 :: step]
-        hessian -= _outer(jacobian[:, _band_index(np.flatnonzero(~used), col1 - col0, col0, width)])
+        hessian -= _outer(jacobian[:, _band_index(flat_nonzero(~used), col1 - col0, col0, width)])
     if level.mask is not None:
         # Masked pixels have zero Jacobian columns already: they only leave the statistics and trimming.
         user = level.mask[first * step : row1 : step, col0:col1]
@@ -359,7 +362,7 @@ def _trim(
     outliers = np.equal(inside, 0, out=scratch("outliers", box.shape, np.bool_))
     if problem.weights is not None:
         outliers &= problem.weights > 0
-    index = _band_index(np.flatnonzero(outliers), col1 - col0, col0, problem.terms.width)
+    index = _band_index(flat_nonzero(outliers), col1 - col0, col0, problem.terms.width)
     if index.size == 0:
         return None
     dropped = problem.jacobian[:, index]

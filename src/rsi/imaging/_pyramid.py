@@ -97,9 +97,10 @@ def _shrink_mask(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     return np.asarray(cv2.erode(mask.astype(np.uint8), kernel), dtype=bool)
 
 
-def _pyramid(image: Image, count: int, allocate: Allocate, role: str) -> list[Image]:
-    """`count` levels: `image` smoothed, then cv2.pyrDown of the level above, in arrays from `allocate`."""
-    images = [smooth(image, out=allocate(f"{role}0", image.shape, np.float32))]
+def _pyramid(image: Image, count: int, allocate: Allocate, role: str, presmooth: bool = True) -> list[Image]:
+    """`count` levels: `image` smoothed (or `image` itself, without `presmooth`: the caller copies it if it
+    keeps it), then cv2.pyrDown of the level above, in arrays from `allocate`."""
+    images = [smooth(image, out=allocate(f"{role}0", image.shape, np.float32)) if presmooth else image]
     for index in range(1, count):
         rows, cols = images[-1].shape
         out = allocate(f"{role}{index}", ((rows + 1) // 2, (cols + 1) // 2), np.float32)
@@ -108,16 +109,21 @@ def _pyramid(image: Image, count: int, allocate: Allocate, role: str) -> list[Im
 
 
 def reference_pyramid(
-    reference: Image, mask: NDArray[np.bool_] | None, count: int, allocate: Allocate = owned
+    reference: Image,
+    mask: NDArray[np.bool_] | None,
+    count: int,
+    allocate: Allocate = owned,
+    presmooth: bool = True,
 ) -> tuple[list[Image], list[NDArray[np.bool_] | None]]:
     """Return `count` smoothed levels of the reference and their masks, finest first.
 
     Only the full resolution is smoothed explicitly; each coarser level is cv2.pyrDown of the smoothed level
-    above, whose own 5-tap Gaussian leaves it about as smooth, so four more filter passes are saved. The
+    above, whose own 5-tap Gaussian leaves it about as smooth, so four more filter passes are saved. Without
+    `presmooth` the full resolution is `reference` itself (pyrDown still smooths every coarser level). The
     levels are new arrays, or :func:`~rsi.imaging._warps.scratch` buffers for a reference used in one call.
     """
     images, masks = (
-        _pyramid(reference, count, allocate, "reference"),
+        _pyramid(reference, count, allocate, "reference", presmooth),
         [None if mask is None else _shrink_mask(mask)],
     )
     for _ in range(1, count):
@@ -129,12 +135,12 @@ def reference_pyramid(
     return images, masks
 
 
-def inspection_pyramid(inspection: Image, count: int) -> list[Image]:
+def inspection_pyramid(inspection: Image, count: int, presmooth: bool = True) -> list[Image]:
     """Return `count` smoothed levels of the inspection, finest first, as :func:`reference_pyramid`.
 
     They are this thread's :func:`~rsi.imaging._warps.scratch` buffers: valid until its next registration.
     """
-    return _pyramid(inspection, count, scratch, "inspection")
+    return _pyramid(inspection, count, scratch, "inspection", presmooth)
 
 
 def _windowed(image: Image, shape: tuple[int, int]) -> Image:

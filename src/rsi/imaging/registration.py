@@ -11,6 +11,7 @@ its references: :func:`prepare_reference` computes once what depends on the refe
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -20,7 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi._validate import as_intensity_image, as_mask, choice, in_range, positive_int
+from rsi._validate import as_intensity_image, as_mask, choice, in_range, intensity_range, positive_int
 from rsi.errors import InputError
 from rsi.imaging._gauss_newton import Settings, Terms, reference_terms, solve_level
 from rsi.imaging._local import LocalField, estimate_field
@@ -73,6 +74,13 @@ Guess = NDArray[np.float64] | None  # where along each row a coordinate reaches 
 def _as_float32(image: object, name: str) -> Image:
     # Images are float32 on this hot path (docs: dtype policy); parameters and sums stay float64.
     return np.asarray(as_intensity_image(image, name), dtype=np.float32)
+
+
+def _checked_float32(image: object, name: str) -> tuple[Image, tuple[float, float] | None]:
+    """:func:`_as_float32` and the image's (min, max) when the check's are its own (no conversion)."""
+    checked, low, high = intensity_range(image, name)
+    converted = np.asarray(checked, dtype=np.float32)
+    return converted, ((low, high) if converted is checked else None)
 
 
 @dataclass(frozen=True)
@@ -164,9 +172,11 @@ class Registration:
             valid = _preimage_inside(inverse, shape, image.shape)
         else:
             warped, valid = _warp_local(image, self.matrix, self.local, (int(shape[0]), int(shape[1])))
-        # warped is this call's own array: the photometric map and the mask are applied in place.
+        # warped is this call's own array: the photometric map and the mask are applied in place. A gain of
+        # 1 (no photometric fit) changes no value, not even a -0: its pass is skipped.
         if photometric:
-            np.multiply(warped, np.float32(self.gain), out=warped)
+            if self.gain != 1.0:
+                np.multiply(warped, np.float32(self.gain), out=warped)
             np.add(warped, np.float32(self.bias), out=warped)
         warped[~valid] = 0.0
         return warped, valid
@@ -194,6 +204,10 @@ class PreparedReference:
         The usable pixels of each level (None without a mask).
     terms : tuple of Terms
         Per level, the steepest-descent images on its whole frame and their Hessian.
+    row_step : int or None
+        The rows sampled (:func:`register`'s `row_step`).
+    presmooth : bool
+        Whether the full resolution was smoothed before the pyramid (:func:`register`'s `presmooth`).
     """
 
     model: str
@@ -202,6 +216,8 @@ class PreparedReference:
     images: tuple[Image, ...]
     masks: tuple[NDArray[np.bool_] | None, ...]
     terms: tuple[Terms, ...]
+    row_step: int | None = None
+    presmooth: bool = True
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -216,6 +232,8 @@ def prepare_reference(
     model: str = "translation",
     photometric: bool = True,
     mask: NDArray[np.generic] | None = None,
+    row_step: int | None = None,
+    presmooth: bool = True,
 ) -> PreparedReference:
     """Precompute the reference side of :func:`register`: its pyramid, Jacobian and Hessian per level.
 
@@ -229,6 +247,10 @@ def prepare_reference(
         Also fit ``inspection ~= gain * reference + bias``.
     mask : ndarray of shape (M, N), bool, optional
         Reference pixels that may be used (True = use).
+    row_step : int, optional
+        Rows sampled, as :func:`register`'s `row_step`.
+    presmooth : bool
+        Smooth the full resolution before the pyramid, as :func:`register`'s `presmooth`.
 
     Returns
     -------
@@ -252,7 +274,16 @@ def prepare_reference(
     [3.7, -2.2]
     """
     image = _as_float32(reference, "reference")
-    return _prepare(image, model, photometric, mask, level_count(image.shape), allocate=owned)
+    return _prepare(
+        image,
+        model,
+        photometric,
+        mask,
+        level_count(image.shape),
+        allocate=owned,
+        row_step=_chosen_row_step(row_step),
+        presmooth=_flag(presmooth, "presmooth"),
+    )
 
 
 def _prepare(
@@ -264,6 +295,8 @@ def _prepare(
     *,
     allocate: Allocate,
     finest: int = 0,
+    row_step: int | None = None,
+    presmooth: bool = True,
 ) -> PreparedReference:
     """Prepare the reference in arrays from `allocate`: owned ones, or scratch for one cold call.
 
@@ -274,7 +307,12 @@ def _prepare(
     if not isinstance(photometric, (bool, np.bool_)):
         raise InputError(f"photometric must be True or False; got {photometric!r}.")
     user_mask = None if mask is None else as_mask(mask, "mask", image.shape)
-    images, masks = reference_pyramid(image, user_mask, count, allocate)
+    images, masks = reference_pyramid(image, user_mask, count, allocate, presmooth)
+    if finest == 0 and not presmooth:
+        # The full resolution as it is was the caller's array: the prepared reference keeps its own copy.
+        own = allocate("reference0", image.shape, np.float32)
+        np.copyto(own, image)
+        images[0] = own
     images, masks = images[finest:], masks[finest:]
     for level in images:
         level.setflags(write=False)
@@ -286,12 +324,31 @@ def _prepare(
             bool(photometric),
             allocate=allocate,
             role=f"jacobian{index}",
+            row_step=row_step,
         )
         for index, (level, level_mask) in enumerate(zip(images, masks, strict=True))
     )
     return PreparedReference(
-        model, bool(photometric), user_mask is not None, tuple(images), tuple(masks), terms
+        model,
+        bool(photometric),
+        user_mask is not None,
+        tuple(images),
+        tuple(masks),
+        terms,
+        row_step,
+        presmooth,
     )
+
+
+def _flag(value: object, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name} must be True or False; got {value!r}.")
+    return bool(value)
+
+
+def _chosen_row_step(row_step: object) -> int | None:
+    """None (every row; every other on levels of 512 rows or more), or an int >= 1."""
+    return None if row_step is None else positive_int(row_step, "row_step")
 
 
 def _from_level(prepared: PreparedReference, finest: int) -> PreparedReference:
@@ -311,8 +368,41 @@ def _finest_level(finest_level: object, count: int) -> int:
     return min(positive_int(finest_level, "finest_level", minimum=0), count - 1)
 
 
-def _check_prepared(prepared: PreparedReference, model: object, photometric: object, mask: object) -> None:
-    """A prepared reference fixes the model, the photometric fit and the mask: the call may not differ."""
+def _level_count(coarsest_level: object, finest_level: int, count: int) -> int:
+    """Levels built: the pyramid's `count`, or fewer so that the coarsest is `coarsest_level` (None: all)."""
+    if coarsest_level is None:
+        return count
+    coarsest = positive_int(coarsest_level, "coarsest_level", minimum=0)
+    if coarsest < finest_level:
+        raise InputError(
+            f"coarsest_level={coarsest} is finer than finest_level={finest_level}. Pass a coarsest_level "
+            "at least finest_level, or None for the whole pyramid."
+        )
+    return min(count, coarsest + 1)
+
+
+def _check_prepared(
+    prepared: PreparedReference,
+    model: object,
+    photometric: object,
+    mask: object,
+    *,
+    row_step: object,
+    presmooth: object,
+) -> None:
+    """A prepared reference fixes the model, the photometric fit, the mask, the rows sampled and the
+    smoothing: the call may not differ."""
+    if presmooth is not None and _flag(presmooth, "presmooth") is not prepared.presmooth:
+        raise InputError(
+            f"presmooth={presmooth!r} differs from the prepared reference's "
+            f"presmooth={prepared.presmooth!r}. Omit presmooth, or prepare the reference with "
+            "prepare_reference(reference, presmooth=...)."
+        )
+    if row_step is not None and _chosen_row_step(row_step) != prepared.row_step:
+        raise InputError(
+            f"row_step={row_step!r} differs from the prepared reference's row_step={prepared.row_step!r}. "
+            "Omit row_step, or prepare the reference with prepare_reference(reference, row_step=...)."
+        )
     if model is not None and choice(model, "model", MODELS) != prepared.model:
         raise InputError(
             f"model={model!r} differs from the prepared reference's model={prepared.model!r}. Omit model, or "
@@ -392,10 +482,36 @@ def _affine_inside(
             first = _first_true(beyond(high, False), near(high), shape)
             end = _first_true(_negated(beyond(low, True)), near(low), shape)
         start, stop = np.maximum(start, first), np.minimum(stop, end)
-    valid = np.zeros(shape, dtype=bool)
-    for row, (first_col, end_col) in enumerate(zip(start.tolist(), stop.tolist(), strict=True)):
-        valid[row, first_col:end_col] = True  # a slice per row: half the time of a broadcast comparison
+    return _row_runs(start, stop, shape)
+
+
+def _row_runs(start: NDArray[np.int64], stop: NDArray[np.int64], shape: tuple[int, int]) -> Mask:
+    """True at columns ``start[r] <= col < stop[r]`` of each row r (both in [0, shape[1]]).
+
+    An affine warp's runs change at a few rows only (by a column each, as a tilted edge crosses the columns):
+    each band of rows with the same run is written with three slices. Should the runs change at most rows
+    (a strongly rotated warp), one slice per row.
+    """
+    rows = shape[0]
+    changes = np.flatnonzero((start[1:] != start[:-1]) | (stop[1:] != stop[:-1])) + 1
+    if changes.size > rows // _BANDS_PER_ROW:
+        valid = np.zeros(shape, dtype=bool)
+        for row, (first_col, end_col) in enumerate(zip(start.tolist(), stop.tolist(), strict=True)):
+            valid[row, first_col:end_col] = True
+        return valid
+    valid = np.empty(shape, dtype=bool)
+    bounds = [0, *changes.tolist(), rows]
+    for top, bottom in itertools.pairwise(bounds):
+        first_col = int(start[top])
+        end_col = max(first_col, int(stop[top]))
+        valid[top:bottom, :first_col] = False
+        valid[top:bottom, first_col:end_col] = True
+        valid[top:bottom, end_col:] = False
     return valid
+
+
+# Bands of equal runs are written at once while there are at most a quarter as many as rows.
+_BANDS_PER_ROW = 4
 
 
 def _negated(
@@ -505,12 +621,15 @@ def _start(initial: object, photometric: bool) -> Estimate | None:
     return Estimate(matrix / matrix[2, 2], gain=gain, bias=bias)
 
 
-def _flat_image(reference: PreparedReference, inspection: Image) -> str | None:
-    """Which image, if any, holds one value everywhere: no gradient, so no warp can be told from another."""
-    for name, image in (("reference", reference.images[0]), ("inspection", inspection)):
-        if image.min() == image.max():
-            return name
-    return None
+def _flat_image(
+    reference: PreparedReference, inspection: Image, inspection_span: tuple[float, float] | None
+) -> str | None:
+    """Which image, if any, holds one value everywhere: no gradient, so no warp can be told from another.
+    `inspection_span`: the inspection's (min, max) when its check found them."""
+    if reference.images[0].min() == reference.images[0].max():
+        return "reference"
+    low, high = inspection_span if inspection_span is not None else (inspection.min(), inspection.max())
+    return "inspection" if low == high else None
 
 
 def _untextured(flat: str, reference: PreparedReference, inspection: Image, started: float) -> Registration:
@@ -543,6 +662,9 @@ def register(
     initial: NDArray[np.floating] | Registration | None = None,
     tile_px: int | None = None,
     finest_level: int = 0,
+    coarsest_level: int | None = None,
+    row_step: int | None = None,
+    presmooth: bool | None = None,
 ) -> Registration:
     """Register `reference` to `inspection` by coarse-to-fine inverse-compositional Gauss-Newton.
 
@@ -581,6 +703,23 @@ def register(
         pixels; `tolerance` is then in that level's pixels, and flaws are trimmed there. Level 1 costs about
         half of level 0 and is typically within 0.1 px of it (``docs/registration.md``): enough when the
         detector's mis-registration floor is far larger (DeepPCB's 3 px, ``docs/deeppcb.md``).
+    coarsest_level : int, optional
+        Coarsest pyramid level refined, >= `finest_level`; None (default): the coarsest that keeps at least
+        128 px a side. Coarse levels widen the basin of convergence; a start already close to the answer
+        (`initial` on pre-aligned images) needs none: with ``finest_level=coarsest_level=1`` DeepPCB's pairs
+        are registered on their half-size images alone (``docs/deeppcb.md``). Without `initial`, phase
+        correlation then runs on that level.
+    row_step : int, optional
+        Rows sampled on each level, >= 1: None (default) every row, and every other row on levels of 512 rows
+        or more (their accuracy is limited by interpolation bias, not noise); ``k``: every k-th row on every
+        level, at about 1/k of the work. DeepPCB's half-size images use every other row (``docs/deeppcb.md``).
+        A prepared reference fixes it (:func:`prepare_reference`).
+    presmooth : bool, optional
+        Smooth both full-resolution images with a 5 x 5 Gaussian before building the pyramid: True by default
+        (it makes bilinear resampling at full resolution accurate to a few thousandths of a pixel), or the
+        prepared reference's choice. False: the pyramid is built from the images as they are, every coarser
+        level smoothed by cv2.pyrDown's own 5-tap Gaussian; for a fit that ends above full resolution
+        (`finest_level` >= 1) this only spares the full-resolution filtering (DeepPCB: ``docs/deeppcb.md``).
 
     Returns
     -------
@@ -628,6 +767,9 @@ def register(
                 deadline_s=deadline_s,
                 initial=initial,
                 finest_level=finest_level,
+                coarsest_level=coarsest_level,
+                row_step=row_step,
+                presmooth=presmooth,
             ),
             mask=mask,
             tile_px=_DEFAULT_TILE_PX if tile_px is None else tile_px,
@@ -635,16 +777,18 @@ def register(
         )
     if tile_px is not None:
         raise InputError(f"tile_px applies to model='local' only; got model={model!r}. Omit tile_px.")
-    inspection_image = _as_float32(inspection, "inspection")
+    inspection_image, inspection_span = _checked_float32(inspection, "inspection")
     if isinstance(reference, PreparedReference):
-        _check_prepared(reference, model, photometric, mask)
+        _check_prepared(reference, model, photometric, mask, row_step=row_step, presmooth=presmooth)
         count = min(len(reference.images), level_count(reference.shape, inspection_image.shape))
         finest = _finest_level(finest_level, count)
+        count = _level_count(coarsest_level, finest_level, count)
         prepared = _from_level(reference, finest)
     else:
         reference_image = _as_float32(reference, "reference")
         count = level_count(reference_image.shape, inspection_image.shape)
         finest = _finest_level(finest_level, count)
+        count = _level_count(coarsest_level, finest_level, count)
         # One code path: the cold call prepares the reference, only the levels it needs, in this thread's
         # scratch buffers (it never leaves the call: the pages of the last call are reused, not faulted).
         prepared = _prepare(
@@ -655,6 +799,8 @@ def register(
             count,
             allocate=scratch,
             finest=finest,
+            row_step=_chosen_row_step(row_step),
+            presmooth=True if presmooth is None else _flag(presmooth, "presmooth"),
         )
     settings = Settings(
         model=WARP_MODELS[prepared.model],
@@ -666,13 +812,13 @@ def register(
         else started + in_range(deadline_s, "deadline_s", low=0.0, low_inclusive=False),
     )
     start = _start(initial, settings.photometric)
-    flat = _flat_image(prepared, inspection_image)
+    flat = _flat_image(prepared, inspection_image, inspection_span)
     if flat is not None:
         return _untextured(flat, prepared, inspection_image, started)
     # From `finest` down the levels are those of both images `finest` times halved: solved as such, the fit
     # is scaled back to full-resolution pixels.
     scale = 2.0**finest
-    inspections = inspection_pyramid(inspection_image, count)[finest:]
+    inspections = inspection_pyramid(inspection_image, count, prepared.presmooth)[finest:]
     levels = [
         Level(index, prepared.images[index], inspections[index], prepared.masks[index])
         for index in range(count - finest)
