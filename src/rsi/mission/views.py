@@ -138,10 +138,10 @@ def placed(capture: Capture, image: NDArray[np.float32]) -> Capture:
     own = own_body(cad)
     ahead = _shifted(own.astype(np.float32), shift, 0.0) > 0.5
     # what the jaws hid from the model before it moved is unknown: no surface to inspect there
-    depth = np.where(ahead, np.float32(FAR_M), _shifted(cad.expected_depth_m, shift, float(FAR_M)))
+    scene = np.where(ahead, np.float32(FAR_M), _shifted(cad.expected_depth_m, shift, float(FAR_M)))
     moved = replace(
         cad,
-        expected_depth_m=np.where(own, cad.expected_depth_m, depth).astype(np.float32),
+        expected_depth_m=np.where(own, cad.expected_depth_m, scene).astype(np.float32),
         truss=((_shifted(cad.truss.astype(np.float32), shift, 0.0) > 0.5) & ~ahead) | own,
         components={
             name: (_shifted(mask.astype(np.float32), shift, 0.0) > 0.5) & ~ahead & ~own
@@ -149,7 +149,7 @@ def placed(capture: Capture, image: NDArray[np.float32]) -> Capture:
         },
     )
     pose = capture.believed_pose
-    seen = cad.expected_depth_m < FAR_M
+    seen = (cad.expected_depth_m < FAR_M) & ~own  # the scene's surfaces, not the jaws
     depth = float(np.median(cad.expected_depth_m[seen])) if seen.any() else 0.5
     # the content moves left (-x) when the camera moves right (rotation[:, 0]) and down (+row) when it
     # moves up (rotation[:, 1])

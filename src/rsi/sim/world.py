@@ -675,7 +675,7 @@ class World:
         own_ids = self._own_geoms()
         misdrawn = np.isin(segments, own_ids)
         own_depth, own_segments = self._renderer(shape).depth_and_segments(
-            self.data, self._arm.camera_name("left"), state="reference"
+            self.data, self.arm.camera_name("left"), state="reference"
         )
         own = np.isin(own_segments, own_ids)
         far = np.float32(self.model.vis.map.zfar * self.model.stat.extent)  # where the renderer hits nothing
