@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -117,3 +118,19 @@ def test_the_opened_count_skips_only_openings_that_are_empty() -> None:
             change[: int(rng.integers(1, 3)), : int(rng.integers(1, 3))] = 1  # a block in the corner
         expected = float(np.count_nonzero(cv2.morphologyEx(change, cv2.MORPH_OPEN, square)))
         assert opened_count(change, int(np.count_nonzero(change))) == expected
+
+
+@pytest.mark.parametrize(
+    ("change", "count", "named"),
+    [
+        (np.zeros((4, 4), np.float32), 0, "change"),
+        (np.zeros(4, np.uint8), 0, "change"),
+        ([[0, 1]], 1, "change"),
+        (np.zeros((4, 4), np.uint8), -1, "count"),
+        (np.zeros((4, 4), np.uint8), 2.5, "count"),
+        (np.zeros((4, 4), np.uint8), True, "count"),
+    ],
+)
+def test_the_opened_count_refuses_what_is_no_window_or_no_count(change: Any, count: Any, named: str) -> None:
+    with pytest.raises(InputError, match=named):
+        opened_count(change, count)

@@ -718,9 +718,9 @@ def _named(
     classifier: DefectClassifier | None,
 ) -> PcbDetections:
     """:func:`name_defects` of checked images and detections that hold strengths and areas."""
-    from rsi.datasets.pcb_learn import checked_features, rule_classes
+    from rsi.datasets.pcb_learn import _checked_features, rule_classes
 
-    features = checked_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
+    features = _checked_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
     if classifier is None:
         # The features hold the rules' naming of each box (classify_defects), counted once.
         classes, confidences = rule_classes(features)

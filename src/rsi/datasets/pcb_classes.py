@@ -152,10 +152,10 @@ def classify_copper(
         float(np.count_nonzero(cv2.morphologyEx(added, cv2.MORPH_OPEN, _OPENING))),
         float(np.count_nonzero(cv2.morphologyEx(removed, cv2.MORPH_OPEN, _OPENING))),
     )
-    return class_of_change(changed, pieces_before, pieces_after), core_px(before, after)
+    return _class_of_change(changed, pieces_before, pieces_after), _core_px(before, after)
 
 
-def class_of_change(
+def _class_of_change(
     changed: tuple[float, float, float, float], pieces_before: tuple[int, int], pieces_after: tuple[int, int]
 ) -> int:
     """:func:`classify_copper`'s class from the changed pixels counted already: copper added and removed,
@@ -167,7 +167,7 @@ def class_of_change(
     return _name(bool(added > removed), pieces_before, pieces_after)
 
 
-def core_px(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> float:
+def _core_px(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> float:
     """Pixels that changed copper state and survive a 5 x 5 erosion (:func:`classify_window`'s confidence)."""
     return float(np.count_nonzero(cv2.erode(before ^ after, _CORE)))
 

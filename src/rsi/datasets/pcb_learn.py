@@ -25,9 +25,9 @@ from rsi.datasets.evaluate import OFFICIAL_IOU, DeepPcbSettings, PcbDetections, 
 from rsi.datasets.pcb_classes import (
     COPPER_BELOW_DN,
     _boxes_inside,
+    _class_of_change,
     _copper_pieces,
-    class_of_change,
-    core_px,
+    _core_px,
 )
 from rsi.errors import InputError
 from rsi.imaging._components import labelled
@@ -80,6 +80,13 @@ def opened_count(change: NDArray[np.uint8], count: int) -> float:
     with fewer set pixels than that the opening is empty, and is not computed (a third of a DeepPCB pair's
     openings: the slivers on a defect's other side).
     """
+    if not isinstance(change, np.ndarray) or change.ndim != 2 or change.dtype != np.uint8:
+        raise InputError(
+            f"change must be a 2-D uint8 array of 0 and 1; got {type(change).__name__} "
+            f"{getattr(change, 'dtype', '')} with shape {getattr(change, 'shape', None)}."
+        )
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
+        raise InputError(f"count must be a non-negative int (the window's set pixels); got {count!r}.")
     corner = min(change.shape[0], 2) * min(change.shape[1], 2)
     if count < corner:
         return 0.0
@@ -149,8 +156,8 @@ def _box_features(
         if growth == 0:
             features += _surroundings(before, changes)
             # The rules' class on the same window, pieces and changes (classify_window, counted once).
-            rule = class_of_change((counted[0], counted[1], counted[2], counted[3]), *pieces)
-            features += [float(rule), core_px(before, after)]
+            rule = _class_of_change((counted[0], counted[1], counted[2], counted[3]), *pieces)
+            features += [float(rule), _core_px(before, after)]
     return features
 
 
@@ -179,10 +186,10 @@ def defect_features(
     template_image = as_image(template, "template")
     test_image = as_image(test, "test")
     same_shape(template_image, test_image, ("template", "test"))
-    return checked_features(template_image, test_image, boxes_xyxy, strengths, areas)
+    return _checked_features(template_image, test_image, boxes_xyxy, strengths, areas)
 
 
-def checked_features(
+def _checked_features(
     template: NDArray[np.floating],
     test: NDArray[np.floating],
     boxes_xyxy: NDArray[np.integer],
