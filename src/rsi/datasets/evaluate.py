@@ -609,15 +609,10 @@ def name_detection(
     """:func:`name_defects` of `found` on the template `detection` predicted (:func:`predicted_template`)
     and the inspection it was run on: the template is made from checked arrays, so only the inspection is
     checked, once (``detect_defects``' last step)."""
-    from rsi.datasets.pcb_learn import DefectClassifier
     from rsi.detection.detect import Detection
 
-    instance_of(found, "found", PcbDetections, none_allowed=False)
+    _check_to_name(found, classifier)
     instance_of(detection, "detection", Detection, none_allowed=False)
-    if classifier is not None:
-        instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
-    if found.strengths is None or found.areas_px is None:
-        raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
     test = as_image(inspection, "inspection")
     same_shape(test, detection.difference, ("inspection", "detection.difference"))
     return _named(found, _template(detection, test), test, classifier)
@@ -691,13 +686,8 @@ def group_detection(detection: Detection, settings: DeepPcbSettings) -> PcbDetec
     )
 
 
-def name_defects(
-    found: PcbDetections,
-    template: NDArray[np.floating],
-    test: NDArray[np.floating],
-    classifier: DefectClassifier | None = None,
-) -> PcbDetections:
-    """`found` with its topology features, classes and confidences (the classifier's, or the rules')."""
+def _check_to_name(found: PcbDetections, classifier: DefectClassifier | None) -> None:
+    """`found` holds the grouping's strengths and areas, and `classifier` is None or a DefectClassifier."""
     from rsi.datasets.pcb_learn import DefectClassifier
 
     instance_of(found, "found", PcbDetections, none_allowed=False)
@@ -705,6 +695,17 @@ def name_defects(
         instance_of(classifier, "classifier", DefectClassifier, none_allowed=False)
     if found.strengths is None or found.areas_px is None:
         raise InputError("found must come from group_defects(..., score=...) (it holds no strengths/areas).")
+
+
+def name_defects(
+    found: PcbDetections,
+    template: NDArray[np.floating],
+    test: NDArray[np.floating],
+    classifier: DefectClassifier | None = None,
+) -> PcbDetections:
+    """`found` with its topology features, classes and confidences (the classifier's, or the rules')."""
+
+    _check_to_name(found, classifier)
     template_image = as_image(template, "template")
     test_image = as_image(test, "test")
     same_shape(template_image, test_image, ("template", "test"))
