@@ -187,6 +187,22 @@ def test_force_torque_and_cameras_exist(arm: Arm) -> None:
     assert {"strobe_left", "strobe_right", "halogen_left", "halogen_right"} <= lights
 
 
+def test_the_flange_carries_the_isee_weight_wherever_the_arm_drives_it(arm: Arm) -> None:
+    """Kinematic mode, no contact: the F/T reads the weight of the body under its site and nothing else,
+    however far the tool is driven (it once grew like a spring, to 290 N after 0.1 m)."""
+    arm.reset()
+    start = arm.tool_pose()[0]
+    site = next(k for k in range(arm.model.nsite) if arm.model.site(k).name.endswith("ft"))
+    weight_n = arm.model.body_subtreemass[arm.model.site_bodyid[site]] * np.linalg.norm(arm.model.opt.gravity)
+    readings = []
+    for command in ([0.0, 0.0, 0.02], [0.02, 0.0, 0.0], [0.0, 0.02, 0.0]):
+        for _ in range(110):  # 5 cm each way at 2 cm/s and 44 Hz
+            arm.step_velocity(command, 1 / 44.0, frame="tool")
+        readings.append(np.linalg.norm(arm.force_torque()[0]))
+    assert np.linalg.norm(arm.tool_pose()[0] - start) > 0.08  # it did drive
+    np.testing.assert_allclose(readings, weight_n, rtol=1e-4)  # the joint rates add ~4e-5 of Coriolis load
+
+
 @pytest.mark.parametrize(
     ("call", "message"),
     [

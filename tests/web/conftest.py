@@ -51,15 +51,13 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Live]:
 
     from rsi.web.app import create_app
     from rsi.web.console import Console
-    from rsi.web.server import websocket_protocol
+    from rsi.web.server import uvicorn_options
 
     archive = tmp_path_factory.mktemp("console") / "archive.db"
     console = Console(seed=0)
     app = create_app(console, token=TOKEN, archive_path=archive)
     port = _free_port()
-    server = uvicorn.Server(
-        uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning", ws=websocket_protocol())
-    )
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, **uvicorn_options()))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     url = f"http://127.0.0.1:{port}"

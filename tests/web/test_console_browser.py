@@ -4,6 +4,7 @@ from the page and a finding confirmed in it. Screenshots go to build/test-artifa
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -151,6 +152,9 @@ def test_every_panel_is_there_and_each_view_runs_at_10_fps_in_the_page(page: Any
     )  # the badge's age: exposure to arrival (docs/console.md: ~30-60 ms)
     assert page.execute_script("return document.querySelector('#scene canvas') !== null")  # three.js drew
     page.save_screenshot(str(ARTIFACTS / "console-live.png"))
+    video = live.get("/api/status").json()["video"]
+    measured = {"page_fps_windows": windows, "page_age_ms": ages, "server_video": video}
+    (ARTIFACTS / "console-live-fps.json").write_text(json.dumps(measured, indent=1))
 
 
 def _moving_after(live: Live, since_s: float) -> list[float]:

@@ -776,9 +776,26 @@ class Arm:
         return np.array([self.data.sensordata[a] for a in self._range_adr])
 
     def force_torque(self) -> tuple[FloatArray, FloatArray]:
-        """Force (N) and torque (N m) at the F/T site, in the site (flange) frame."""
+        """Force (N) and torque (N m) at the F/T site, in the site (flange) frame.
+
+        What the flange carries: the weight of the ISEE below the site and every contact on it. In
+        ``"kinematic"`` mode the joints follow their commands exactly, so the reading is quasi-static
+        (accelerations zero): MuJoCo's forward pass would otherwise let the unheld arm fall freely under
+        its position servos' stale targets, and the flange would read a spring of hundreds of newtons
+        that grows with every centimetre driven (seen on the operator console's trace).
+        """
+        if self.mode == "kinematic":
+            self._quasi_static_sensors()
         f, t = self._ft_adr
         return self.data.sensordata[f : f + 3].copy(), self.data.sensordata[t : t + 3].copy()
+
+    def _quasi_static_sensors(self) -> None:
+        """The acceleration-stage sensors (the F/T pair) with every joint held: qacc = 0."""
+        held = self.data.qacc.copy()
+        self.data.qacc[:] = 0.0
+        self._mujoco.mj_rnePostConstraint(self.model, self.data)
+        self._mujoco.mj_sensorAcc(self.model, self.data)
+        self.data.qacc[:] = held
 
     # ---------------------------------------------------------------------------------- control
 

@@ -68,6 +68,12 @@ def _jpeg(image: NDArray[np.uint8]) -> bytes:
     return bytes(data.tobytes())
 
 
+def _display_gain(image: NDArray[np.floating]) -> float:
+    """Stretch of the strobe image for display: its 99.5th percentile to white, read on every fourth row
+    and column (a display level, not a measurement: a sixteenth of the pixels gives the same level)."""
+    return 255.0 / max(float(np.nanpercentile(image[::4, ::4], 99.5)), 1e-6)
+
+
 def _eight_bit(image: NDArray[np.floating]) -> NDArray[np.uint8]:
     """A float image in DN (0..255) as uint8 for display."""
     result: NDArray[np.uint8] = np.clip(np.nan_to_num(image), 0, 255).astype(np.uint8)
@@ -103,7 +109,7 @@ class LiveState:
 class _Basis:
     key: bytes = b""
     view: View | None = None
-    overview_rgb: NDArray[np.uint8] | None = None
+    overview_jpeg: bytes = b""  # the overview changes only with the basis: encoded once per render
     odd: Frame | None = None
     even: Frame | None = None
     renders: int = 0
@@ -187,8 +193,9 @@ class LiveCameras:
         basis = self._basis
         if key != basis.key or basis.view is None:
             overview_rgb, _ = self.twin.overview(size=self.size)
+            overview_jpeg = _jpeg(np.ascontiguousarray(overview_rgb[..., ::-1]))  # RGB -> OpenCV's BGR
             view = self.twin.render_from_tool(size=self.size, truth=False)  # odd-lit, seed §2.2
-            self._basis = basis = _Basis(key, view, overview_rgb, odd=view.frame, renders=basis.renders + 1)
+            self._basis = basis = _Basis(key, view, overview_jpeg, odd=view.frame, renders=basis.renders + 1)
             frame = view.frame
             self._odd_next = False
         else:
@@ -203,14 +210,10 @@ class LiveCameras:
         raw = _jpeg(frame.raw)
         if basis.odd is not None and basis.even is not None:
             woven = compensate_field_pair(basis.odd, basis.even).image
-            scale = 255.0 / max(
-                float(np.percentile(woven, 99.5)), 1e-6
-            )  # display stretch of the strobe image
-            compensated = _jpeg(_eight_bit(woven * scale))
+            compensated = _jpeg(_eight_bit(woven * _display_gain(woven)))
         else:
             compensated = raw
-        assert basis.overview_rgb is not None
-        overview = _jpeg(np.ascontiguousarray(basis.overview_rgb[..., ::-1]))  # RGB -> OpenCV's BGR
+        overview = basis.overview_jpeg
         self._seq += 1
         spent = time.perf_counter() - start
         frames = [
