@@ -446,7 +446,7 @@ def _is_valid(parameter: str, value: object) -> bool:
         return isinstance(value, int) and not isinstance(value, bool) and 0 <= value < 2**63
     if parameter in ("arm", "orbit", "active"):
         return isinstance(value, bool)
-    if parameter == "progress":
+    if parameter in ("progress", "on_visit"):
         return value is None or callable(value)
     if parameter in ("scene", "repeatability"):
         return isinstance(value, str) and value in ("truss", "lab", "space")

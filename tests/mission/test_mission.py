@@ -16,6 +16,7 @@ from rsi.errors import InputError
 from rsi.mission import (
     PLAN,
     SCORED_TYPES,
+    MissionFinding,
     MissionResult,
     MissionScore,
     run_mission,
@@ -30,16 +31,34 @@ SMALL = (240, 320)
 STILL = {"arm": False, "orbit": False}  # free camera, fixed lamp: fast (the arm's mission: test_motion.py)
 
 
+VISITS: list[tuple[str, tuple[MissionFinding, ...]]] = []  # on_visit's calls in the archived run
+
+
 @pytest.fixture(scope="module")
 def archived(tmp_path_factory: pytest.TempPathFactory) -> tuple[MissionResult, Path]:
     path = tmp_path_factory.mktemp("mission") / "archive.db"
     stages: list[tuple[str, int, int]] = []
     with Archive.open(path) as archive:
         result = run_mission(
-            SEED, archive=archive, size=SMALL, progress=lambda *stage: stages.append(stage), **STILL
+            SEED,
+            archive=archive,
+            size=SMALL,
+            progress=lambda *stage: stages.append(stage),
+            on_visit=lambda vista, found: VISITS.append((vista, found)),
+            **STILL,
         )
     assert [done for _, done, _ in stages] == list(range(1, 2 * len(PLAN) + 3))
     return result, path
+
+
+def test_each_visit_reports_what_it_found_before_the_fusion(archived: tuple[MissionResult, Path]) -> None:
+    result, _ = archived
+    assert [vista for vista, _ in VISITS] == [point.name for point in result.plan]
+    provisional = {(vista, finding.kind) for vista, found in VISITS for finding in found}
+    visual = [f for f in result.findings if f.source in {point.name for point in result.plan}]
+    assert visual  # seed 0 has visual findings to trace back
+    for finding in visual:  # every fused finding was first reported by the visit it came from
+        assert (finding.source, finding.kind) in provisional
 
 
 def test_same_seed_same_findings(archived: tuple[MissionResult, Path]) -> None:
@@ -154,6 +173,7 @@ def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> N
         ({"seed": 0, "repeatability": "moon"}, "repeatability"),
         ({"seed": 0, "active": "yes"}, "active"),
         ({"seed": 0, "progress": 3}, "progress"),
+        ({"seed": 0, "on_visit": "print"}, "on_visit"),
         ({"seed": 0, "archive": "archive.db"}, "archive"),
         ({"seed": 0, "size": (10, 10)}, "size"),
         ({"seed": 0, "size": [240, 320]}, "size"),

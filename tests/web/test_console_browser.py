@@ -225,7 +225,15 @@ def test_a_mission_from_the_page_lists_its_findings_and_a_confirmed_one_is_archi
 
     Select(page.find_element("id", "mission-setting")).select_by_value("small")
     page.find_element("id", "mission-start").click()
+    # each visit's findings arrive while the mission runs (provisional), then the run's fused ones
+    running_with_rows = (  # read in one go in the page: the state line and the provisional rows
+        "return document.getElementById('mission-state').textContent.startsWith('running') && "
+        "document.querySelectorAll('#mission-findings tr.mission-provisional').length > 0"
+    )
+    _wait(lambda: page.execute_script(running_with_rows), 150, "a visit's findings while the mission runs")
     _wait(lambda: "finished" in page.find_element("id", "mission-state").text, 150, "the mission")
+    provisional = live.get("/api/mission").json()["provisional"]
+    assert provisional and {"vista", "kind", "confidence"} <= set(provisional[0])
     rows = _wait(
         lambda: page.find_elements("css selector", "#mission-findings tr.mission-finding"), 10, "findings"
     )

@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from rsi.sim.world import World
 
 ProgressFn = Callable[[str, int, int], None]
+VisitFn = Callable[[str, tuple[MissionFinding, ...]], None]
 
 # The reference pass begins 26 deg past orbit noon, the inspection pass one orbit later at the same phase:
 # a sun 20 deg apart between the passes raised false impacts 4 -> 15 on seed 0 (docs/mission.md).
@@ -64,6 +65,7 @@ def run_mission(
     repeatability: str = "lab",
     active: bool = True,
     progress: ProgressFn | None = None,
+    on_visit: VisitFn | None = None,
     size: tuple[int, int] = MISSION_SIZE,
     arm: bool = True,
     orbit: bool = True,
@@ -90,6 +92,10 @@ def run_mission(
         second look and are confirmed or rejected on the fused evidence. False: one look, one threshold.
     progress : callable, optional
         ``progress(stage, done, total)`` after each visit and sensor pass.
+    on_visit : callable, optional
+        ``on_visit(vista, findings)`` after each inspection visit, with what that visit found: provisional,
+        before the findings of all the vistas are fused (a flaw two vistas saw is one finding in the result)
+        and before the pyrometer and gas passes. For a live view of a running mission (the console).
     size : (int, int)
         Frame (rows, cols), each >= 64.
     arm : bool
@@ -118,7 +124,8 @@ def run_mission(
     ------
     InputError
         Naming the argument: a negative or non-integer seed, settings that are not MissionSettings, an
-        unknown repeatability, a non-bool `active`, `arm` or `orbit`, a non-callable `progress`, a bad
+        unknown repeatability, a non-bool `active`, `arm` or `orbit`, a non-callable `progress` or
+        `on_visit`, a bad
         `size`, something that is not an Archive, `orbit_start_s` not two times >= 0 s, or `anomalies` not an
         AnomalySettings.
     """
@@ -127,6 +134,7 @@ def run_mission(
     from rsi.sim.world import load
 
     settings = _checked(seed, settings, archive, repeatability, progress, active=active, arm=arm, orbit=orbit)
+    _check_callback(on_visit, "on_visit", "on_visit(vista, findings)")
     v.choice(layout, "layout", LAYOUTS)
     if anomalies is not None and not isinstance(anomalies, AnomalySettings):
         raise InputError(
@@ -147,7 +155,9 @@ def run_mission(
         stored = _reference_pass(world, plan, tour, report, settings=settings)
         clock.lap("reference")
         tour.start_pass("inspection", starts[1])
-        visual, visits = _inspection_pass(world, plan, stored, tour, report, active=active, settings=settings)
+        visual, visits = _inspection_pass(
+            world, plan, stored, tour, report, active=active, settings=settings, on_visit=on_visit
+        )
         clock.lap("inspection")
         thermal, readings = pyrometer_pass(world, sensor_rng, settings)
         report("pyrometer")
@@ -235,6 +245,7 @@ def _inspection_pass(
     *,
     active: bool,
     settings: MissionSettings,
+    on_visit: VisitFn | None,
 ) -> tuple[list[MissionFinding], tuple[VisitRecord, ...]]:
     """Every plan point visited again after the anomalies appeared, with the reference pass's exposure."""
     findings: list[MissionFinding] = []
@@ -258,6 +269,8 @@ def _inspection_pass(
         # the simulator's record of this visit: what its view showed, for scoring only
         records.append(with_truth(visit.record, visit.pair, tour.views[first][1], world.anomalies))
         checked = visit.screws_checked
+        if on_visit is not None:
+            on_visit(point.name, tuple(visit.findings))
         report(f"inspection {point.name}")
     settle(world, door_angle_rad=0.0)
     return findings, tuple(records)
@@ -333,6 +346,11 @@ def _progress_reporter(progress: ProgressFn | None, *, total: int) -> Callable[[
     return report
 
 
+def _check_callback(callback: object, name: str, call: str) -> None:
+    if callback is not None and not callable(callback):
+        raise InputError(f"{name} must be None or a callable {call}; got {callback!r}.")
+
+
 def _checked(
     seed: object,
     settings: object,
@@ -352,10 +370,7 @@ def _checked(
     for name, flag in flags.items():
         if not isinstance(flag, bool):
             raise InputError(f"{name} must be True or False; got {flag!r}.")
-    if progress is not None and not callable(progress):
-        raise InputError(
-            f"progress must be None or a callable progress(stage, done, total); got {progress!r}."
-        )
+    _check_callback(progress, "progress", "progress(stage, done, total)")
     if archive is not None:
         from rsi.archive import Archive
 

@@ -2,7 +2,9 @@
 
 :func:`rsi.mission.run_mission` runs in its own interpreter (it renders hundreds of frames and would
 otherwise starve the teleop loop), writes its run and findings into the console's archive, and reports each
-visit through a queue; the page polls :meth:`MissionJob.state`.
+visit, and what each inspection visit found, through a queue; the page polls :meth:`MissionJob.state`.
+A visit's findings are provisional: the finished run holds them fused across vistas, with the pyrometer's
+and the gas sensor's.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from rsi.errors import InputError
+
+PROVISIONAL_LIMIT = 500  # findings a running mission lists (a mission reports a handful a visit)
 
 # "small" is the fast check (a quarter of the pixels, the ISEE teleported to each vista, the lamp where the
 # world put it); "full" is the mission as rsi mission runs it (seed §2.1 video frames, arm, orbit sun).
@@ -43,9 +47,15 @@ def _run(archive_path: str, seed: int, setting: str, queue: Any) -> None:
     def progress(stage: str, done: int, total: int) -> None:
         queue.put(("progress", stage, done, total))
 
+    def found(vista: str, findings: tuple[Any, ...]) -> None:
+        rows = [{"vista": vista, "kind": f.kind, "confidence": round(f.confidence, 3)} for f in findings]
+        queue.put(("found", rows))
+
     try:
         with Archive.open(archive_path) as archive:
-            result = run_mission(seed, archive=archive, progress=progress, **_with_suns(SETTINGS[setting]))
+            result = run_mission(
+                seed, archive=archive, progress=progress, on_visit=found, **_with_suns(SETTINGS[setting])
+            )
         queue.put(("done", result.run_id, len(result.findings), result.timings_s.get("total", 0.0)))
     except Exception as error:  # the page shows why the mission failed
         queue.put(("failed", f"{type(error).__name__}: {error}"))
@@ -83,6 +93,7 @@ class MissionJob:
                 "done": 0,
                 "total": 0,
                 "visits": 0,
+                "provisional": [],
                 "run_id": None,
             }
             self._process.start()
@@ -104,6 +115,9 @@ class MissionJob:
                 if message[0] == "progress":
                     _, stage, done, total = message
                     self._state.update(stage=stage, done=done, total=total, visits=self._state["visits"] + 1)
+                elif message[0] == "found":
+                    listed = self._state["provisional"]
+                    listed.extend(message[1][: PROVISIONAL_LIMIT - len(listed)])
                 elif message[0] == "done":
                     _, run_id, count, total_s = message
                     self._state.update(
@@ -117,7 +131,7 @@ class MissionJob:
     def state(self) -> dict[str, Any]:
         """Status (idle, running, finished, failed), stage and counts, the run id when finished."""
         with self._lock:
-            return dict(self._state)
+            return {**self._state, "provisional": list(self._state.get("provisional", []))}
 
     def stop(self) -> None:
         """End a running mission's process (the console is shutting down)."""
@@ -126,4 +140,4 @@ class MissionJob:
             self._process.join(timeout=5.0)
 
 
-__all__ = ["SETTINGS", "MissionJob"]
+__all__ = ["PROVISIONAL_LIMIT", "SETTINGS", "MissionJob"]

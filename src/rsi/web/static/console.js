@@ -447,6 +447,7 @@ let shownMissionRun = null;
 $("mission-start").addEventListener("click", async () => {
   try {
     await post("/api/mission", { seed: Number($("mission-seed").value), setting: $("mission-setting").value });
+    shownProvisional = -1;
   } catch (error) {
     $("mission-state").textContent = `refused: ${error.message}`;
   }
@@ -457,6 +458,7 @@ function showMission(m) {
   if (m.status === "running") {
     $("mission-state").textContent = `running (seed ${m.seed}, ${m.setting}): ${m.stage} ${m.done}/${m.total}`;
     $("mission-progress").value = m.total ? m.done / m.total : 0;
+    showProvisional(m.provisional || []);
   } else if (m.status === "finished") {
     $("mission-state").textContent = `finished: run ${m.run_id}, ${m.finding_count} finding(s) in ${m.elapsed_s} s`;
     $("mission-progress").value = 1;
@@ -470,6 +472,14 @@ function showMission(m) {
   } else if (m.status === "failed") {
     $("mission-state").textContent = `failed: ${m.error}`;
   }
+}
+
+// each inspection visit's findings as it ends: provisional until the run fuses them across vistas
+let shownProvisional = -1;
+function showProvisional(rows) {
+  if (rows.length === shownProvisional) return;
+  shownProvisional = rows.length;
+  $("mission-findings").innerHTML = "<tr><th>provisional</th><th>vista</th><th>kind</th><th>confidence</th></tr>" + rows.map((f) => `<tr class="mission-provisional"><td>visit</td><td>${escapeHtml(f.vista)}</td><td>${escapeHtml(f.kind)}</td><td>${fmt(f.confidence, 2)}</td></tr>`).join("");
 }
 
 // ------------------------------------------------------------------------------------------ archive
