@@ -170,6 +170,12 @@ class CameraPose:
         return np.stack([x, y], axis=1), depth
 
 
+# Slices and stacks of the live renderer's round shapes (MuJoCo draws 28 x 16): one 480x640 frame of the
+# ISEE camera took 31.6 ms at 28 x 16 and 25.0 ms at 16 x 8 (bench in docs/console.md); 16 slices keep a
+# tube's outline within 2 % of its radius (1 - cos(pi / 16)).
+FAST_TESSELLATION = (16, 8)
+
+
 class SceneRenderer:
     """Offscreen classic-renderer of one model at one image size (owns its OpenGL context).
 
@@ -181,9 +187,11 @@ class SceneRenderer:
     show_rangefinders : bool
         Draw the rangefinders' rays (MuJoCo's default). False (default): camera images show only the scene.
     fast : bool
-        Live video (the operator console): no shadow map and no multisampling. On the CPU renderer the
-        lamp's 2048-px shadow map and 4x multisampling are most of a frame's cost (docs/console.md has the
-        timings); frames for inspection keep both (False, the default).
+        Live video (the operator console): no shadow map, no multisampling, and the round shapes (the
+        truss's tubes, the tanks) drawn with :data:`FAST_TESSELLATION` facets. On the CPU renderer the
+        lamp's 2048-px shadow map and 4x multisampling are most of a frame's cost, and the facets most of
+        the rest (docs/console.md has the timings); frames for inspection keep all three (False, the
+        default).
     """
 
     def __init__(
@@ -198,13 +206,14 @@ class SceneRenderer:
         self._model = model
         self._context = _gl_context(width, height)
         self._context.make_current()
-        samples = model.vis.quality.offsamples
-        if fast:  # the context reads the multisampling from the model when it is made
-            model.vis.quality.offsamples = 0
+        quality = model.vis.quality
+        kept = (quality.offsamples, quality.numslices, quality.numstacks)
+        if fast:  # the context reads multisampling and tessellation from the model when it is made
+            quality.offsamples, quality.numslices, quality.numstacks = 0, *FAST_TESSELLATION
         try:
             self._mjr = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100.value)
         finally:
-            model.vis.quality.offsamples = samples
+            quality.offsamples, quality.numslices, quality.numstacks = kept
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._mjr)
         self._mjr.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._scene = mujoco.MjvScene(model, maxgeom=4000)
