@@ -47,7 +47,7 @@ CROP_MARGIN_PX = 24
 VERDICT_PATTERN = "^(" + "|".join(REVIEW_VERDICTS) + ")$"
 
 
-def token_of(scope: Scope) -> str | None:
+def _token_of(scope: Scope) -> str | None:
     """The token a request carries (``Authorization: Bearer T`` or ``?token=T``), or None."""
     for name, value in scope.get("headers", []):
         if name == b"authorization":
@@ -71,15 +71,23 @@ def _same_origin(scope: Scope) -> bool:
     return origin.decode("latin-1") in (f"http://{host}", f"https://{host}")
 
 
+def _check_token(token: object) -> None:
+    if not isinstance(token, str) or not token:
+        raise InputError("token must be a non-empty string (the secret every request carries).")
+
+
 class TokenGate:
     """ASGI layer: 401 for every request without the token but ``GET /healthz``; 403 cross-origin."""
 
     def __init__(self, app: ASGIApp, token: str) -> None:
+        if not callable(app):
+            raise InputError(f"app must be an ASGI application; got {type(app).__name__}.")
+        _check_token(token)
         self.app = app
         self.token = token
 
     def _allowed(self, scope: Scope) -> bool:
-        given = token_of(scope)
+        given = _token_of(scope)
         return given is not None and secrets.compare_digest(given.encode(), self.token.encode())
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -228,7 +236,10 @@ def create_app(console: Console, *, token: str, archive_path: Path) -> Any:
     archive_path : Path
         The SQLite archive missions write to and the page browses.
     """
+    if not isinstance(console, Console):
+        raise InputError(f"console must be an rsi.web.console.Console; got {type(console).__name__}.")
     mission = MissionJob(archive_path)
+    _check_token(token)
 
     @contextlib.asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
@@ -502,4 +513,4 @@ def _control_message(console: Console, client: str, message: Any) -> dict[str, A
     return reply
 
 
-__all__ = ["OPEN_PATHS", "TokenGate", "create_app", "token_of"]
+__all__ = ["OPEN_PATHS", "TokenGate", "create_app"]

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi.errors import InputError
-from rsi.sim.world import World, load
+from rsi.sim.world import World, frame_size, load
 from rsi.web.live import FrameHub, LiveState
 from rsi.web.teleop import (
     STOPPED_SPEED_M_S,
@@ -105,6 +105,9 @@ class Console:
         live_size: tuple[int, int] = LIVE_SIZE,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        live_size = frame_size(live_size)
+        if not callable(clock):
+            raise InputError(f"clock must be a callable giving monotonic seconds; got {clock!r}.")
         self.seed = seed
         self.layout = layout
         self.world: World = load(layout, seed=seed, arm=True)

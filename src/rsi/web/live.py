@@ -24,10 +24,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi.errors import InputError
 from rsi.imaging.camera import Frame
 from rsi.imaging.compensation import compensate_field_pair
 from rsi.sim.solar_simulator import LampConfiguration
-from rsi.sim.world import View, World
+from rsi.sim.world import View, World, frame_size
 
 CAMERAS = ("raw", "compensated", "overview")  # the order is the camera byte of a video message
 JPEG_QUALITY = 80
@@ -179,6 +180,9 @@ class LiveCameras:
     """
 
     def __init__(self, twin: World, *, size: tuple[int, int]) -> None:
+        if not isinstance(twin, World) or twin.arm is None:
+            raise InputError(f"twin must be a World loaded with arm=True; got {type(twin).__name__}.")
+        size = frame_size(size)
         self.twin = twin
         self.twin.set_fast_rendering(True)
         self.size = size
@@ -235,6 +239,8 @@ def video_message(frame: LiveFrame) -> bytes:
     Little-endian. A message holds the chunks of one tick's frames that the viewer asked for, so a tick is
     one send per viewer; the page walks the chunks with a DataView and shows each JPEG as a blob (no base64).
     """
+    if not isinstance(frame, LiveFrame):
+        raise InputError(f"frame must be a LiveFrame; got {type(frame).__name__}.")
     header = np.zeros(
         1, dtype=[("camera", "u1"), ("seq", "<u4"), ("rendered_at_ms", "<f8"), ("jpeg_bytes", "<u4")]
     )

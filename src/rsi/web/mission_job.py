@@ -65,7 +65,9 @@ class MissionJob:
     """At most one mission at a time; its state for the page."""
 
     def __init__(self, archive_path: Path) -> None:
-        self.archive_path = archive_path
+        if not isinstance(archive_path, (str, Path)) or "\0" in str(archive_path):
+            raise InputError(f"archive_path must be the archive's file path; got {archive_path!r}.")
+        self.archive_path = Path(archive_path)
         self._lock = threading.Lock()
         self._state: dict[str, Any] = {"status": "idle"}
         self._process: Any = None
@@ -74,7 +76,7 @@ class MissionJob:
         """Launch a mission; InputError for a bad seed or setting, or while one is running."""
         if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**31:
             raise InputError(f"seed must be an integer in [0, 2**31); got {seed!r}.")
-        if setting not in SETTINGS:
+        if not isinstance(setting, str) or setting not in SETTINGS:
             raise InputError(f"setting={setting!r} is not known. Choose one of {', '.join(SETTINGS)}.")
         with self._lock:
             if self._state["status"] == "running":

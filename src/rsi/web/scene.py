@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from rsi.control.proximity_law import OUT_OF_RANGE_LABEL
+from rsi.errors import InputError
 from rsi.sim.arm import RANGEFINDER_CUTOFF_M
 from rsi.sim.solar_simulator import lamp_pose
 from rsi.sim.world import World
@@ -38,8 +39,23 @@ def _moving_bodies(world: World) -> list[int]:
     return [int(b) for b in np.flatnonzero(moves)]
 
 
+def _check_world(world: object) -> None:
+    if not isinstance(world, World) or world.arm is None:
+        raise InputError(
+            f"world must be the console's World (loaded with arm=True); got {type(world).__name__}."
+        )
+
+
+def _check_bodies(bodies: object, count: int) -> None:
+    if not isinstance(bodies, (list, tuple)) or not all(
+        isinstance(b, int) and not isinstance(b, bool) and 0 <= b < count for b in bodies
+    ):
+        raise InputError(f"bodies must be a list of body ids in [0, {count}) (scene_geometry's 'moving').")
+
+
 def scene_geometry(world: World) -> dict[str, Any]:
     """Every drawn shape (type, size, colour, body, pose in its body) and every body's world pose."""
+    _check_world(world)
     model, data = world.model, world.data
     shapes = []
     for geom in range(model.ngeom):
@@ -73,6 +89,10 @@ def scene_geometry(world: World) -> dict[str, Any]:
 
 def moving_poses(world: World, step: TeleopStep | None, bodies: list[int]) -> dict[str, Any]:
     """Poses of the moving bodies, the two beams (start, axis, length, region) and the lamp and its spot."""
+    _check_world(world)
+    if step is not None and not isinstance(step, TeleopStep):
+        raise InputError(f"step must be None or the console's last TeleopStep; got {type(step).__name__}.")
+    _check_bodies(bodies, world.model.nbody)
     data = world.data
     arm = world.arm
     axis = arm.tool_pose()[1][:, 2]

@@ -69,6 +69,8 @@ def console_settings(
 ) -> ConsoleSettings:
     """Check the console's options; warn (:class:`ExposedConsoleWarning`) when listening beyond loopback."""
     try:
+        if not isinstance(host, str):
+            raise ValueError(host)
         address = ipaddress.ip_address(host)
     except ValueError as error:
         raise InputError(f"host must be an IP address such as 127.0.0.1; got {host!r}.") from error
@@ -79,15 +81,19 @@ def console_settings(
     v.choice(layout, "layout", SCENES)
     if token is None:
         token = secrets.token_urlsafe(24)
-    elif len(token) < MIN_TOKEN_CHARS or not all(c.isalnum() or c in "-_" for c in token):
+    elif (
+        not isinstance(token, str)
+        or len(token) < MIN_TOKEN_CHARS
+        or not all(c.isalnum() or c in "-_" for c in token)
+    ):
         raise InputError(
             f"token must be at least {MIN_TOKEN_CHARS} characters of letters, digits, '-' or '_'; got "
-            f"{len(token)} characters. Leave it out for a random one."
+            f"{_described(token)}. Leave it out for a random one."
         )
     if archive is None:
         path = Path(tempfile.mkdtemp(prefix="rsi-console-")) / "archive.db"
     else:
-        path = Path(archive)
+        path = _archive_path(archive)
         if path.is_dir():
             raise InputError(
                 f"archive={str(path)!r} is a folder; give the archive's file, e.g. {path / 'archive.db'}."
@@ -100,6 +106,20 @@ def console_settings(
             stacklevel=2,
         )
     return ConsoleSettings(str(address), port, path, seed, layout, token)
+
+
+def _described(token: object) -> str:
+    """What a refused token was, without echoing a secret: its length, or its type."""
+    return f"{len(token)} characters" if isinstance(token, str) else f"a {type(token).__name__}"
+
+
+def _archive_path(archive: object) -> Path:
+    if not isinstance(archive, (str, os.PathLike)) or isinstance(archive, bytes):
+        raise InputError(f"archive must be a file path (str or Path); got {type(archive).__name__}.")
+    path = Path(archive)
+    if "\0" in str(path):
+        raise InputError("archive must be a file path without NUL characters.")
+    return path
 
 
 def websocket_protocol() -> type:
@@ -131,6 +151,8 @@ def uvicorn_options() -> dict[str, Any]:
 
 def serve(settings: ConsoleSettings) -> None:
     """Run the console until interrupted (Ctrl-C)."""
+    if not isinstance(settings, ConsoleSettings):
+        raise InputError(f"settings must come from console_settings(...); got {type(settings).__name__}.")
     import uvicorn
 
     from rsi.web.app import create_app

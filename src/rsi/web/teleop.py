@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi import _validate as v
 from rsi.control.proximity_law import ProximityLaw, proximity_velocity
 from rsi.errors import InputError
 from rsi.sim.proximity_loop import ProximityLoop, Rig
@@ -80,7 +81,9 @@ class TeleopStep:
 
 def clamp_operator(command_m_s: object, law: ProximityLaw = TELEOP_LAW) -> FloatArray:
     """The operator's tool-frame velocity, each axis clamped to the joystick's full deflection."""
-    command = np.asarray(command_m_s, dtype=np.float64)
+    if not isinstance(law, ProximityLaw):
+        raise InputError(f"law must be an rsi.control.ProximityLaw; got {type(law).__name__}.")
+    command = v.as_float_array(command_m_s, "command_m_s")
     if command.shape != (3,) or not np.isfinite(command).all():
         raise InputError(
             f"command_m_s must be 3 finite velocities in m/s (x, y, z tool); got {command_m_s!r}."
@@ -102,6 +105,12 @@ def teleop_step(loop: ProximityLoop, operator_m_s: object, *, held: bool) -> Tel
     held : bool
         The deadman: False steps nothing (the loop only senses).
     """
+    if not isinstance(loop, ProximityLoop):
+        raise InputError(
+            f"loop must be the console's ProximityLoop (teleop_loop); got {type(loop).__name__}."
+        )
+    if not isinstance(held, (bool, np.bool_)):
+        raise InputError(f"held must be True or False (the deadman); got {held!r}.")
     operator = clamp_operator(operator_m_s, loop.law)
     before = loop.rig.tool_pose()[0]
     if held:

@@ -20,7 +20,10 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi import _validate as v
+from rsi.errors import InputError
 from rsi.mission.settings import MissionSettings
+from rsi.sim.world import SCENES, frame_size
 from rsi.web.live import LiveCameras, LiveFrame, LiveState
 
 SHOT_SIZE = (480, 640)  # seed §2.1: the inspection camera's video frame
@@ -152,12 +155,22 @@ def _serve(connection: Connection, seed: int, layout: str, size: tuple[int, int]
         connection.close()
 
 
+def _check_camera_options(seed: object, layout: object, size: object, start_timeout_s: object) -> None:
+    """The camera process's options, checked here: a child that fails on them only says it closed."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
+        raise InputError(f"seed must be an integer in [0, 2**63); got {seed!r}.")
+    v.choice(layout, "layout", SCENES)
+    frame_size(size)
+    v.in_range(start_timeout_s, "start_timeout_s", low=0.0, high=3600.0, low_inclusive=False)
+
+
 class CameraProcess:
     """The parent's handle on the camera process: one request at a time over a pipe."""
 
     def __init__(
         self, *, seed: int, layout: str, size: tuple[int, int], start_timeout_s: float = 120.0
     ) -> None:
+        _check_camera_options(seed, layout, size, start_timeout_s)
         context = multiprocessing.get_context("spawn")  # a clean interpreter: no inherited GL or threads
         self._connection, child = context.Pipe()
         self._process = context.Process(
