@@ -223,6 +223,23 @@ def test_bad_control_messages_are_named(live: Live) -> None:
         assert _ask(socket, {"type": "jump"}) == {"type": "error", "detail": "unknown message type 'jump'"}
 
 
+def test_a_message_that_is_not_a_json_object_is_answered_and_the_socket_stays_open(live: Live) -> None:
+    with _control(live) as socket:
+        for message in (b"\x00\xff", "not json", "[" * 3000, "x" * 5000, "[1, 2]"):
+            socket.send(message)
+            reply = json.loads(socket.recv(timeout=10))
+            assert reply["type"] == "error" and "JSON object" in reply["detail"], message
+        assert _ask(socket, {"type": "jump"})["type"] == "error"  # still answering
+
+
+def test_a_body_json_cannot_write_back_is_refused_by_field_not_a_server_error(live: Live) -> None:
+    headers = {"Authorization": f"Bearer {live.token}", "Content-Type": "application/json"}
+    for body in (b"NaN", b'{"orbit_time_s": NaN}', b'{"clock_rate": Infinity}', b"1e400"):
+        response = httpx.post(live.url + "/api/sun", content=body, headers=headers, timeout=30)
+        assert response.status_code == 422, (body, response.status_code)
+        assert all("loc" in problem and "msg" in problem for problem in response.json()["detail"])
+
+
 CLIENTS_SCRIPT = """
 import asyncio, json, sys, time
 import websockets

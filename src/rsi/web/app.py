@@ -24,6 +24,7 @@ from typing import Any
 import cv2
 import numpy as np
 from fastapi import FastAPI, HTTPException, WebSocket, WebSocketDisconnect
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
@@ -43,6 +44,7 @@ ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
 
 OPEN_PATHS = ("/healthz",)
 STATE_HZ = 10.0  # telemetry and poses to every viewer
+CONTROL_MESSAGE_LIMIT = 4096  # characters; the largest operator message (a hold) is under 100
 CROP_MARGIN_PX = 24
 VERDICT_PATTERN = "^(" + "|".join(REVIEW_VERDICTS) + ")$"
 
@@ -69,6 +71,15 @@ def _same_origin(scope: Scope) -> bool:
         return True
     host = headers.get(b"host", b"").decode("latin-1")
     return origin.decode("latin-1") in (f"http://{host}", f"https://{host}")
+
+
+def _named_problems(error: RequestValidationError) -> list[dict[str, Any]]:
+    """A refused request's problems, each naming its field, without echoing the input: FastAPI's own answer
+    carries the input, and a body of NaN or 1e400 cannot be written back as JSON (it was a 500)."""
+    return [
+        {"loc": [str(part) for part in problem.get("loc", ())], "msg": str(problem.get("msg", ""))}
+        for problem in error.errors()
+    ]
 
 
 def _check_token(token: object) -> None:
@@ -266,6 +277,10 @@ def create_app(console: Console, *, token: str, archive_path: Path) -> Any:
     @api.exception_handler(InputError)
     async def input_error(_: Any, error: InputError) -> JSONResponse:
         return JSONResponse({"detail": str(error)}, status_code=400)
+
+    @api.exception_handler(RequestValidationError)
+    async def invalid_request(_: Any, error: RequestValidationError) -> JSONResponse:
+        return JSONResponse({"detail": _named_problems(error)}, status_code=422)
 
     @api.get("/healthz")
     def healthz() -> dict[str, bool]:
@@ -475,20 +490,39 @@ def _socket_routes(api: FastAPI, console: Console, mission: MissionJob) -> None:
         client = new_client_id()
         try:
             while True:
-                message = json.loads(await socket.receive_text())
-                reply = _control_message(console, client, message)
+                reply = _control_message(console, client, _json_text(await socket.receive()))
                 if reply is not None:
                     await socket.send_text(json.dumps(reply))
-        except (WebSocketDisconnect, RuntimeError, json.JSONDecodeError):
+        except (WebSocketDisconnect, RuntimeError):
             pass
         finally:  # a lost socket stops the arm at once and frees the lock
             console.release(client, "socket closed")
             console.release_control(client, "socket closed")
 
 
+def _json_text(message: Message) -> Any:
+    """The JSON a control message carries, or None (answered as an unknown message, the socket kept open)
+    when it is binary, not JSON or too long; a disconnect ends the handler."""
+    if message["type"] == "websocket.disconnect":
+        raise WebSocketDisconnect(message.get("code", 1000))
+    text = message.get("text")
+    if not isinstance(text, str) or len(text) > CONTROL_MESSAGE_LIMIT:
+        return None
+    try:
+        return json.loads(text)
+    except (json.JSONDecodeError, RecursionError):
+        return None
+
+
 def _control_message(console: Console, client: str, message: Any) -> dict[str, Any] | None:
     """Act on one operator message; the reply, or None for an accepted heartbeat (no 20 Hz of replies)."""
-    kind = message.get("type") if isinstance(message, dict) else None
+    if not isinstance(message, dict):
+        return {
+            "type": "error",
+            "detail": f"a control message is a JSON object of at most {CONTROL_MESSAGE_LIMIT} characters "
+            "with a type (acquire, hold, release, estop, reset, leave)",
+        }
+    kind = message.get("type")
     reply: dict[str, Any] = {"type": kind}
     if kind == "acquire":
         reply["granted"] = console.acquire(client, str(message.get("name", "operator")))
