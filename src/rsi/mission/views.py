@@ -186,11 +186,12 @@ def _edge_shift(cad: Any, image: NDArray[np.float32]) -> tuple[int, int]:
     strength[jaws] = 0.0
     # a pixel of blur: an edge a fraction of a pixel off still counts
     strength = np.pad(cv2.GaussianBlur(strength, (0, 0), 1.0), _PLACE_SEARCH_PX)
-    reach = 2 * _PLACE_SEARCH_PX + 1
-    score = np.empty((reach, reach))
-    for dy in range(reach):
-        for dx in range(reach):
-            score[dy, dx] = strength[rows + dy, cols + dx].mean()
+    # score[dy, dx]: the mean strength under the edges shifted by (dy, dx), every shift at once (a
+    # correlation of the edge mask with the padded strength; it was one gather of every edge pixel per
+    # shift, 1,089 of them, a quarter of a second a visit)
+    edges = np.zeros(image.shape, np.float32)
+    edges[rows, cols] = 1.0
+    score = cv2.matchTemplate(strength, edges, cv2.TM_CCORR).astype(np.float64) / rows.size
     best = np.unravel_index(int(np.argmax(score)), score.shape)
     away = score.copy()
     away[max(best[0] - 3, 0) : best[0] + 4, max(best[1] - 3, 0) : best[1] + 4] = -np.inf
