@@ -113,7 +113,7 @@ def test_status_is_the_live_state(live: Live) -> None:
     assert len(status["arm"]["joint_positions"]) == 8
     assert all(region in "ABCDEF-" for region in status["sensors"]["regions"])
     assert status["teleop"]["heartbeat_timeout_s"] + 1 / status["teleop"]["rate_hz"] < STOP_BUDGET_S
-    assert status["video"]["size"] == [480, 640]
+    assert status["video"]["size"] == [240, 320]
     time.sleep(1.0)
     assert live.get("/api/status").json()["video"]["fps"] > 0
 
