@@ -8,6 +8,8 @@ from collections.abc import Iterator
 
 import pytest
 
+from rsi.sim.world import World
+
 CAP_HEADROOM_BYTES = 3 * 2**30
 """Address space allowed above what the process already maps: ample for every bounded input (the largest
 default image, 8192 x 8192, needs about 1 GiB), far below what an unbounded one asks (74.5 GiB, 24 GB)."""
@@ -33,3 +35,15 @@ def memory_cap() -> Iterator[int]:
         yield cap
     finally:
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+@pytest.fixture(scope="module")
+def world() -> Iterator[World]:
+    """One truss world with the arm, loaded once per module (the world and console suites call into it)."""
+    import rsi.sim
+
+    loaded = rsi.sim.load("truss", seed=0, arm=True)
+    try:
+        yield loaded
+    finally:
+        loaded.close()

@@ -10,7 +10,7 @@ are fuzzed on the live server in tests/web/test_hostile_routes.py.
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +20,6 @@ from hostile_values import HOSTILE_FAST, call_keeps_the_rule
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import rsi.sim
 from rsi.sim.world import World
 from rsi.web import app, console, live, mission_job, scene, server, teleop, worker
 
@@ -61,15 +60,6 @@ def test_every_public_callable_of_the_console_is_fuzzed() -> None:
     records = {live.LiveFrame, live.FrameHub, console.StopEvent, teleop.TeleopStep, server.ConsoleSettings}
     records |= {worker.Shot, live.LiveState}
     assert public - records == set(WITH_VALID_DRAWS) | set(REFUSED_ONLY) | set(WITHOUT_ARGUMENTS)
-
-
-@pytest.fixture(scope="module")
-def world() -> Iterator[World]:
-    loaded = rsi.sim.load("truss", seed=0, arm=True)
-    try:
-        yield loaded
-    finally:
-        loaded.close()
 
 
 def _arguments(function: Callable[..., Any], valid: Strategies, *, hostile_only: bool) -> st.SearchStrategy:

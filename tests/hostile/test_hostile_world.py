@@ -81,15 +81,6 @@ def _counted_renders() -> Iterator[None]:
         yield
 
 
-@pytest.fixture(scope="module")
-def world() -> Iterator[World]:
-    loaded = rsi.sim.load("truss", seed=0, arm=True)
-    try:
-        yield loaded
-    finally:
-        loaded.close()
-
-
 def _arguments(function: Callable[..., Any], valid: Strategies, *, rare: int) -> st.SearchStrategy[dict]:
     """Each parameter hostile, or one time in `rare` + 1 a valid value (`valid`, else its default)."""
     drawn = {}
