@@ -48,6 +48,11 @@ REFUSED_ONLY = (  # valid arguments start threads, processes or renderers: tests
 )
 WITHOUT_ARGUMENTS = (console.new_client_id, server.websocket_protocol, server.uvicorn_options)
 MODULES = (app, console, live, mission_job, scene, server, teleop, worker)
+FUZZED = {
+    f"{function.__module__}.{function.__qualname__}"
+    for function in (*WITH_VALID_DRAWS, *REFUSED_ONLY, *WITHOUT_ARGUMENTS)
+}
+"""Qualified names of what this suite calls (test_hostile_mission.py checks the whole package against it)."""
 
 
 def test_every_public_callable_of_the_console_is_fuzzed() -> None:

@@ -26,17 +26,15 @@ CAD model's depth where the matcher had no answer).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.imaging._local import _gradients
-
-if TYPE_CHECKING:
-    from rsi.imaging.compensation import Compensated
+from rsi.imaging.compensation import Compensated
 
 F32 = NDArray[np.float32]
 FloatArray = NDArray[np.float64]
@@ -57,6 +55,7 @@ _STRIDE = 2
 _ROW = 1024
 # Fewer usable pixels than this and the fit is not attempted.
 _MIN_PIXELS = 200
+MAX_ITERATIONS = 1000  # Gauss-Newton settles in a handful of steps; the bound keeps a bad value finite
 
 
 @dataclass(frozen=True)
@@ -169,6 +168,9 @@ def fit_parallax(
         Arrays of different shapes, or fewer than 200 usable pixels.
     """
     ref, insp, inverse = _checked_inputs(reference, inspection, range_m, valid)
+    start_xy, gain, bias, max_iterations, tolerance_px = _fit_settings(
+        start_xy, gain, bias, max_iterations, tolerance_px
+    )
     usable = np.isfinite(inverse) & (inverse > 0)
     if valid is not None:
         usable &= np.asarray(valid, dtype=bool)
@@ -227,17 +229,40 @@ def _checked_inputs(
     range_m: NDArray[np.floating],
     valid: NDArray[np.bool_] | None,
 ) -> tuple[F32, F32, F32]:
-    ref = np.asarray(reference, dtype=np.float32)
-    insp = np.asarray(inspection, dtype=np.float32)
-    depth = np.asarray(range_m, dtype=np.float32)
-    shapes = {"reference": ref.shape, "inspection": insp.shape, "range_m": depth.shape}
-    if valid is not None:
-        shapes["valid"] = np.shape(valid)
-    if ref.ndim != 2 or len(set(shapes.values())) != 1:
+    ref = v.as_intensity_image(reference, "reference").astype(np.float32)
+    insp = v.as_intensity_image(inspection, "inspection").astype(np.float32)
+    depth = _range_map(range_m, "range_m", ref.shape)
+    if insp.shape != ref.shape:
         raise InputError(
-            f"reference, inspection, range_m (and valid) must be 2-D arrays of one shape; got {shapes}."
+            f"reference and inspection must have one shape; got {ref.shape} and {insp.shape}. Crop one."
         )
+    if valid is not None:
+        v.as_mask(valid, "valid", ref.shape)
     return ref, insp, _inverse_depth(depth)
+
+
+def _range_map(range_m: object, name: str, shape: tuple[int, ...]) -> F32:
+    """A range map of the image's `shape`, metres (NaN, inf or <= 0: unknown), or an InputError."""
+    depth = v.as_float_array(range_m, name)
+    if depth.shape != shape:
+        raise InputError(f"{name} must have the reference's shape {shape}; got {depth.shape}.")
+    return depth.astype(np.float32)
+
+
+def _fit_settings(
+    start_xy: object, gain: object, bias: object, max_iterations: object, tolerance_px: object
+) -> tuple[tuple[float, float], float, float, int, float]:
+    """fit_parallax's numbers checked: a finite start, photometric map and tolerance, a bounded loop."""
+    start = v.as_float_array(start_xy, "start_xy")
+    if start.shape != (2,) or not np.isfinite(start).all():
+        raise InputError(f"start_xy must be two finite numbers (x, y) in pixels; got {start_xy!r}.")
+    return (
+        (float(start[0]), float(start[1])),
+        v.in_range(gain, "gain", low=-v.MAX_INTENSITY, high=v.MAX_INTENSITY),
+        v.in_range(bias, "bias", low=-v.MAX_INTENSITY, high=v.MAX_INTENSITY),
+        v.positive_int(max_iterations, "max_iterations", maximum=MAX_ITERATIONS),
+        v.positive(tolerance_px, "tolerance_px"),
+    )
 
 
 def _sample(image: F32, at_x: F32, at_y: F32) -> FloatArray:
@@ -332,9 +357,20 @@ def predict_reference(
     -------
     Predicted
     """
+    v.instance_of(reference, "reference", Compensated, none_allowed=False)
+    v.instance_of(fit, "fit", ParallaxFit, none_allowed=False)
     shape = reference.image.shape
-    if np.shape(range_m) != shape:
-        raise InputError(f"range_m must have the reference's shape {shape}; got {np.shape(range_m)}.")
+    range_m = _range_map(range_m, "range_m", shape)
+    if reference_range_m is not None:
+        reference_range_m = _range_map(reference_range_m, "reference_range_m", shape)
+    range_std = v.as_float_array(range_std_m, "range_std_m")
+    if range_std.shape not in ((), shape) or not (np.isfinite(range_std) & (range_std >= 0)).all():
+        raise InputError(
+            f"range_std_m must be a finite number >= 0 or an array of the image's shape {shape}."
+        )
+    occlusion_m = v.positive(occlusion_m, "occlusion_m")
+    if not isinstance(about_shift, bool):
+        raise InputError(f"about_shift must be True or False; got {about_shift!r}.")
     known = _known(range_m, fit)
     seen_m = np.asarray(range_m, dtype=np.float32)
     if about_shift:  # each reference pixel y, with the inspection's depth at y + a

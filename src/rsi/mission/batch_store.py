@@ -94,3 +94,8 @@ def _findings(item: BatchItem, record: PairRecord) -> list[Finding]:
         for flaw, confidence in zip(record.flaws, record.confidences, strict=True)
     ]
     return [summary, *flaws]
+
+
+# run_batch's internals, no public API (PEP 8: an empty __all__): every caller is
+# :func:`rsi.mission.run_batch`, with values it built and checked (docs/reliability.md).
+__all__: list[str] = []

@@ -202,7 +202,9 @@ def _surface_samples(item: Surface | Site, spacing: float) -> tuple[FloatArray, 
 
 def inspectable_items(mockup: Mockup) -> list[tuple[str, Surface | Site]]:
     """Every inspectable surface of `mockup` with its kind (the definition: see the module notes)."""
-    candidates = mockup.candidates
+    from rsi.sim.mockup import Mockup
+
+    candidates = v.instance_of(mockup, "mockup", Mockup, none_allowed=False).candidates
     items: list[tuple[str, Surface | Site]] = [("impact", patch) for patch in candidates.impact_patches]
     items += [("screw", site) for site in candidates.screw_sites]
     items += [("peltier", site) for site in candidates.peltier_sites]

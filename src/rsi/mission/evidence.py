@@ -537,3 +537,8 @@ def second_look_score(pair: PairResult, view: Sensed, position: tuple[float, flo
     rows, cols = slice(max(r - 2, 0), max(r + 3, 0)), slice(max(c - 2, 0), max(c + 3, 0))
     valid = pair.detection.valid[rows, cols]
     return float(pair.detection.score[rows, cols][valid].max()) if valid.any() else 0.0
+
+
+# run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
+# :func:`rsi.mission.run_mission`, with values it built and checked (docs/reliability.md).
+__all__: list[str] = []

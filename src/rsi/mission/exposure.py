@@ -162,3 +162,8 @@ def shortened(
         if not clipped(sensed, settings):
             break
     return sensed, taken_at
+
+
+# run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
+# :func:`rsi.mission.run_mission`, with values it built and checked (docs/reliability.md).
+__all__: list[str] = []

@@ -42,10 +42,10 @@ from rsi.mission.coverage import Coverage, CoverageRules, Sight, coverage, inspe
 from rsi.mission.records import PlanPoint
 from rsi.mission.settings import MissionSettings
 from rsi.sim.anomalies import CylinderPatch, Patch, Site
+from rsi.sim.mockup import Mockup, Vista
 
 if TYPE_CHECKING:
     from rsi.sim.anomalies import Surface
-    from rsi.sim.mockup import Mockup, Vista
     from rsi.sim.world import World
 
 FloatArray = NDArray[np.float64]
@@ -178,6 +178,8 @@ def candidate_vistas(mockup: Mockup, rules: CoverageRules) -> list[tuple[Vista, 
     """Every candidate vista of `mockup` (step 1 of the module notes) with the surface it aims at."""
     from rsi.sim.mockup import vista
 
+    v.instance_of(mockup, "mockup", Mockup, none_allowed=False)
+    v.instance_of(rules, "rules", CoverageRules, none_allowed=False)
     out: list[tuple[Vista, str]] = []
     for _, item in inspectable_items(mockup):
         for target, normal, first, second in _frames(item):
@@ -199,7 +201,12 @@ def weigh_candidates(
     """Step 2: what every candidate covers, door closed and (where its rays met the door) open; whether
     the arm on its rail gets there (geometry of the chain; every candidate reachable without `arm_world`)."""
     from rsi.mission.viewing import reach_vistas
+    from rsi.sim.world import World
 
+    v.instance_of(sight, "sight", Sight, none_allowed=False)
+    door_open_rad = v.in_range(door_open_rad, "door_open_rad", low=-math.pi, high=math.pi)
+    if arm_world is not None:
+        v.instance_of(arm_world, "arm_world", World)
     result: list[Candidate] = []
     for point, surface in candidate_vistas(mockup, sight.rules):
         indices = sight.candidates(point)
@@ -227,6 +234,7 @@ def greedy_cover(candidates: list[Candidate], area: FloatArray, target: float) -
     then pruned; returns their indices (in choice order) and the coverable fraction."""
     from scipy import sparse
 
+    candidates, area, target = _cover_inputs(candidates, area, target)
     rows = np.concatenate([np.full(c.seen.size, k) for k, c in enumerate(candidates)])
     cols = np.concatenate([c.seen for c in candidates])
     matrix = sparse.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(len(candidates), area.size))
@@ -244,6 +252,29 @@ def greedy_cover(candidates: list[Candidate], area: FloatArray, target: float) -
         covered[candidates[best].seen] = True
     kept = _pair_swaps(_pruned(chosen, candidates, area, goal), matrix, candidates, area, goal)
     return kept, float(area[coverable].sum() / area.sum())
+
+
+def _cover_inputs(
+    candidates: object, area: object, target: object
+) -> tuple[list[Candidate], FloatArray, float]:
+    """greedy_cover's arguments checked: candidates whose sample indices lie in `area`, areas >= 0."""
+    weights = v.as_float_array(area, "area")
+    if weights.ndim != 1 or weights.size == 0 or not (np.isfinite(weights) & (weights >= 0)).all():
+        raise InputError(
+            f"area must be a non-empty 1-D array of finite sample areas >= 0 (m^2); got {area!r}."
+        )
+    chosen = v.records_named(candidates, "candidates", "Candidate")
+    if not chosen:
+        raise InputError("candidates must hold at least one Candidate (from weigh_candidates).")
+    for index, candidate in enumerate(chosen):
+        seen = np.asarray(candidate.seen)
+        if (
+            seen.dtype.kind not in "iu"
+            or seen.ndim != 1
+            or (seen.size and not 0 <= seen.min() <= seen.max() < weights.size)
+        ):
+            raise InputError(f"candidates[{index}].seen must be sample indices in [0, {weights.size}).")
+    return chosen, weights, v.in_range(target, "target", low=0.0, high=1.0, low_inclusive=False)
 
 
 def _pair_swaps(
@@ -296,10 +327,11 @@ def ik_reaches(world: World, point: Vista, door_angle_rad: float) -> bool:
     mock-up by ``MIN_CLEARANCE_M``."""
     from rsi.control.redundancy import orientation_error
     from rsi.mission.transit import APPROACH_START_M
-    from rsi.mission.viewing import pose_of
+    from rsi.mission.viewing import pose_of, world_arm
     from rsi.sim.clearance import ArmClearance
 
-    arm = world.arm
+    arm = world_arm(world)
+    v.instance_of(point, "point", Vista, none_allowed=False)
     arm.reset()
     world.set_door(door_angle_rad)
     pose = pose_of(world, point)
@@ -338,9 +370,17 @@ def transfer_s(first: Vista, second: Vista) -> float:
     """Transfer time between two vistas' staging poses at the rail's and the wrist's rate limits."""
     from rsi.mission.transit import TRANSFER_SPEED_M_S, TRANSFER_TURN_RAD_S
 
+    v.instance_of(first, "first", Vista, none_allowed=False)
+    v.instance_of(second, "second", Vista, none_allowed=False)
     distance = float(np.linalg.norm(_staging(first) - _staging(second)))
     turn = math.acos(float(np.clip(np.dot(first.forward, second.forward), -1.0, 1.0)))
     return max(distance / TRANSFER_SPEED_M_S, turn / TRANSFER_TURN_RAD_S)
+
+
+def _vistas(points: object, name: str) -> list[Vista]:
+    if not isinstance(points, (list, tuple)):
+        raise InputError(f"{name} must be a list of Vista; got {type(points).__name__}.")
+    return [v.instance_of(point, f"{name}[{k}]", Vista, none_allowed=False) for k, point in enumerate(points)]
 
 
 def _cost_matrix(points: list[Vista], doors: list[float]) -> FloatArray:
@@ -357,6 +397,12 @@ def tour_order(points: list[Vista], doors: list[float], start_m: FloatArray) -> 
     """Step 5: nearest neighbour from the vista nearest `start_m`, then 2-opt on the open path."""
     from rsi.mission.transit import TRANSFER_SPEED_M_S
 
+    points, start_m = _vistas(points, "points"), np.array(v.vector3(start_m, "start_m"))
+    if not isinstance(doors, (list, tuple)) or len(doors) != len(points):
+        raise InputError(
+            f"doors must be a list of {len(points)} door angles (rad), one per point; got {doors!r}."
+        )
+    doors = [v.finite_number(door, f"doors[{k}]") for k, door in enumerate(doors)]
     if not points:
         return []
     cost = _cost_matrix(points, doors)
@@ -389,6 +435,7 @@ def tour_figures(points: list[Vista], start_m: FloatArray) -> tuple[float, float
     """Length (m) and transfer time (s) of visiting `points` in order from `start_m`."""
     from rsi.mission.transit import TRANSFER_SPEED_M_S
 
+    points, start_m = _vistas(points, "points"), np.array(v.vector3(start_m, "start_m"))
     if not points:
         return 0.0, 0.0
     stops = [np.asarray(start_m, float), *(_staging(p) for p in points)]

@@ -87,6 +87,10 @@ def settle_figures(
         Largest |error| over the last second; time after which the error stays within `band_m` (``inf``
         if it never does); how far the run went past the standoff toward the surface (>= 0).
     """
+    time_s, distance_m = _samples(time_s, "time_s"), _samples(distance_m, "distance_m")
+    v.same_shape(time_s, distance_m, ("time_s", "distance_m"))
+    standoff_m = v.finite_number(standoff_m, "standoff_m")
+    band_m = v.positive(band_m, "band_m")
     error = distance_m - standoff_m
     outside = np.nonzero(np.abs(error) > band_m)[0]
     step_s = float(time_s[1] - time_s[0]) if time_s.size > 1 else 0.0
@@ -102,6 +106,14 @@ def settle_figures(
         settle_time,
         float(max(0.0, -float(error.min()))),
     )
+
+
+def _samples(values: object, name: str) -> FloatArray:
+    """A trace's samples: a non-empty 1-D array of finite numbers, or an InputError naming it."""
+    array = v.as_float_array(values, name)
+    if array.ndim != 1 or array.size == 0 or not np.isfinite(array).all():
+        raise InputError(f"{name} must be a non-empty 1-D array of finite numbers; got shape {array.shape}.")
+    return array
 
 
 def following_error_m(
@@ -125,6 +137,12 @@ def following_error_m(
     transient_m : float
         Largest |error| inside them (a step of height h changes the distance by h in one sample).
     """
+    error_m = _samples(error_m, "error_m")
+    jumps = np.asarray(discontinuity) if isinstance(discontinuity, np.ndarray) else None
+    if jumps is None or jumps.dtype != np.bool_ or jumps.shape != error_m.shape:
+        raise InputError(f"discontinuity must be a bool array of shape {error_m.shape}, like error_m.")
+    samples_to_recover = v.positive_int(samples_to_recover, "samples_to_recover", minimum=0)
+    discontinuity = jumps
     recovering = np.zeros(error_m.size, dtype=bool)
     for index in np.nonzero(discontinuity)[0]:
         recovering[index : index + samples_to_recover] = True
@@ -142,7 +160,10 @@ def command_spike_m_s(command_m_s: FloatArray) -> float:
     A step of the command (a rise that stays) is not a spike; a value that jumps and comes straight back is.
     0 for fewer than three samples.
     """
-    change = np.diff(np.asarray(command_m_s, dtype=np.float64))
+    command = v.as_float_array(command_m_s, "command_m_s")
+    if command.ndim != 1:
+        raise InputError(f"command_m_s must be a 1-D array of speeds (m/s); got shape {command.shape}.")
+    change = np.diff(command)
     if change.size < 2:
         return 0.0
     spikes = np.maximum(np.minimum(change[:-1], -change[1:]), np.minimum(-change[:-1], change[1:]))
@@ -175,6 +196,7 @@ def reconstruct_contour(trace: LoopTrace, *, delay_s: float) -> tuple[FloatArray
     sample_time_s : ndarray of shape (K,)
         The instant each point describes.
     """
+    v.instance_of(trace, "trace", LoopTrace, none_allowed=False)
     lag = v.in_range(delay_s, "delay_s", low=0.0)
     at_s = trace.time_s - lag
     keep_time = at_s >= trace.time_s[0]
@@ -220,10 +242,17 @@ def _move_along_axis(
         arm.step_velocity(np.array([0.0, 0.0, offset_m / steps * rate_hz]), 1.0 / rate_hz, frame="tool")
 
 
+def _loop_inputs(law: object, rng: object) -> tuple[ProximityLaw, np.random.Generator]:
+    """A scenario's law and noise stream, checked before any arm is built."""
+    law = v.instance_of(law, "law", ProximityLaw, none_allowed=False)
+    return law, v.as_rng(rng)  # type: ignore[arg-type]
+
+
 def full_push(law: ProximityLaw = ARM_LAW, *, rng: np.random.Generator | int | None = None) -> Scenario:
     """Scenario a: a full joystick push (+Vjs) toward a wall in avoidance mode (seed §3.1, region C)."""
     from rsi.sim.arm import Wall
 
+    law, rng = _loop_inputs(law, rng)
     wall = Wall(SERVO_START_M - GRIPPER_LENGTH_M)
     arm, tip, rotation = _arm(wall)
     _move_along_axis(arm, SERVO_START_M - PUSH_START_M)  # back off to 0.70 m; the arm's reach is limited
@@ -242,6 +271,7 @@ def servo_approach(law: ProximityLaw = ARM_LAW, *, rng: np.random.Generator | in
     """Scenario b: distance servoing from 0.6 m to the standoff, joystick at rest (seed §3.1, D-E)."""
     from rsi.sim.arm import Wall
 
+    law, rng = _loop_inputs(law, rng)
     wall = Wall(SERVO_START_M - GRIPPER_LENGTH_M)
     arm, tip, rotation = _arm(wall)
     trace = run_closed_loop(arm, duration_s=SERVO_DURATION_S, law=law, mode="servo", rng=rng)
@@ -270,6 +300,7 @@ def follow_surface(
     from rsi.sim.arm import CurvedSurface, SteppedSurface
 
     name = v.choice(surface, "surface", ("stepped", "curved"))
+    law, rng = _loop_inputs(law, rng)
     speed = v.in_range(speed_m_s, "speed_m_s", low=0.0, low_inclusive=False)
     standoff_tip_m = law.standoff_m - GRIPPER_LENGTH_M
     obstacle: Any
@@ -294,6 +325,7 @@ def reading_sweep(law: ProximityLaw = ARM_LAW, *, rng: np.random.Generator | int
     """Figs 3, 6, 7: a linear trajectory away from a wall with x_ps computed but not applied (seed §3.1)."""
     from rsi.sim.arm import Wall
 
+    law, rng = _loop_inputs(law, rng)
     forward_m = 0.28  # the arm reaches about 0.31 m forward of home along the tool axis
     wall = Wall(forward_m + SWEEP_NEAR_M - GRIPPER_LENGTH_M)
     arm, tip, rotation = _arm(wall)
@@ -323,6 +355,9 @@ def _discontinuities(scenario: Scenario) -> BoolArray:
     return jumps
 
 
+MAX_PROFILE_SAMPLES = 10**6  # a plotted profile: far more points than any figure has pixels
+
+
 def contour_scan(scenario: Scenario, *, delay_s: float, profile_samples: int = 2000) -> ContourScan:
     """Scenario d on one scan: the profile rebuilt by :func:`reconstruct_contour` against the true one.
 
@@ -339,8 +374,17 @@ def contour_scan(scenario: Scenario, *, delay_s: float, profile_samples: int = 2
     -------
     ContourScan
     """
+    v.instance_of(scenario, "scenario", Scenario, none_allowed=False)
+    profile_samples = v.positive_int(
+        profile_samples, "profile_samples", minimum=2, maximum=MAX_PROFILE_SAMPLES
+    )
     points, sample_time = reconstruct_contour(scenario.trace, delay_s=delay_s)
     keep = sample_time >= scenario.scan_start_s
+    if not keep.any():
+        raise InputError(
+            f"scenario {scenario.name!r} has no in-range reading in its scan phase once delayed by "
+            f"delay_s={delay_s!r}; pass the filter's lag (LowPassFilter.dc_delay_s, a fraction of a second)."
+        )
     tangential = scenario.tangential_m(points[keep])
     depth = scenario.depth_m(points[keep])
     truth = np.asarray(scenario.obstacle.surface_distance_m(tangential), dtype=np.float64)
@@ -371,7 +415,10 @@ def law_response(trace: LoopTrace, law: ProximityLaw, mode: str, *, curve_sample
     -------
     LawResponse
     """
+    v.instance_of(trace, "trace", LoopTrace, none_allowed=False)
+    v.instance_of(law, "law", ProximityLaw, none_allowed=False)
     v.choice(mode, "mode", ("avoidance", "servo"))
+    curve_samples = v.positive_int(curve_samples, "curve_samples", minimum=2, maximum=MAX_PROFILE_SAMPLES)
     commanded, _, _ = proximity_term(trace.reading_m, law, mode=mode)
     # rsi.control.blending acts on the nearer reading when avoiding and on the servo distance when servoing
     measured, _, _ = law_distance_m(trace.reading_m, law, mode=mode)
@@ -504,6 +551,8 @@ def simulate_proximity_demo(*, seed: int = 0, progress: Progress | None = None) 
     """
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise InputError(f"seed must be a non-negative integer; got {seed!r}.")
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress must be None or a callable(stage, completed, total); got {progress!r}.")
     law = ARM_LAW
     push, servo, follows, sweep, tracking, lamp = _run_stages(law, int(seed), progress)
     delay_s = LowPassFilter(4.0, law.sample_rate_hz).dc_delay_s
@@ -568,6 +617,7 @@ def acceptance(figures: DemoFigures) -> tuple[Check, ...]:
     The full push must stay beyond region C's near edge minus :data:`PUSH_MARGIN_M`; the others are
     :data:`ACCEPTANCE_LIMITS`. A NaN figure fails.
     """
+    v.instance_of(figures, "figures", DemoFigures, none_allowed=False)
     limits = {
         "min_distance_full_push_m": (">=", figures.avoidance_near_edge_m - PUSH_MARGIN_M),
         **ACCEPTANCE_LIMITS,

@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi import _validate as v
+from rsi.errors import InputError
 from rsi.mission.settings import MissionSettings
 
 if TYPE_CHECKING:
@@ -33,11 +35,16 @@ IMPACT_MIN_SIZE_M = (
 
 def scored_type(kind: str) -> str:
     """The scored type of an anomaly or finding kind: hot and cold spots are one type, ``thermal_spot``."""
+    if not isinstance(kind, str):
+        raise InputError(f"kind must be an anomaly or finding kind (a str such as 'impact'); got {kind!r}.")
     return "thermal_spot" if kind in ("hot_spot", "cold_spot") else kind
 
 
 def counts_towards_recall(anomaly: Anomaly) -> bool:
     """Whether `anomaly` counts towards recall: every anomaly but an impact under IMPACT_MIN_SIZE_M."""
+    from rsi.sim.anomalies import Anomaly
+
+    v.instance_of(anomaly, "anomaly", Anomaly, none_allowed=False)
     return anomaly.kind != "impact" or anomaly.size_m >= IMPACT_MIN_SIZE_M
 
 

@@ -78,3 +78,8 @@ def store_findings(
         ],
     )
     archive.finish_run(run_id)
+
+
+# run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
+# :func:`rsi.mission.run_mission`, with values it built and checked (docs/reliability.md).
+__all__: list[str] = []

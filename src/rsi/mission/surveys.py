@@ -145,3 +145,8 @@ def gas_pass(
         for peak in _plume_peaks(stations, estimate, settings)
     ]
     return findings, stations, estimate
+
+
+# run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
+# :func:`rsi.mission.run_mission`, with values it built and checked (docs/reliability.md).
+__all__: list[str] = []

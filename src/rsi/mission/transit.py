@@ -83,7 +83,8 @@ def approach_law(standoff_m: float, nearest_m: float | None = None) -> Proximity
     nearer sensor's expected range, whichever is nearer) and C/D's slope set so the law crosses zero at the
     standoff. Raises InputError when the standoff leaves no room for the law inside the sensors' 0.75 m.
     """
-    standoff = v.in_range(standoff_m, "standoff_m", low=0.0, low_inclusive=False)
+    # a standoff beyond the sensors' cutoff is never sensed (and 1e300 - 5 cm is 1e300: no region D at all)
+    standoff = v.in_range(standoff_m, "standoff_m", low=0.0, high=RANGEFINDER_CUTOFF_M, low_inclusive=False)
     nearest = standoff if nearest_m is None else v.finite_number(nearest_m, "nearest_m")
     hold = min(standoff - _HOLD_BELOW_STANDOFF_M, nearest - _HOLD_BELOW_NEAREST_M)
     span = standoff - hold  # region D from the hold distance to the standoff
@@ -383,11 +384,12 @@ def transit(
         raise InputError(
             f"law must be None or a ProximityLaw; got {type(law).__name__}. Try approach_law(0.5)."
         )
+    noise = v.as_rng(rng)
     pose = viewing_pose(world, vista, offset_m=offset_m)
     where = reach(world, vista)
     expected = expected_ranges_m(world, pose) if where.reachable else np.full(2, np.inf)
     law, servo = _law_for(expected) if law is None else (law, True)
-    mover = _Mover(world, v.as_rng(rng))
+    mover = _Mover(world, noise)
     began = time.perf_counter()
     if where.reachable:
         mover.visit(pose, law, "servo" if servo else "avoidance")

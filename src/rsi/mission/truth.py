@@ -63,3 +63,8 @@ def impact_strengths(detection: Detection, truth: NDArray[np.bool_]) -> tuple[fl
         sigma = float(detection.sigma.flat[peak])
         strengths.append(abs(float(detection.difference.flat[peak])) / max(sigma, 1e-6))
     return tuple(strengths)
+
+
+# run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
+# :func:`rsi.mission.run_mission`, with values it built and checked (docs/reliability.md).
+__all__: list[str] = []

@@ -18,15 +18,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.sim.arm import FOREARM_M, LIMITS, RANGEFINDER_CUTOFF_M, UPPER_ARM_M
 from rsi.sim.clearance import is_arm_geom
+from rsi.sim.mockup import Vista
 from rsi.sim.render import import_mujoco
 from rsi.sim.scene import CAMERA_FOVY_DEG
 
 if TYPE_CHECKING:
     from rsi.sim.arm import Arm
-    from rsi.sim.mockup import Vista
     from rsi.sim.world import World
 
 FloatArray = NDArray[np.float64]
@@ -41,19 +42,33 @@ def _unit(vector: FloatArray) -> FloatArray:
 
 def look_rotation(forward: FloatArray, up: FloatArray) -> FloatArray:
     """A camera looking along `forward` with `up` up: columns right, up, backward, as
-    :class:`rsi.sim.render.CameraPose` (MuJoCo cameras look along -z)."""
-    back = -_unit(forward)
-    right = _unit(np.cross(up, back))
+    :class:`rsi.sim.render.CameraPose` (MuJoCo cameras look along -z).
+
+    Raises InputError unless both are non-zero directions, not parallel.
+    """
+    back = -v.direction3(forward, "forward")
+    across = np.cross(v.direction3(up, "up"), back)
+    if np.linalg.norm(across) < 1e-9:
+        raise InputError(f"up must not be parallel to forward; got forward={forward!r}, up={up!r}.")
+    right = _unit(across)
     return np.column_stack([right, np.cross(back, right), back])
 
 
 def focal_px(rows: int) -> float:
     """Focal length in pixels of the ISEE camera (``CAMERA_FOVY_DEG``) in a frame of `rows` rows."""
+    rows = v.positive_int(rows, "rows", maximum=2**20)  # far past any sensor; keeps rows / 2 a float
     return rows / 2 / math.tan(math.radians(CAMERA_FOVY_DEG) / 2)
+
+
+def _checked_world(world: object) -> None:
+    from rsi.sim.world import World  # at call time: rsi.sim.world is the heaviest import of the simulator
+
+    v.instance_of(world, "world", World, none_allowed=False)
 
 
 def world_arm(world: World) -> Arm:
     """The world's arm, or an InputError that says how to build a world with one."""
+    _checked_world(world)
     try:
         return world.arm
     except InputError:
@@ -64,6 +79,7 @@ def world_arm(world: World) -> Arm:
 
 def world_vista(world: World, vista: object) -> Vista:
     """The world's vista `vista`, or an InputError listing them (and where a mission's extras come from)."""
+    _checked_world(world)
     if not isinstance(vista, str) or vista not in world.vistas:
         raise InputError(
             f"vista must be one of this world's vistas {sorted(world.vistas)}; got {vista!r}. A mission's "
@@ -145,7 +161,8 @@ def pose_of(world: World, point: Vista, *, offset_m: tuple[float, float] = (0.0,
 
 
 def _pose(isee: _Isee, point: Vista, offset_m: tuple[float, float]) -> ViewingPose:
-    offset = np.asarray(offset_m, dtype=np.float64)
+    v.instance_of(point, "point", Vista, none_allowed=False)
+    offset = v.as_float_array(offset_m, "offset_m")
     if offset.shape != (2,) or not np.isfinite(offset).all():
         raise InputError(f"offset_m must be two finite numbers (right, up; metres); got {offset_m!r}.")
     rotation = look_rotation(np.asarray(point.forward, float), np.asarray(point.up, float))
@@ -196,12 +213,14 @@ def reach(world: World, vista: str) -> Reach:
 
 def reach_pose(world: World, pose: ViewingPose) -> Reach:
     """:func:`reach` of a viewing pose (of a vista the world need not list)."""
-    return _reach(_isee(world), pose)
+    return _reach(_isee(world), v.instance_of(pose, "pose", ViewingPose, none_allowed=False))
 
 
 def reach_vistas(world: World, points: Sequence[Vista]) -> list[Reach]:
     """:func:`reach` of many vistas the world need not list (the ISEE's geometry read once)."""
     isee = _isee(world)
+    if not isinstance(points, Sequence) or isinstance(points, str):
+        raise InputError(f"points must be a list of Vista; got {type(points).__name__}.")
     return [_reach(isee, _pose(isee, point, (0.0, 0.0))) for point in points]
 
 
@@ -224,6 +243,7 @@ def expected_ranges_m(world: World, pose: ViewingPose) -> FloatArray:
     ignored), passing through any part of the arm where the arm is now.
     """
     isee = _isee(world)
+    v.instance_of(pose, "pose", ViewingPose, none_allowed=False)
     prefix = world_arm(world).prefix
     mujoco = import_mujoco()
     axis = pose.tool_rotation[:, 2].copy()

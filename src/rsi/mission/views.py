@@ -339,3 +339,8 @@ def inspection_region(sensed: Sensed, settings: MissionSettings) -> NDArray[np.b
         near = np.minimum(depth, np.float32(FAR_M))
         off |= (cv2.dilate(near, band) - cv2.erode(near, band) > settings.depth_jump_m) | (depth >= FAR_M)
     return ~off
+
+
+# run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
+# :func:`rsi.mission.run_mission`, with values it built and checked (docs/reliability.md).
+__all__: list[str] = []

@@ -586,3 +586,8 @@ def _component_of(position: tuple[float, float, float], sites: tuple[Site, ...])
         if distance < 0.5 * site.size_m + 0.05 and distance < best_distance:
             best, best_distance = site, distance
     return best
+
+
+# run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
+# :func:`rsi.mission.run_mission`, with values it built and checked (docs/reliability.md).
+__all__: list[str] = []

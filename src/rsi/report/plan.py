@@ -16,12 +16,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
+from rsi.errors import InputError
 from rsi.report.figures import figure_png
 
 if TYPE_CHECKING:
     from rsi.mission.records import MissionResult
 
 COVERED_COLOUR, UNCOVERED_COLOUR = "#1a9850", "#d73027"
+MAX_PICTURE_PIXELS = 2**26  # the image reader's default limit (docs/reliability.md)
 UNCOVERED_ROWS = 15  # the worst surfaces listed; the rest summed in a last line
 
 
@@ -40,10 +42,10 @@ def coverage_png(picture: NDArray[np.uint8], pose: Any, points_m: NDArray[np.flo
     projects world points into it: a :class:`rsi.sim.render.CameraPose`)."""
     from matplotlib.figure import Figure
 
-    xy, depth = pose.project(np.asarray(points_m, dtype=np.float64))
+    picture, points_m, covered = _map_inputs(picture, pose, points_m, covered)
+    xy, depth = pose.project(points_m)
     rows, cols = picture.shape[:2]
     inside = (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < cols) & (xy[:, 1] >= 0) & (xy[:, 1] < rows)
-    covered = np.asarray(covered, dtype=bool)
     if inside.any():
         (x0, y0), (x1, y1) = xy[inside].min(axis=0) - 30, xy[inside].max(axis=0) + 30
     else:
@@ -60,6 +62,33 @@ def coverage_png(picture: NDArray[np.uint8], pose: Any, points_m: NDArray[np.flo
     return figure_png(figure)
 
 
+def _map_inputs(
+    picture: object, pose: object, points_m: object, covered: object
+) -> tuple[NDArray[np.uint8], NDArray[np.float64], NDArray[np.bool_]]:
+    """coverage_png's arguments checked: an RGB or grey picture, a CameraPose, N points and N flags."""
+    if not (
+        isinstance(picture, np.ndarray)
+        and picture.dtype == np.uint8
+        and picture.ndim in (2, 3)
+        and min(picture.shape[:2]) >= 1
+        and picture.size <= MAX_PICTURE_PIXELS * 3
+    ):
+        raise InputError(
+            f"picture must be a uint8 image (rows, cols) or (rows, cols, 3) of at most {MAX_PICTURE_PIXELS} "
+            "pixels, as World.overview_picture gives."
+        )
+    v.record_named(pose, "pose", "CameraPose")
+    points = v.as_float_array(points_m, "points_m")
+    if points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
+        raise InputError(
+            f"points_m must be an (N, 3) array of finite world points; got shape {points.shape}."
+        )
+    flags = covered if isinstance(covered, np.ndarray) else None
+    if flags is None or flags.dtype != np.bool_ or flags.shape != (len(points),):
+        raise InputError(f"covered must be a bool array of shape ({len(points)},), one flag per point.")
+    return picture, points, flags
+
+
 def _reached(result: MissionResult, name: str) -> str:
     moves = [transit for transit in result.transits if transit.label == name]
     if not moves:
@@ -70,8 +99,12 @@ def _reached(result: MissionResult, name: str) -> str:
 def plan_rows(result: MissionResult) -> list[tuple[object, ...]]:
     """Per plan point: name, vista, door opening (deg), samples it covers, new area it adds (cm^2), how it
     was taken."""
+    v.record_named(result, "result", "MissionResult")
     measured = result.plan_coverage
-    assert measured is not None
+    if measured is None:
+        raise InputError(
+            "result has no plan coverage (plan_coverage is None): there are no plan rows to list."
+        )
     area = measured.samples.area_m2
     rows: list[tuple[object, ...]] = []
     for number, point in enumerate(result.plan):
@@ -84,6 +117,7 @@ def plan_rows(result: MissionResult) -> list[tuple[object, ...]]:
 
 def uncovered_rows(measured: Any) -> list[tuple[object, ...]]:
     """The worst uncovered surfaces: name, kind, uncovered cm^2, its area cm^2 (the rest in one line)."""
+    v.record_named(measured, "measured", "Coverage")
     listed = measured.uncovered()
     rows: list[tuple[object, ...]] = [
         (name, kind, f"{missing * 1e4:.2f}", f"{total * 1e4:.2f}")

@@ -142,8 +142,10 @@ class SteppedSurface:
         Wall(self.distance_m, self.half_width_m, self.half_height_m)
         previous_end = -np.inf
         cleaned = []
+        if not isinstance(self.steps, (tuple, list)):
+            raise InputError(f"steps must be a tuple of (start_m, end_m, height_m); got {self.steps!r}.")
         for index, step in enumerate(self.steps):
-            if len(step) != 3:
+            if not isinstance(step, (tuple, list)) or len(step) != 3:
                 raise InputError(f"steps[{index}] must be (start_m, end_m, height_m); got {step!r}.")
             start, end, height = (v.finite_number(x, f"steps[{index}]") for x in step)
             if not previous_end <= start < end:
