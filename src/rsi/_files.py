@@ -91,6 +91,8 @@ def read_regular_file(
     file = Path(path)
     try:
         descriptor = os.open(file, os.O_RDONLY | os.O_NONBLOCK)
+    except ValueError:  # a NUL in the name: no file has one
+        raise error(f"path {str(file)!r} holds a NUL character; pass a file path without one.") from None
     except OSError as failure:
         raise error(f"path {str(file)!r} cannot be read: {failure.strerror or failure}.") from failure
     try:

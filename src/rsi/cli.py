@@ -1061,7 +1061,7 @@ def console(
     """Operator console: watch, drive and review the inspection robot in a browser (docs/console.md)."""
     import warnings
 
-    from rsi.web import console_settings, serve
+    from rsi.web.server import check_archive, console_settings, serve
 
     with _errors():
         with warnings.catch_warnings(record=True) as caught:
@@ -1071,5 +1071,6 @@ def console(
             )
         for warning in caught:
             typer.echo(f"rsi: warning: {warning.message}", err=True)
+        check_archive(settings.archive)  # a damaged archive: exit 4 before the start URL is printed
         typer.echo(f"rsi console: open {settings.url}  (archive {settings.archive}; Ctrl-C stops)")
         serve(settings)

@@ -11,13 +11,14 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import inspect
+import random
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, is_typeddict
 
 import numpy as np
 import pytest
-from hostile_values import HOSTILE, call_keeps_the_rule
+from hostile_values import HOSTILE, call_keeps_the_rule, fast_value
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -73,6 +74,10 @@ SLOW = {"rsi.datasets.demo.simulate_demo", "rsi.mission.batch.run_batch"}
 # Result records that hold what rsi computed (built from checked values, never an entry point).
 RECORDS = {"rsi.imaging.registration.Registration", "rsi.imaging.camera.Frame"}
 EXAMPLES_PER_CALLABLE = 30
+"""Calls with HOSTILE's generated arrays (milliseconds each to draw)."""
+FAST_CASES = 1000
+"""More calls from HOSTILE_FAST's kinds of value (hostile_values.fast_value), PER_EXAMPLE to an example."""
+PER_EXAMPLE = 50
 TIME_LIMIT_S = 10.0
 
 _TEXTURE = np.random.default_rng(0).random((16, 16)) * 255.0
@@ -133,8 +138,8 @@ def _arguments(function: Callable[..., Any]) -> st.SearchStrategy[dict[str, Any]
     return st.fixed_dictionaries({parameter.name: _argument(parameter) for parameter in parameters})
 
 
-def test_the_suite_generates_at_least_a_thousand_api_cases() -> None:
-    assert len(SURFACE) * EXAMPLES_PER_CALLABLE + len(ARCHIVE_METHODS) * EXAMPLES_PER_CALLABLE >= 1000
+def test_the_suite_generates_at_least_a_thousand_cases_of_each_callable() -> None:
+    assert EXAMPLES_PER_CALLABLE + FAST_CASES >= 1000
     front_doors = {
         "rsi.imaging.registration.register",
         "rsi.detection.detect.detect",
@@ -154,6 +159,54 @@ def test_a_public_callable_lets_only_named_errors_escape(
 ) -> None:
     monkeypatch.chdir(tmp_path)  # whatever a call writes (an archive, an image) lands here
     _fuzz(SURFACE[qualified_name], qualified_name)
+    _fuzz_fast(SURFACE[qualified_name], qualified_name)
+
+
+_PLAUSIBLE_VALUES = (
+    0.01, 0.5, 1.0, 3.0, 10.0, 1, 2, 3, 9,
+    _TEXTURE, _TEXTURE.astype(np.float32), np.roll(_TEXTURE, 1, axis=1), np.ones(3), np.ones(6) * 0.1,
+    "single", "both", "lrt", "translation", "odd", "avoidance", "A_door", "impact",
+)  # fmt: skip
+"""_PLAUSIBLE's values, prebuilt for the fast calls."""
+
+
+def _fast_arguments(function: Callable[..., Any], draw: random.Random) -> dict[str, Any]:
+    """Each parameter hostile (two times in four), a plausible value, or its default, from `draw`."""
+    arguments = {}
+    for parameter in inspect.signature(function).parameters.values():
+        if parameter.kind in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD, parameter.POSITIONAL_ONLY):
+            continue
+        pick = draw.randrange(4)
+        if pick == 3 and parameter.default is not inspect.Parameter.empty:
+            arguments[parameter.name] = parameter.default
+        elif pick == 2:
+            arguments[parameter.name] = draw.choice(_PLAUSIBLE_VALUES)
+        else:
+            arguments[parameter.name] = fast_value(draw)
+    return arguments
+
+
+def _fuzz_fast(function: Any, label: str) -> None:
+    """FAST_CASES generated calls of `function` from prebuilt values, each keeping the rule."""
+
+    @settings(
+        max_examples=FAST_CASES // PER_EXAMPLE,
+        deadline=None,
+        database=None,
+        suppress_health_check=list(HealthCheck),
+    )
+    @given(st.randoms(use_true_random=True))  # a seeded random.Random: microseconds a value
+    def check(draw: random.Random) -> None:
+        for _ in range(PER_EXAMPLE):
+            arguments = _fast_arguments(function, draw)
+            problem = call_keeps_the_rule(function, arguments, limit_s=TIME_LIMIT_S)
+            assert not problem, f"{label}({_shown(arguments)}): {problem}"
+
+    check()
+
+
+def _shown(arguments: dict[str, Any]) -> str:
+    return ", ".join(f"{name}={value!r}"[:120] for name, value in arguments.items())
 
 
 def _fuzz(function: Any, label: str) -> None:
@@ -176,6 +229,7 @@ def _fuzz(function: Any, label: str) -> None:
 # --------------------------------------------------------------------------------------- the archive
 
 ARCHIVE_METHODS = (
+    "open",  # the front door (a classmethod): hostile paths, URLs, flags and timeouts
     "add_vista",
     "vista",
     "store_image",
@@ -211,3 +265,4 @@ def test_an_archive_method_lets_only_named_errors_escape(
 ) -> None:
     monkeypatch.chdir(tmp_path)
     _fuzz(getattr(archive, method), f"Archive.{method}")
+    _fuzz_fast(getattr(archive, method), f"Archive.{method}")

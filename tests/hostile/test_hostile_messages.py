@@ -139,7 +139,7 @@ def test_the_official_rule_checks_classes_and_flags() -> None:
         average_precision([0.9, 0.1], [True], 1)
     with pytest.raises(InputError, match="confidences contain NaN"):
         average_precision([math.nan], [True], 1)
-    with pytest.raises(InputError, match=r"boxes must be an integer >= 0; got -1"):
+    with pytest.raises(InputError, match=r"boxes must be an integer in \[0, 9007199254740992\]; got -1"):
         average_precision([0.9], [True], -1)
 
 
@@ -225,3 +225,116 @@ def test_mission_settings_refuse_an_integer_beyond_the_float_range() -> None:
         InputError, match="p_false_alarm must be a finite number; got an integer of 1329 bits"
     ):
         MissionSettings(p_false_alarm=10**400)
+
+
+# ------------------------------------------------------- found by the 1,000-case runs of test_hostile_api
+
+
+def test_a_deeppcb_root_must_be_a_path() -> None:
+    from rsi.datasets.deeppcb import load_split
+
+    with pytest.raises(InputError, match="root must be a folder path"):
+        load_split(None)  # type: ignore[arg-type]
+
+
+def test_a_defect_mask_must_be_a_number_array() -> None:
+    from rsi.datasets.evaluate import group_defects
+
+    with pytest.raises(InputError, match="mask must be a numpy bool or number array"):
+        group_defects(None)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="mask must be a numpy bool or number array"):
+        group_defects(np.array([["a"]]))
+
+
+def test_mission_settings_name_an_array_given_for_a_choice() -> None:
+    with pytest.raises(InputError, match="plan must be one of"):
+        MissionSettings(plan=np.zeros(3))  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="flaw_model must be 'single', 'uniform' or 'peak'"):
+        MissionSettings(flaw_model=np.zeros(3))  # type: ignore[arg-type]
+
+
+def test_the_distance_check_takes_a_bool_for_inf() -> None:
+    from rsi.sensors.proximity import as_distances_m
+
+    with pytest.raises(InputError, match="allow_inf must be True or False"):
+        as_distances_m([0.5], "distance_m", allow_inf=np.ones(2))  # type: ignore[arg-type]
+
+
+def test_a_deeppcb_root_too_long_for_the_file_system_is_named() -> None:
+    from rsi.datasets.deeppcb import load_split
+
+    with pytest.raises(DatasetError, match="cannot be read: File name too long"):
+        load_split("x" * 300)
+
+
+def test_a_file_name_with_a_nul_is_refused_by_the_readers() -> None:
+    from rsi.mission.batch_manifest import read_manifest
+
+    with pytest.raises(DatasetError, match="holds a NUL character"):
+        read_annotation("aaa\x00")
+    with pytest.raises(DatasetError, match="holds a NUL character"):
+        read_manifest("pairs\x00.csv")
+
+
+def test_a_ragged_flaw_footprint_is_named() -> None:
+    from rsi.detection.roc import footprint_size
+
+    with pytest.raises(InputError, match="weights must be a number or an array of numbers"):
+        footprint_size([[1.0, 2.0], [3.0]])  # type: ignore[arg-type]
+
+
+def test_counts_beyond_exact_floats_are_refused_by_the_rate_interval() -> None:
+    from rsi.mission.tally import poisson_rate_interval
+
+    with pytest.raises(InputError, match=r"events must be an integer in \[0, 9007199254740992\]"):
+        poisson_rate_interval(10**110, 1)
+
+
+def test_a_butterworth_order_is_bounded() -> None:
+    from rsi.sensors.proximity import MAX_ORDER, LowPassFilter
+
+    with pytest.raises(InputError, match=rf"order must be an integer in \[1, {MAX_ORDER}\]"):
+        LowPassFilter(3.0, 44.0, order=78699)
+
+
+def test_a_damping_whose_square_overflows_is_refused() -> None:
+    from rsi.control.redundancy import damped_least_squares, damped_pseudo_inverse
+
+    with pytest.raises(InputError, match=r"damping must be in \[0.0, 1e\+150\]"):
+        damped_pseudo_inverse(np.eye(3), damping=1e300)
+    with pytest.raises(InputError, match=r"damping must be in \[0.0, 1e\+150\]"):
+        damped_least_squares(np.eye(3), np.ones(3), damping=1e300)
+
+
+def test_an_archive_path_too_long_for_the_file_system_is_named(tmp_path: Path) -> None:
+    from rsi.archive import Archive, ArchiveFileError
+
+    with pytest.raises(ArchiveFileError, match="cannot be used: File name too long"):
+        Archive.open(tmp_path / ("x" * 300))
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_float64_prediction_gets_its_error_maps() -> None:
+    plane = np.random.default_rng(0).random((16, 16)) * 255.0
+    maps = systematic_errors(plane, None, (0.0, 0.0))
+    assert all(each.dtype == np.float32 and each.shape == (16, 16) for each in maps)
+    assert maps[2].any()  # the curvature of a textured plane
+
+
+def test_commands_of_different_samples_are_named() -> None:
+    from rsi.control.blending import blend_commands
+
+    with pytest.raises(InputError, match="must describe the same samples"):
+        blend_commands([], np.ones(3), np.full((3, 2), 0.5))
+
+
+def test_an_average_precision_over_more_boxes_than_floats_count_is_refused() -> None:
+    with pytest.raises(InputError, match=r"boxes must be an integer in \[0, 9007199254740992\]"):
+        average_precision([0.5], [True], 10**110)
+
+
+def test_an_archive_path_with_a_nul_is_named() -> None:
+    from rsi.archive import Archive
+
+    with pytest.raises(InputError, match="holds a NUL character"):
+        Archive.open("archive\x00.db")

@@ -30,6 +30,7 @@ Strategies = Mapping[str, st.SearchStrategy[Any]]
 # Every public callable of rsi.web, and how the suite calls it.
 WITH_VALID_DRAWS = (
     server.console_settings,
+    server.check_archive,
     teleop.clamp_operator,
     teleop.teleop_step,
     live.video_message,
@@ -111,6 +112,7 @@ def _valid_values(world: World, tmp_path: Path) -> dict[str, st.SearchStrategy[A
         "step": st.none(),
         "bodies": st.just([1, 2]),
         "archive_path": st.just(tmp_path / "jobs.db"),
+        "path": st.just(tmp_path / "checked.db"),
     }
 
 

@@ -32,3 +32,14 @@ def test_an_archive_that_is_a_folder_is_refused(tmp_path: Path) -> None:
     result = runner.invoke(app, ["console", "--archive", str(tmp_path)])
     assert result.exit_code == cli.EXIT_INVALID_VALUE
     assert "is a folder; give the archive's file" in " ".join(result.output.split())
+
+
+def test_a_damaged_archive_is_refused_before_the_server_starts_and_left_as_it_was(tmp_path: Path) -> None:
+    damaged = tmp_path / "archive.db"
+    damaged.write_bytes(b"not a database, only text\n" * 200)
+    before = damaged.read_bytes()
+    result = runner.invoke(app, ["console", "--archive", str(damaged)])
+    assert result.exit_code == cli.EXIT_FILE
+    assert "is not a readable rsi archive" in " ".join(result.output.split())
+    assert "open http" not in result.output  # refused before the start URL
+    assert damaged.read_bytes() == before

@@ -66,6 +66,22 @@ def _check_id(value: object, name: str) -> None:
         raise InputError(f"{name} must be an integer in [1, 2**63); got {value!r:.60}.")
 
 
+def _prepare_path(path: Path, *, create: bool) -> None:
+    """Refuse a folder or a path under a file; create the parent folder of a new archive (`create`)."""
+    if "\0" in str(path):
+        raise InputError(f"archive path {str(path)[:120]!r} holds a NUL character; no file name has one.")
+    if path.is_dir():
+        raise InputError(f"archive path {path} is a folder; pass a database file path inside it.")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise InputError(f"archive path {path}: {path.parent} is a file, not a folder.")
+    if not path.exists():
+        if not create:
+            raise ArchiveFileError(
+                f"there is no archive at {path}; check the path, or open it with create=True."
+            )
+        path.parent.mkdir(parents=True, exist_ok=True)
+
+
 def _read_only_url(path: Path) -> sa.URL:
     """SQLite's read-only URI for a file: no write of any kind, not even a journal-mode change."""
     return sa.URL.create("sqlite", database=f"file:{quote(path.as_posix())}?mode=ro", query={"uri": "true"})
@@ -206,16 +222,12 @@ class Archive:
         create = create and not read_only
         url, path = _location(url_or_path)
         if path is not None:
-            if path.is_dir():
-                raise InputError(f"archive path {path} is a folder; pass a database file path inside it.")
-            if path.parent.exists() and not path.parent.is_dir():
-                raise InputError(f"archive path {path}: {path.parent} is a file, not a folder.")
-            if not path.exists():
-                if not create:
-                    raise ArchiveFileError(
-                        f"there is no archive at {path}; check the path, or open it with create=True."
-                    )
-                path.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                _prepare_path(path, create=create)
+            except OSError as failure:  # a name too long for the file system, a folder we may not enter
+                raise ArchiveFileError(
+                    f"archive path {str(path)[:120]!r} cannot be used: {failure.strerror}."
+                ) from None
         if images_dir is None:
             if path is None:
                 raise InputError(

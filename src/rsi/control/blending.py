@@ -179,6 +179,13 @@ def blend_commands(
     joystick = _as_velocity(joystick_m_s, "joystick_m_s", limit_m_s=settings.joystick_speed_m_s)
     trajectory = _as_velocity(trajectory_m_s, "trajectory_m_s")
     proximity, nearest, no_valid = proximity_term(distances_m, settings, mode=mode)
+    try:
+        np.broadcast_shapes(joystick.shape, trajectory.shape, proximity.shape)
+    except ValueError:
+        raise InputError(
+            f"joystick_m_s, trajectory_m_s and distances_m must describe the same samples; got shapes "
+            f"{joystick.shape}, {trajectory.shape} and {proximity.shape} (distances_m without its last axis)."
+        ) from None
     return BlendedCommand(
         velocity_m_s=np.asarray(joystick + trajectory + proximity, dtype=np.float64),
         proximity_m_s=proximity,

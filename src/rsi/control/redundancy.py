@@ -41,6 +41,7 @@ from rsi import _validate as v
 from rsi.errors import InputError
 
 FloatArray = NDArray[np.float64]
+MAX_DAMPING = 1e150  # lambda^2 must stay a finite float (1e300 squared overflows)
 BoolArray = NDArray[np.bool_]
 
 # Central-difference step for the arm angle's gradient, m: the angle is smooth away from its singular sets,
@@ -148,7 +149,7 @@ class RedundancySettings:
 
     def __post_init__(self) -> None:
         v.in_range(self.singular_threshold, "singular_threshold", low=0.0, low_inclusive=False)
-        v.in_range(self.max_damping, "max_damping", low=0.0, low_inclusive=False)
+        v.in_range(self.max_damping, "max_damping", low=0.0, high=MAX_DAMPING, low_inclusive=False)
         v.in_range(self.additional_task_weight, "additional_task_weight", low=0.0, low_inclusive=False)
         v.in_range(self.limit_margin, "limit_margin", low=0.0, high=0.5, low_inclusive=False)
         v.in_range(self.limit_gain_per_s, "limit_gain_per_s", low=0.0)
@@ -211,10 +212,14 @@ def singularity_damping(min_singular_value: float, *, threshold: float, max_damp
     """
     sigma = v.in_range(min_singular_value, "min_singular_value", low=0.0)
     epsilon = v.in_range(threshold, "threshold", low=0.0, low_inclusive=False)
-    lam_max = v.in_range(max_damping, "max_damping", low=0.0)
+    lam_max = v.in_range(max_damping, "max_damping", low=0.0, high=MAX_DAMPING)
     if sigma >= epsilon:
         return 0.0
     return float(lam_max * np.sqrt(1.0 - (sigma / epsilon) ** 2))
+
+
+def _damping(damping: object) -> float:
+    return v.in_range(damping, "damping", low=0.0, high=MAX_DAMPING)
 
 
 def _dls_from_svd(
@@ -244,7 +249,7 @@ def damped_pseudo_inverse(jacobian: object, *, damping: float = 0.0) -> FloatArr
     ndarray of shape (n, m)
     """
     matrix = _matrix(jacobian, "jacobian")
-    lam = v.in_range(damping, "damping", low=0.0)
+    lam = _damping(damping)
     u, s, vt = np.linalg.svd(matrix, full_matrices=False)
     return _dls_from_svd(u, s, vt, np.eye(matrix.shape[0]), lam)
 
@@ -265,7 +270,7 @@ def damped_least_squares(jacobian: object, task_velocity: object, *, damping: fl
     """
     matrix = _matrix(jacobian, "jacobian")
     rhs = _vector(task_velocity, "task_velocity", matrix.shape[0])
-    lam = v.in_range(damping, "damping", low=0.0)
+    lam = _damping(damping)
     u, s, vt = np.linalg.svd(matrix, full_matrices=False)
     return _dls_from_svd(u, s, vt, rhs, lam)
 

@@ -71,8 +71,14 @@ class DeepPcbPair:
 
 
 def _pcb_folder(root: PathLike) -> Path:
+    if not isinstance(root, (str, os.PathLike)):
+        raise InputError(f"root must be a folder path (str or os.PathLike); got {type(root).__name__}.")
     folder = Path(root)
-    if not folder.is_dir():
+    try:
+        is_folder = folder.is_dir()
+    except OSError as failure:  # a name too long, a loop of links: no folder by that name
+        raise DatasetError(f"root={str(folder)[:80]!r}... cannot be read: {failure.strerror}.") from None
+    if not is_folder:
         raise DatasetError(
             f"root={str(folder)!r} is not a folder. Pass the DeepPCB folder that holds PCBData/ "
             "(a clone of https://github.com/tangsanli5201/DeepPCB)."

@@ -388,7 +388,11 @@ def group_defects(
         Centres are the centroids of each group's mask pixels; ``areas_px`` their counts.
     """
     # A bool mask is read as its bytes (0/1), without a full-frame copy.
-    is_bool = isinstance(mask, np.ndarray) and mask.dtype == np.bool_
+    if not isinstance(mask, np.ndarray) or mask.dtype.kind not in "biuf":
+        raise InputError(
+            f"mask must be a numpy bool or number array (rows, cols); got {type(mask).__name__}."
+        )
+    is_bool = mask.dtype == np.bool_
     pixels = mask.view(np.uint8) if is_bool else np.asarray(mask, dtype=np.uint8)
     if pixels.ndim != 2:
         raise InputError(f"mask must be 2-D (rows, cols); got shape {pixels.shape}. Pass one image's mask.")

@@ -78,7 +78,7 @@ def average_precision(confidences: object, correct: object, boxes: int) -> float
         )
     if np.isnan(scores).any():
         raise InputError("confidences contain NaN; pass a number per detection (inf ranks first or last).")
-    count = positive_int(boxes, "boxes", minimum=0)
+    count = positive_int(boxes, "boxes", minimum=0, maximum=2**53)  # an exact float: the AP divides by it
     paired = flags.astype(bool)[np.argsort(-scores, kind="stable")]
     if count == 0 or paired.size == 0:
         return 0.0

@@ -241,7 +241,8 @@ def systematic_errors(
     sum sees them coherently: the detector adds ``(sum_k w_k e_k / v_k)^2`` to its variance, not
     ``sum_k w_k^2 e_k^2 / v_k^2``.
     """
-    plane = _plane(predicted, "predicted")
+    # OpenCV's Sobel has no float64-to-float32 path: a float64 prediction is taken as float32 (the detector's)
+    plane = np.asarray(_plane(predicted, "predicted"), dtype=np.float32)
     sx, sy = _pair(shift_std_px, "shift_std_px", high=math.inf, unknown=True)
     fractions = None if fraction_xy is None else _pair(fraction_xy, "fraction_xy", high=1.0)
     cx, cy = (1.0 / 6.0, 1.0 / 6.0) if fractions is None else (f * (1.0 - f) for f in fractions)

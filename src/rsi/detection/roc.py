@@ -90,7 +90,7 @@ _THRESHOLDS = {"lrt": _lrt_thresholds, "erosion": _erosion_thresholds}
 
 def footprint_size(weights: FloatArray) -> int:
     """Number of pixels in a flaw model's footprint (its non-zero weights), ``n`` of the erosion test."""
-    return int(np.count_nonzero(weights))
+    return int(np.count_nonzero(v.as_float_array(weights, "weights")))
 
 
 def thresholds(p_false_alarm: FloatArray, *, polarity: str, method: str, weights: FloatArray) -> FloatArray:

@@ -160,7 +160,7 @@ class MissionSettings:
             if item.name == "flaw_model":
                 _check_flaw_model(value)
             elif item.name == "plan":
-                if value not in PLANS:
+                if not isinstance(value, str) or value not in PLANS:
                     raise InputError(f"plan must be one of {PLANS}; got {value!r}. The default is 'auto'.")
             elif isinstance(item.default, int) and (isinstance(value, bool) or not isinstance(value, int)):
                 raise InputError(
@@ -193,5 +193,5 @@ def _shown(value: object) -> str:
 
 
 def _check_flaw_model(value: object) -> None:
-    if value not in ("single", "uniform", "peak"):
+    if not isinstance(value, str) or value not in ("single", "uniform", "peak"):
         raise InputError(f"flaw_model must be 'single', 'uniform' or 'peak'; got {value!r}.")

@@ -97,8 +97,9 @@ def poisson_rate_interval(events: int, runs: int, confidence: float = CONFIDENCE
     InputError
         If `events` or `runs` is not an integer >= 0, or `confidence` is not in (0, 1).
     """
-    count = v.positive_int(events, "events", minimum=0)
-    total = v.positive_int(runs, "runs", minimum=0)
+    # counts beyond 2**53 have no exact float, and no batch of runs comes near
+    count = v.positive_int(events, "events", minimum=0, maximum=2**53)
+    total = v.positive_int(runs, "runs", minimum=0, maximum=2**53)
     z = _z(confidence)
     if total == 0:
         return (0.0, math.inf)

@@ -37,6 +37,7 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 _MAX_ADC_BITS = 24
+MAX_ORDER = 32  # a Butterworth of order 4 is the seed's; designing one of order 80,000 took minutes
 
 
 def as_distances_m(distance_m: object, name: str, *, allow_inf: bool = False) -> FloatArray:
@@ -51,6 +52,8 @@ def as_distances_m(distance_m: object, name: str, *, allow_inf: bool = False) ->
     allow_inf : bool
         Accept ``+inf`` (a sensor's "no return"); NaN is never accepted.
     """
+    if not isinstance(allow_inf, bool):
+        raise InputError(f"allow_inf must be True or False; got {allow_inf!r}.")
     values = v.as_float_array(distance_m, name)
     if np.isnan(values).any() or (not allow_inf and np.isinf(values).any()):
         kind = "NaN or inf" if not allow_inf else "NaN"
@@ -208,7 +211,9 @@ class LowPassFilter:
         cutoff = v.in_range(
             cutoff_hz, "cutoff_hz", low=0.0, high=rate / 2.0, low_inclusive=False, high_inclusive=False
         )
-        self._sos = signal.butter(v.positive_int(order, "order"), cutoff, fs=rate, output="sos")
+        self._sos = signal.butter(
+            v.positive_int(order, "order", maximum=MAX_ORDER), cutoff, fs=rate, output="sos"
+        )
         self._sample_rate_hz = rate
         self._state: FloatArray | None = None
 

@@ -149,10 +149,23 @@ def uvicorn_options() -> dict[str, Any]:
     return {"log_level": "warning", "ws": websocket_protocol(), "ws_per_message_deflate": False}
 
 
+def check_archive(path: Path) -> None:
+    """Open the console's archive once, as its missions and reviews will: a damaged one is refused here,
+    before the server starts, and left as it was (the archive's whole check precedes any write)."""
+    from rsi.archive import Archive
+
+    with Archive.open(path):
+        pass
+
+
 def serve(settings: ConsoleSettings) -> None:
-    """Run the console until interrupted (Ctrl-C)."""
+    """Run the console until interrupted (Ctrl-C).
+
+    Raises ArchiveFileError, before anything starts, for an archive that is damaged or not an rsi archive.
+    """
     if not isinstance(settings, ConsoleSettings):
         raise InputError(f"settings must come from console_settings(...); got {type(settings).__name__}.")
+    check_archive(settings.archive)
     import uvicorn
 
     from rsi.web.app import create_app
@@ -169,6 +182,7 @@ __all__ = [
     "LOOPBACK",
     "ConsoleSettings",
     "ExposedConsoleWarning",
+    "check_archive",
     "console_settings",
     "serve",
     "uvicorn_options",
