@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from rsi.sim.anomalies import AnomalySettings
 
 EXIT_OK = 0
+MAX_SEED = 2**63 - 1  # the archive stores seeds as SQL integers (rsi.archive, run_mission): one rule for all
 EXIT_USAGE = 2
 EXIT_INVALID_VALUE = 3
 EXIT_FILE = 4
@@ -166,15 +167,25 @@ def _orbit_start_s(sun_offset_s: float) -> tuple[float, float]:
     return (ORBIT_START_S[0], ORBIT_START_S[1] + float(sun_offset_s))
 
 
+ANOMALIES_JSON_MAX_BYTES = 2**20  # AnomalySettings' fields take a few hundred bytes
+
+
 def _anomaly_settings(draw: AnomalyDraw, json_path: Path | None) -> AnomalySettings:
     """The draw named on the command line, with the fields of `json_path` (if any) overriding it."""
+    from rsi._files import read_regular_file
     from rsi.sim.anomalies import AnomalySettings
 
     fields: dict[str, Any] = {}
     if json_path is not None:
+        # a regular file of a few KiB: a FIFO or /dev/zero named .json is refused, never read without end
         try:
-            fields = json.loads(json_path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+            data = read_regular_file(
+                json_path, max_bytes=ANOMALIES_JSON_MAX_BYTES, too_big="not AnomalySettings"
+            )
+            fields = json.loads(data.decode("utf-8"))
+        except FileError as error:
+            raise FileError(f"--anomalies-json: {error}") from None
+        except (UnicodeDecodeError, json.JSONDecodeError) as error:
             raise FileError(
                 f"--anomalies-json {str(json_path)!r} is not a readable JSON file ({error}). "
                 "Pass a file holding a JSON object of AnomalySettings fields."
@@ -310,7 +321,10 @@ def _flaw_table(flaws: Sequence[Flaw], *, is_true: Sequence[bool] | None = None,
 def demo(
     *,
     seed: Annotated[
-        int, typer.Option(min=0, help="Seed of the world: anomalies, viewpoint errors, sensor noise.")
+        int,
+        typer.Option(
+            min=0, max=MAX_SEED, help="Seed of the world: anomalies, viewpoint errors, sensor noise."
+        ),
     ] = 0,
     out: Annotated[
         Path, typer.Option("--out", help="Results folder (created if missing; earlier runs are kept).")
@@ -455,7 +469,9 @@ def _score_table(score: MissionScore) -> Any:
 @app.command("demo-pair", epilog=_EPILOG)
 def demo_pair(
     *,
-    seed: Annotated[int, typer.Option(min=0, help="Seed of the scene, flaw positions and sensor noise.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of the scene, flaw positions and sensor noise.")
+    ] = 0,
     out: Annotated[
         Path, typer.Option("--out", help="Results folder (created if missing).")
     ] = DEFAULT_PAIR_OUT,
@@ -712,7 +728,9 @@ def _check_layout(layout: str) -> None:
 @sim_app.command("render", epilog=_EPILOG)
 def sim_render(
     *,
-    seed: Annotated[int, typer.Option(min=0, help="Seed of the world: anomalies, pose errors, noise.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of the world: anomalies, pose errors, noise.")
+    ] = 0,
     vista: Annotated[str, typer.Option(help="Vista point: index or name (see the table printed).")] = "0",
     out: Annotated[Path, typer.Option("--out", help="Folder for frames, depth and truth.")] = Path("rsi-sim"),
     rows: Annotated[int, typer.Option(min=16, max=2048, help="Frame rows (the renderer's buffer).")] = 480,
@@ -828,7 +846,9 @@ app.add_typer(isee_app, name="isee")
 @isee_app.command("proximity-demo", epilog=_EPILOG)
 def isee_proximity_demo(
     *,
-    seed: Annotated[int, typer.Option(help="Seed of every noise source (sensors, lamp supply); >= 0.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of every noise source (sensors, lamp supply).")
+    ] = 0,
     out: Annotated[
         Path, typer.Option("--out", help="Folder for the plots, figures.json and scenarios.json.")
     ] = Path("rsi-proximity"),
@@ -1052,7 +1072,9 @@ def console(
     archive: Annotated[
         Path | None, typer.Option(help="SQLite archive missions write to (default: a new one in a temp dir).")
     ] = None,
-    seed: Annotated[int, typer.Option(help="Seed of the live world's anomalies and noise.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of the live world's anomalies and noise.")
+    ] = 0,
     layout: Annotated[str, typer.Option(help="The mock-up.")] = "truss",
     token: Annotated[
         str | None, typer.Option(help="Access token (default: a random one, printed in the start URL).")

@@ -20,6 +20,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import typer
+import typer.main
+import typer.testing
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
@@ -138,6 +141,16 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> Files:
 
 
 runner = CliRunner()
+COMMAND = typer.main.get_command(app)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _command_built_once() -> Iterator[None]:
+    """typer's CliRunner rebuilds the whole command tree at every invoke (15-25 ms, most of a refused
+    case's cost): here it is built once and reused, so every command can take 1,000 cases."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(typer.testing, "_get_command", lambda _app: COMMAND)
+        yield
 
 
 def _invoke(files: Files, arguments: Sequence[str]) -> int:
@@ -343,6 +356,185 @@ def test_console(files: Files) -> None:
         chosen = {**dict(zip(options[::2], options[1::2], strict=True)), refused[0]: refused[1]}
         code = _invoke(files, ["console", *[word for item in chosen.items() for word in item]])
         assert code != EXIT_OK, f"rsi console started with {refused[0]} {refused[1]!r}"
+
+    run()
+
+
+# ------------------------------------------------------------------------- 1,000 cases of every command
+
+PER_COMMAND = 1000
+BAD_SEEDS = st.sampled_from(["-1", "abc", "1.5", "", "99999999999999999999999"])
+BAD_OUTS = st.sampled_from(["file", "file/below"])
+CHOICES = st.sampled_from(["", "x", "x" * 300, "nan"])
+
+
+def _any_values(files: Files) -> dict[str, st.SearchStrategy[str]]:
+    """A hostile-or-good value for every option any command takes."""
+    archives = st.sampled_from([*files.archives, "postgresql://user:secret@127.0.0.1:1/rsi"])
+    return {
+        **DETECTOR,
+        "--seed": st.one_of(BAD_SEEDS, st.just("3")),
+        "--out": OUTS,
+        "--anomalies": st.sampled_from(["wide", "seed-mockup", *["", "x"]]),
+        "--anomalies-json": st.sampled_from(["file", "missing.json", "pairs.csv", "zero.png", "fifo.png"]),
+        "--sun-offset-s": NUMBERS,
+        "--layout": st.sampled_from(["truss", "truss-b", "station", ""]),
+        "--noise-sigma": NUMBERS,
+        "--misregistration-std-px": NUMBERS,
+        "--strength": NUMBERS,
+        "--archive": archives,
+        "--images-dir": st.sampled_from(["images", "file", "folder"]),
+        "--workers": NUMBERS,
+        "--split": st.sampled_from(["trainval", "test", "x"]),
+        "--vista": st.sampled_from(["0", "99", "-1", "A_door", "", "x" * 300]),
+        "--rows": NUMBERS,
+        "--cols": NUMBERS,
+        "--repeatability": st.sampled_from(["lab", "space", "x"]),
+        "--host": st.sampled_from(["127.0.0.1", "localhost", ""]),
+        "--port": st.sampled_from(["0", "-1", "abc"]),
+        "--token": st.sampled_from(["a" * 24, "", "short"]),
+        "--altitude-km": NUMBERS,
+        "--beta-deg": NUMBERS,
+        "--orbits": NUMBERS,
+        "--step-s": NUMBERS,
+    }
+
+
+DETECTOR_OPTIONS = ("--flaw-model", "--size", "--p-false-alarm", "--polarity", "--model", "--method")
+Row = tuple[list[str], tuple[str, ...], tuple[str, ...], dict[str, st.SearchStrategy[str]]]
+COMMANDS: dict[str, Row] = {
+    "demo": (
+        ["demo"],
+        (),
+        ("--seed", "--out", "--anomalies", "--anomalies-json", "--sun-offset-s", "--layout"),
+        {"--seed": BAD_SEEDS, "--out": BAD_OUTS, "--layout": st.just("station")},
+    ),
+    "demo-pair": (["demo-pair"], (), ("--seed", "--out"), {"--seed": BAD_SEEDS, "--out": BAD_OUTS}),
+    "isee proximity-demo": (
+        ["isee", "proximity-demo"],
+        (),
+        ("--seed", "--out", "--json"),
+        {"--seed": BAD_SEEDS, "--out": BAD_OUTS},
+    ),
+    "sim render": (
+        ["sim", "render"],
+        (),
+        ("--seed", "--vista", "--out", "--rows", "--cols", "--repeatability", "--anomalies", "--layout"),
+        {
+            "--rows": st.sampled_from(["15", "2049", "abc"]),
+            "--cols": st.sampled_from(["15", "abc"]),
+            "--seed": BAD_SEEDS,
+            "--out": BAD_OUTS,
+        },
+    ),
+    "sim sun": (
+        ["sim", "sun"],
+        (),
+        ("--altitude-km", "--beta-deg", "--orbits", "--step-s", "--vista", "--out", "--layout"),
+        {
+            "--orbits": st.sampled_from(["0", "21", "nan", "abc"]),
+            "--step-s": st.sampled_from(["0.05", "601", "nan"]),
+            "--altitude-km": st.sampled_from(["-1", "nan", "abc"]),
+        },
+    ),
+    "eval deeppcb": (["eval", "deeppcb"], ("root",), ("--split", "--json"), {}),
+    "roc": (
+        ["roc"],
+        (),
+        ("--strength", "--out", "--flaw-model", "--size"),
+        {
+            "--strength": st.sampled_from(["nan", "abc", "-1", "inf"]),
+            "--size": st.sampled_from(["0", "2", "256", "abc"]),
+            "--out": BAD_OUTS,
+        },
+    ),
+    "inspect": (
+        ["inspect"],
+        ("image", "image"),
+        ("--out", *DETECTOR_OPTIONS, "--noise-sigma", "--misregistration-std-px", "--json"),
+        {},
+    ),
+    "register": (["register"], ("image", "image"), ("--model", "--json"), {}),
+    "batch": (
+        ["batch", "--scheduler", "tcp://127.0.0.1:1"],
+        ("manifest",),
+        ("--out", "--archive", "--images-dir", "--workers", *DETECTOR_OPTIONS, "--json"),
+        {},
+    ),
+    "archive list": (["archive", "list"], (), ("--archive", "--images-dir"), {}),
+    "archive show": (["archive", "show"], ("run",), ("--archive", "--images-dir"), {}),
+    "archive export": (["archive", "export"], ("run",), ("--out", "--archive", "--images-dir"), {}),
+    "console": (
+        ["console"],
+        (),
+        ("--host", "--port", "--archive", "--seed", "--layout", "--token"),
+        {
+            "--port": st.sampled_from(["-1", "65536", "abc"]),
+            "--seed": BAD_SEEDS,
+            "--layout": st.sampled_from(["station", ""]),
+            "--token": st.sampled_from(["", "short"]),
+        },
+    ),
+}
+"""Each command: its words, its positional arguments, its options, and the options one of which is always
+given a value it must refuse before any long work (a valid demo, render, sun path, ROC figure, DeepPCB
+evaluation or console runs for seconds or until interrupted). Commands whose valid runs take milliseconds
+(inspect, register, the archive's) or stop at the refused scheduler (batch) draw every option freely."""
+FLAGS = {"--json"}
+
+
+def _positional(files: Files, kind: str) -> st.SearchStrategy[str]:
+    return {
+        "image": st.sampled_from(files.images),
+        "manifest": st.sampled_from(files.manifests),
+        "root": st.sampled_from(["missing", "file", "folder", "fifo.png", "zero.png"]),
+        "run": st.sampled_from(["1", "0", "-1", "2", "9223372036854775808", "abc"]),
+    }[kind]
+
+
+def _command_line(files: Files, command: str) -> st.SearchStrategy[list[str]]:
+    words, positional, names, refusals = COMMANDS[command]
+    values = _any_values(files)
+    options = {name: values[name] for name in names if name not in FLAGS}
+    flags = st.lists(st.sampled_from(sorted(FLAGS & set(names)) or ["--help"]), unique=True, max_size=1)
+    forced = (
+        st.sampled_from(sorted(refusals)).flatmap(lambda name: st.tuples(st.just(name), refusals[name]))
+        if refusals
+        else st.none()
+    )
+
+    def line(drawn: tuple[list[str], list[str], list[str], tuple[str, str] | None]) -> list[str]:
+        arguments, chosen, flag, refused = drawn
+        pairs = dict(zip(chosen[::2], chosen[1::2], strict=True))
+        if refused is not None:
+            pairs[refused[0]] = refused[1]
+        flag = [word for word in flag if word != "--help" or refusals]  # --help only where nothing runs
+        return [*words, *arguments, *[word for item in pairs.items() for word in item], *flag]
+
+    arguments = st.tuples(*(_positional(files, kind) for kind in positional)).map(list)
+    return st.tuples(arguments, _options(options), flags, forced).map(line)
+
+
+def test_every_command_is_in_the_table() -> None:
+    listed = {" ".join(words[:2]) if words[0] in ("isee", "sim", "eval", "archive") else words[0]
+              for words, *_ in COMMANDS.values()}  # fmt: skip
+    groups = {name: getattr(COMMAND, "commands", {}).get(name) for name in getattr(COMMAND, "commands", {})}
+    leaves = set()
+    for name, group in groups.items():
+        inner = getattr(group, "commands", None)
+        leaves |= {f"{name} {sub}" for sub in inner} if inner else {name}
+    assert listed == leaves
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_a_command_keeps_its_promises_over_a_thousand_cases(files: Files, command: str) -> None:
+    refusals = COMMANDS[command][3]
+
+    @_cli_settings(PER_COMMAND)
+    @given(_command_line(files, command))
+    def run(words: list[str]) -> None:
+        code = _invoke(files, words)
+        assert not (refusals and code == EXIT_OK and "--help" not in words), f"rsi {words} ran"
 
     run()
 

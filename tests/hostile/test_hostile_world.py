@@ -46,6 +46,8 @@ from rsi.sim.solar_simulator import LampMount, RateLimits
 from rsi.sim.world import World
 
 CASES = 1000
+PER_EXAMPLE = 10
+"""Calls drawn in one hypothesis example: hypothesis costs about 1 ms an example however cheap the call."""
 TIME_LIMIT_S = 20.0
 REFUSED_FAST_S = 0.5
 """Most a refused load or run_mission may take: a world takes ~1.5 s to build and a mission minutes."""
@@ -126,23 +128,31 @@ def _arguments(function: Callable[..., Any], valid: Strategies, *, rare: int) ->
 def _fuzz(function: Callable[..., Any], label: str, valid: Strategies, *, rare: int = 1) -> None:
     """CASES calls of `function`, each keeping the rule; a refused one must have rendered nothing."""
 
-    @_settings(CASES)
-    @given(_arguments(function, valid, rare=rare))
-    def check(arguments: dict[str, Any]) -> None:
-        returned = []
-
-        @functools.wraps(function)
-        def tracked(**kwargs: Any) -> None:
-            function(**kwargs)
-            returned.append(True)
-
-        before = Renders.count
-        problem = call_keeps_the_rule(tracked, arguments, limit_s=TIME_LIMIT_S)
-        if not problem and not returned and Renders.count > before:
-            problem = f"refused after rendering {Renders.count - before} frame(s): check first"
-        assert not problem, f"{label}({', '.join(arguments)}): {problem}"
+    @_settings(CASES // PER_EXAMPLE)
+    @given(st.lists(_arguments(function, valid, rare=rare), min_size=PER_EXAMPLE, max_size=PER_EXAMPLE))
+    def check(calls: list[dict[str, Any]]) -> None:
+        for arguments in calls:
+            before = Renders.count
+            problem, returned, _ = _called(function, arguments)
+            if not problem and not returned and Renders.count > before:
+                problem = f"refused after rendering {Renders.count - before} frame(s): check first"
+            assert not problem, f"{label}({', '.join(arguments)}): {problem}"
 
     check()
+
+
+def _called(function: Callable[..., Any], arguments: dict[str, Any]) -> tuple[str, bool, float]:
+    """(what broke the rule or "", whether the call returned, its seconds)."""
+    returned: list[bool] = []
+
+    @functools.wraps(function)
+    def tracked(**kwargs: Any) -> None:
+        function(**kwargs)
+        returned.append(True)
+
+    start = time.perf_counter()
+    problem = call_keeps_the_rule(tracked, arguments, limit_s=TIME_LIMIT_S)
+    return problem, bool(returned), time.perf_counter() - start
 
 
 # ------------------------------------------------------------------------------------------ the world
@@ -508,22 +518,14 @@ def _refused_arguments(function: Callable[..., Any]) -> st.SearchStrategy[dict[s
 # rsi.sim.world.load: rsi.sim.load passes its keywords through (``**kwargs``), so its signature names none
 @pytest.mark.parametrize("function", [world_module.load, run_mission], ids=["load", "run_mission"])
 def test_load_and_run_mission_refuse_bad_arguments_before_any_work(function: Callable[..., Any]) -> None:
-    @_settings(CASES)
-    @given(_refused_arguments(function))
-    def check(arguments: dict[str, Any]) -> None:
-        returned = []
-
-        @functools.wraps(function)
-        def tracked(**kwargs: Any) -> None:
-            function(**kwargs)
-            returned.append(True)
-
-        start = time.perf_counter()
-        problem = call_keeps_the_rule(tracked, arguments, limit_s=TIME_LIMIT_S)
-        took = time.perf_counter() - start
-        assert not problem, f"{function.__name__}: {problem}"
-        assert not returned, f"{function.__name__}({arguments!r}) accepted a bad argument"
-        assert took < REFUSED_FAST_S, f"{function.__name__} took {took:.2f} s to refuse {arguments!r}"
+    @_settings(CASES // PER_EXAMPLE)
+    @given(st.lists(_refused_arguments(function), min_size=PER_EXAMPLE, max_size=PER_EXAMPLE))
+    def check(calls: list[dict[str, Any]]) -> None:
+        for arguments in calls:
+            problem, returned, took = _called(function, arguments)
+            assert not problem, f"{function.__name__}: {problem}"
+            assert not returned, f"{function.__name__}({arguments!r}) accepted a bad argument"
+            assert took < REFUSED_FAST_S, f"{function.__name__} took {took:.2f} s to refuse {arguments!r}"
 
     check()
 

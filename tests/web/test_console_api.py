@@ -367,7 +367,7 @@ def test_console_settings_name_the_bad_argument(tmp_path: Path) -> None:
         console_settings(host="localhost")
     with pytest.raises(InputError, match=r"port must be an integer in \[0, 65535\]; got 70000"):
         console_settings(port=70000)
-    with pytest.raises(InputError, match=r"seed must be an integer >= 0; got -1"):
+    with pytest.raises(InputError, match=r"seed must be an integer in \[0, 2\*\*63\); got -1"):
         console_settings(seed=-1)
     with pytest.raises(InputError, match=r"layout"):
         console_settings(layout="station")

@@ -43,3 +43,9 @@ def test_a_damaged_archive_is_refused_before_the_server_starts_and_left_as_it_wa
     assert "is not a readable rsi archive" in " ".join(result.output.split())
     assert "open http" not in result.output  # refused before the start URL
     assert damaged.read_bytes() == before
+
+
+def test_a_seed_beyond_the_archive_integer_is_refused_by_the_option() -> None:
+    result = runner.invoke(app, ["console", "--seed", str(2**63)])
+    assert result.exit_code == cli.EXIT_USAGE
+    assert "9223372036854775807" in " ".join(result.output.split())

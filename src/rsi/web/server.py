@@ -76,8 +76,8 @@ def console_settings(
         raise InputError(f"host must be an IP address such as 127.0.0.1; got {host!r}.") from error
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise InputError(f"port must be an integer in [0, 65535]; got {port!r}.")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(f"seed must be an integer >= 0; got {seed!r}.")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:  # the archive's integer
+        raise InputError(f"seed must be an integer in [0, 2**63); got {seed!r:.60}.")
     v.choice(layout, "layout", SCENES)
     if token is None:
         token = secrets.token_urlsafe(24)
