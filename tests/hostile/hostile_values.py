@@ -7,11 +7,13 @@ ZeroDivisionError, a numpy or OpenCV error, a MemoryError, a hang) is a defect.
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import random
 import re
 import signal
+import time
 import warnings
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -123,6 +125,22 @@ def call_keeps_the_rule(function: Callable[..., Any], arguments: Mapping[str, An
     except Exception as error:
         return f"{type(error).__name__}: {error}"[:400]
     return ""
+
+
+def call_tracked(
+    function: Callable[..., Any], arguments: Mapping[str, Any], *, limit_s: float
+) -> tuple[str, bool, float]:
+    """:func:`call_keeps_the_rule`, and whether the call returned (it was not refused) and its seconds."""
+    returned: list[bool] = []
+
+    @functools.wraps(function)
+    def tracked(**kwargs: Any) -> None:
+        function(**kwargs)
+        returned.append(True)
+
+    start = time.perf_counter()
+    problem = call_keeps_the_rule(tracked, arguments, limit_s=limit_s)
+    return problem, bool(returned), time.perf_counter() - start
 
 
 # The 1,000-case suites (test_hostile_world.py) draw from prebuilt values of the same kinds as HOSTILE: its

@@ -17,19 +17,17 @@ suites, or its module declares no public API (an empty ``__all__``: the mission'
 from __future__ import annotations
 
 import dataclasses
-import functools
 import importlib
 import inspect
 import math
 import pkgutil
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, is_typeddict
 
 import numpy as np
 import pytest
-from hostile_values import HOSTILE_FAST, call_keeps_the_rule
+from hostile_values import HOSTILE_FAST, call_tracked
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -223,20 +221,6 @@ def _refused_arguments(
     )
 
 
-def _called(function: Callable[..., Any], arguments: dict[str, Any]) -> tuple[str, bool, float]:
-    """(what broke the rule or "", whether the call returned, its seconds)."""
-    returned: list[bool] = []
-
-    @functools.wraps(function)
-    def tracked(**kwargs: Any) -> None:
-        function(**kwargs)
-        returned.append(True)
-
-    began = time.perf_counter()
-    problem = call_keeps_the_rule(tracked, arguments, limit_s=TIME_LIMIT_S)
-    return problem, bool(returned), time.perf_counter() - began
-
-
 @pytest.mark.filterwarnings("ignore::hypothesis.errors.HypothesisWarning")
 @pytest.mark.parametrize("qualified_name", sorted(SURFACE))
 def test_a_mission_function_lets_only_named_errors_escape(
@@ -260,7 +244,7 @@ def test_a_mission_function_lets_only_named_errors_escape(
     @given(st.lists(draw, min_size=PER_EXAMPLE, max_size=PER_EXAMPLE))
     def check(calls: list[dict[str, Any]]) -> None:
         for arguments in calls:
-            problem, returned, took = _called(function, arguments)
+            problem, returned, took = call_tracked(function, arguments, limit_s=TIME_LIMIT_S)
             assert not problem, f"{qualified_name}({', '.join(arguments)}): {problem}"
             if refused_only:
                 assert not returned, f"{qualified_name} accepted {arguments!r}"

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import functools
 import inspect
-import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -20,7 +19,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hostile_values import HOSTILE_FAST, call_keeps_the_rule
+from hostile_values import HOSTILE_FAST, call_keeps_the_rule, call_tracked
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -133,26 +132,12 @@ def _fuzz(function: Callable[..., Any], label: str, valid: Strategies, *, rare: 
     def check(calls: list[dict[str, Any]]) -> None:
         for arguments in calls:
             before = Renders.count
-            problem, returned, _ = _called(function, arguments)
+            problem, returned, _ = call_tracked(function, arguments, limit_s=TIME_LIMIT_S)
             if not problem and not returned and Renders.count > before:
                 problem = f"refused after rendering {Renders.count - before} frame(s): check first"
             assert not problem, f"{label}({', '.join(arguments)}): {problem}"
 
     check()
-
-
-def _called(function: Callable[..., Any], arguments: dict[str, Any]) -> tuple[str, bool, float]:
-    """(what broke the rule or "", whether the call returned, its seconds)."""
-    returned: list[bool] = []
-
-    @functools.wraps(function)
-    def tracked(**kwargs: Any) -> None:
-        function(**kwargs)
-        returned.append(True)
-
-    start = time.perf_counter()
-    problem = call_keeps_the_rule(tracked, arguments, limit_s=TIME_LIMIT_S)
-    return problem, bool(returned), time.perf_counter() - start
 
 
 # ------------------------------------------------------------------------------------------ the world
@@ -522,7 +507,7 @@ def test_load_and_run_mission_refuse_bad_arguments_before_any_work(function: Cal
     @given(st.lists(_refused_arguments(function), min_size=PER_EXAMPLE, max_size=PER_EXAMPLE))
     def check(calls: list[dict[str, Any]]) -> None:
         for arguments in calls:
-            problem, returned, took = _called(function, arguments)
+            problem, returned, took = call_tracked(function, arguments, limit_s=TIME_LIMIT_S)
             assert not problem, f"{function.__name__}: {problem}"
             assert not returned, f"{function.__name__}({arguments!r}) accepted a bad argument"
             assert took < REFUSED_FAST_S, f"{function.__name__} took {took:.2f} s to refuse {arguments!r}"
