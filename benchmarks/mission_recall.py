@@ -19,7 +19,8 @@ a file of other settings is refused). ``--compare`` runs active and passive insp
 issue 5 comparison).
 
 Run: ``MUJOCO_GL=egl .venv/bin/python benchmarks/mission_recall.py --first-seed 0 --seeds 20
-[--sun-offset-s 0] [--repeatability lab] [--no-active | --compare] [--size 480 640] [--json PATH]``
+[--sun-offset-s 0] [--repeatability lab] [--layout truss] [--plan auto] [--no-active | --compare]
+[--size 480 640] [--json PATH]``
 """
 
 from __future__ import annotations
@@ -36,8 +37,10 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from rsi.mission import ORBIT_START_S, Tally, run_mission, score_mission, tally_run
+from rsi.mission import ORBIT_START_S, MissionSettings, Tally, run_mission, score_mission, tally_run
+from rsi.mission.settings import PLANS
 from rsi.mission.tally import Rate, Recall
+from rsi.sim import LAYOUTS
 
 DEVELOPMENT_SEEDS = range(100)
 _FORMAT = "rsi-bench-mission-recall/1"
@@ -49,6 +52,10 @@ def _arguments() -> argparse.Namespace:
     parser.add_argument("--seeds", type=int, default=20, help="number of seeds from --first-seed")
     parser.add_argument("--sun-offset-s", type=float, default=0.0, help="inspection pass later by S s")
     parser.add_argument("--repeatability", default="lab", choices=("lab", "space"))
+    parser.add_argument("--layout", default="truss", choices=LAYOUTS, help="the mock-up (docs/simulator.md)")
+    parser.add_argument(
+        "--plan", default="auto", choices=PLANS, help="vista points: hand, cad, or auto (hand on truss only)"
+    )
     parser.add_argument(
         "--active", action=argparse.BooleanOptionalAction, default=True, help="active inspection (seed §2.5)"
     )
@@ -74,6 +81,8 @@ def _settings(args: argparse.Namespace) -> dict[str, object]:
         "repeatability": args.repeatability,
         "orbit_start_s": [ORBIT_START_S[0], ORBIT_START_S[1] + args.sun_offset_s],
         "anomalies": "default",
+        **({} if args.layout == "truss" else {"layout": args.layout}),
+        **({} if args.plan == "auto" else {"plan": args.plan}),
     }
 
 
@@ -120,6 +129,8 @@ def _run(args: argparse.Namespace, modes: list[str], seeds: range) -> dict[str, 
                 active=mode == "active",
                 repeatability=args.repeatability,
                 orbit_start_s=orbit_start,
+                layout=args.layout,
+                settings=MissionSettings(plan=args.plan),
             )
             run = tally_run(result, score_mission(result), mission_s=time.perf_counter() - start)
             tallies[mode] = tallies.get(mode, Tally()).merge(Tally((run,)))

@@ -23,6 +23,7 @@ from websockets.sync.client import ClientConnection, connect
 from rsi.archive import Archive, Finding
 from rsi.errors import InputError
 from rsi.web import ExposedConsoleWarning, console_settings
+from rsi.web.console import LIVE_SIZE
 from rsi.web.live import CAMERAS
 
 from .conftest import ARTIFACTS, UVICORN_WEBSOCKETS_WARNING, Live
@@ -113,7 +114,7 @@ def test_status_is_the_live_state(live: Live) -> None:
     assert len(status["arm"]["joint_positions"]) == 8
     assert all(region in "ABCDEF-" for region in status["sensors"]["regions"])
     assert status["teleop"]["heartbeat_timeout_s"] + 1 / status["teleop"]["rate_hz"] < STOP_BUDGET_S
-    assert status["video"]["size"] == [240, 320]
+    assert status["video"]["size"] == list(LIVE_SIZE)
     time.sleep(1.0)
     assert live.get("/api/status").json()["video"]["fps"] > 0
 
