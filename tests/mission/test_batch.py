@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -29,6 +30,7 @@ from rsi.mission.batch import (
     read_manifest,
     run_batch,
 )
+from rsi.mission.batch_cluster import environment_kept
 from rsi.report.batch import write_batch_report
 
 GOOD_PAIRS = 8
@@ -66,9 +68,12 @@ def scheduler() -> Iterator[str]:
     """A two-process local cluster shared by the tests that pass `scheduler=` (closed at module end)."""
     from distributed import LocalCluster
 
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
-    ) as cluster:
+    with (
+        environment_kept(),  # the nannies' settings must not reach the processes later tests spawn
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
+        ) as cluster,
+    ):
         yield cluster.scheduler_address
 
 
@@ -167,6 +172,7 @@ def test_bad_pairs_are_reported_and_skipped_and_the_rest_are_in_the_archive(
     pairs: Pairs, tmp_path: Path
 ) -> None:
     calls: list[tuple[str, int, int]] = []
+    environment = dict(os.environ)
     with open_archive(tmp_path) as archive:
         result = run_batch(  # the default: a local cluster of its own
             pairs.items, archive=archive, workers=2, progress=lambda *call: calls.append(call),
@@ -183,6 +189,9 @@ def test_bad_pairs_are_reported_and_skipped_and_the_rest_are_in_the_archive(
         by_id["corrupt"].error
     )
     assert result.workers == 2 and result.scheduler == "local"
+    # dask's nannies write OMP_NUM_THREADS, MALLOC_TRIM_THRESHOLD_, ... into the parent's environment: the
+    # caller's processes spawned later must not inherit them (rsi.mission.batch_cluster.environment_kept)
+    assert dict(os.environ) == environment
     assert sorted(completed for _, completed, _ in calls) == list(range(1, len(pairs.items) + 1))
     assert {total for *_, total in calls} == {len(pairs.items)}
     # The archive: one finished run; per inspected pair a summary and its flaws, per bad pair a failure.
