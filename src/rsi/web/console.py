@@ -49,7 +49,7 @@ HEARTBEAT_HZ = 20.0  # the page sends its held command this often
 # three missed heartbeats (a loaded page's timers slip by tens of ms); with one 44 Hz period to act, the stop
 # comes at most 0.15 + 0.023 = 0.173 s after the last heartbeat, inside the 200 ms budget
 HEARTBEAT_TIMEOUT_S = 0.15
-LIVE_SIZE = (240, 320)  # half the seed §2.1 frame each way: docs/console.md says why (the full suite's CI)
+LIVE_SIZE = (480, 640)  # the seed §2.1 frame; one camera tick is ~30 ms of it on one core (docs/console.md)
 LIVE_FPS = 15.0  # camera loop's target: >= 10 frames/s with a margin for a loaded machine's jitter
 HOUSEKEEPING_HZ = 2.0
 TELEMETRY_SECONDS = 30.0
