@@ -38,7 +38,15 @@ from rsi.mission.evidence import (
 from rsi.mission.exposure import shortened
 from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
 from rsi.mission.settings import MissionSettings
-from rsi.mission.views import FAR_M, Sensed, inspection_region, near_model_edges, own_body, sense
+from rsi.mission.views import (
+    FAR_M,
+    Sensed,
+    inspection_region,
+    near_model_edges,
+    near_model_seams,
+    own_body,
+    sense,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -416,7 +424,12 @@ def _new_blobs(
     the weaker of the two comparisons is kept.
     """
     screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
-    looks = unexplained(blobs(comparison.pair, view), view, explanations, screw_positions, settings)
+    seams = near_model_seams(view, settings.inspection_guard_px)
+    looks = [
+        look
+        for look in unexplained(blobs(comparison.pair, view), view, explanations, screw_positions, settings)
+        if not _on_seam(look, comparison.pair, seams)
+    ]
     if not looks:
         return looks
     other = compare(
@@ -444,6 +457,17 @@ def _new_blobs(
             )
         )
     ]
+
+
+def _on_seam(look: Look, pair: PairResult, seams: NDArray[np.bool_]) -> bool:
+    """Whether every pixel of the blob lies within the guard band of a seam of the model
+    (:func:`rsi.mission.views.near_model_seams`): the step's sliver sampled differently by the two
+    viewpoints, not a flaw. A flaw beside a seam keeps its pixels off the band; one wholly on it is lost,
+    as on a jump (:func:`rsi.mission.views.inspection_region`). Screws and components are checked on the
+    whole comparison."""
+    row0, col0, row1, col1 = look.bbox
+    blob = pair.detection.mask[row0:row1, col0:col1]
+    return bool(blob.any() and not (blob & ~seams[row0:row1, col0:col1]).any())
 
 
 def _shift_bound_px(look: Look, near_edges: NDArray[np.bool_], settings: MissionSettings) -> float:
