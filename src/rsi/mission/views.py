@@ -113,8 +113,9 @@ _EDGE_INVERSE_DEPTH = 0.05
 # strap 2 mm proud of its tank: 0.5-0.7 mm along the view ray of an oblique CAD vista) shows its side face
 # and edge as a sliver a pixel or less wide; two viewpoints sample it differently (aliasing that no
 # resampling of the reference predicts), and its edge read as a line of 1-2 mm "impacts" from the CAD
-# plan's oblique views (truss and truss-b, seed 0, 16 and 12 false findings). 0.4 mm is a pixel's
-# footprint at the plan's 0.5 mm resolution, less the 20 % a tilt of the surface adds.
+# plan's oblique views (seed 0 at 300 s: 12 false findings on truss, 16 on truss-b). Under 0.4 mm of
+# second difference: planes at any tilt, a tank's curve up to 75 deg of incidence, a 0.1 mm blanket
+# (tests/mission/test_seams.py); 0.4 mm is about one pixel's footprint at the plan's 0.5 mm per pixel.
 _SEAM_STEP_M = 4e-4
 # The model is placed only on enough edges and a distinct peak: its best shift must gather 10 % more of
 # the image's edge strength than any shift 4 px or more away (seeds 3 and 5, space: 1.24-1.86 on the front
