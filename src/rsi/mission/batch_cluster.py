@@ -38,7 +38,7 @@ def max_local_workers() -> int:
 
 @contextlib.contextmanager
 def environment_kept() -> Iterator[None]:
-    """This process's environment as it was, once the block's local cluster has started and when it ends.
+    """This process's environment put back as it was when the block ends.
 
     A dask nanny writes its workers' settings (``OMP_NUM_THREADS=1``, ``MALLOC_TRIM_THRESHOLD_``,
     ``PYTHONHASHSEED``, ...) into the *parent's* ``os.environ`` before it spawns them, and leaves them there.

@@ -424,12 +424,10 @@ def _new_blobs(
     the weaker of the two comparisons is kept.
     """
     screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
-    seams = near_model_seams(view, settings.inspection_guard_px)
-    looks = [
-        look
-        for look in unexplained(blobs(comparison.pair, view), view, explanations, screw_positions, settings)
-        if not _on_seam(look, comparison.pair, seams)
-    ]
+    looks = unexplained(blobs(comparison.pair, view), view, explanations, screw_positions, settings)
+    if looks:  # the seams only where there is a blob to test
+        seams = near_model_seams(view, settings.inspection_guard_px)
+        looks = [look for look in looks if not _on_seam(look, comparison.pair, seams)]
     if not looks:
         return looks
     other = compare(
