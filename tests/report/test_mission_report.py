@@ -380,10 +380,18 @@ def _browser() -> Any:
     return webdriver.Chrome(options=options, service=Service(executable_path=str(CHROMEDRIVER)))
 
 
+_LOADED = 'return document.readyState === "complete" && Array.from(document.images).every(i => i.complete);'
+
+
 def test_report_renders_in_a_real_browser_with_every_image(report: Report, tmp_path: Path) -> None:
     browser = _browser()
+    from selenium.webdriver.support.wait import WebDriverWait  # present: _browser skipped otherwise
+
     try:
         browser.get(report.files[REPORT_FILE].resolve().as_uri())
+        # chromedriver can hand back a large page while its parser still runs (a CI run saw 15 of 19
+        # images): wait for the parse and every image to finish, bounded, before counting
+        WebDriverWait(browser, 60).until(lambda page: page.execute_script(_LOADED))
         state = browser.execute_script(
             "return Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight]);"
         )
