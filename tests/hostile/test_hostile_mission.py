@@ -337,6 +337,16 @@ def _refusals(world: World) -> list[tuple[Callable[..., Any], dict[str, Any], st
             r"candidates\[0\].seen must be sample indices in \[0, 3\)",
         ),
         (plan_cad.greedy_cover, {"candidates": [], "area": -np.ones(3), "target": 1.0}, "area must be"),
+        (
+            plan_cad.greedy_cover,
+            {
+                "candidates": [plan_cad.Candidate(point, 0.0, np.arange(2), True, "s")],
+                "area": np.ones(3),
+                "target": 1,
+                "must": np.ones(2, dtype=bool),
+            },
+            r"must must be a boolean array of one flag per sample \(3\)",
+        ),
         (coverage_module.inspectable_items, {"mockup": None}, "mockup must be a Mockup"),
         (transit.approach_law, {"standoff_m": 1e300}, r"standoff_m must be in \(0.0, "),
         (records.scored_type, {"kind": np.zeros(3)}, "kind must be an anomaly or finding kind"),

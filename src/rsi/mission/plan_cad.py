@@ -10,7 +10,8 @@ candidates and door), never a name or coordinate of one layout:
    of the farthest), the image's up along either of the surface's own axes; each with the door closed,
    and opened too when one of its rays met the door (opening it can show the pocket behind it);
 2. what each candidate covers, ray-cast on the CAD (:class:`rsi.mission.coverage.Sight`);
-3. **greedy set cover** by area until ``target`` of the coverable area is seen, a view the arm cannot
+3. **greedy set cover** by area until ``target`` of the coverable area is seen and every coverable sample
+   of a site's disc (``SITE_KINDS``: one anomaly on a few cm^2) too, a view the arm cannot
    reach counted at ``UNREACHABLE_WEIGHT`` of its gain (reachable views are preferred, an unreachable one
    is taken only where it is worth it, and flagged); then every point whose removal keeps the goal is
    dropped;
@@ -49,6 +50,7 @@ if TYPE_CHECKING:
     from rsi.sim.world import World
 
 FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
 
 TARGET_SPACING_M = 0.1  # about half the short side of a frame at the 0.3 m standoff of 0.5 mm pixels
 TILTS_DEG = (0.0, 15.0, 30.0)  # seed §2.1 views are near-normal; 30 deg still leaves 15 deg of incidence
@@ -63,6 +65,7 @@ IK_GAIN_PER_S = 8.0
 IK_TOLERANCE_M = 2e-3
 IK_TOLERANCE_RAD = 5e-3
 MIN_CLEARANCE_M = 0.005  # the arm may not touch the mock-up at the pose
+SITE_KINDS = ("screw", "peltier", "leak")  # each sample of these a plan must see (greedy_cover's `must`)
 
 
 @dataclass(frozen=True)
@@ -229,9 +232,17 @@ def weigh_candidates(
 # ------------------------------------------------------------------------------------------- cover
 
 
-def greedy_cover(candidates: list[Candidate], area: FloatArray, target: float) -> tuple[list[int], float]:
+def greedy_cover(
+    candidates: list[Candidate], area: FloatArray, target: float, must: BoolArray | None = None
+) -> tuple[list[int], float]:
     """Step 3: candidates chosen greedily by (weighted) new area until `target` of the coverable area,
-    then pruned; returns their indices (in choice order) and the coverable fraction."""
+    and until every coverable sample flagged in `must` is seen; then pruned. Returns their indices (in
+    choice order) and the coverable fraction.
+
+    `must` marks the samples a plan may not trade for area: a site's disc (a missing screw, a hot or
+    cold spot, a leak) is a few square centimetres, under the 0.5 % an area cover may leave, yet a whole
+    anomaly (seed §4's inspection targets) stands on it.
+    """
     from scipy import sparse
 
     candidates, area, target = _cover_inputs(candidates, area, target)
@@ -240,11 +251,15 @@ def greedy_cover(candidates: list[Candidate], area: FloatArray, target: float) -
     matrix = sparse.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(len(candidates), area.size))
     weight = np.array([1.0 if c.reachable else UNREACHABLE_WEIGHT for c in candidates])
     coverable = np.asarray(matrix.sum(axis=0)).ravel() > 0
-    goal = target * float(area[coverable].sum())
+    needed = _must_inputs(must, area.size) & coverable
+    goal = _Goal(target * float(area[coverable].sum()), needed)
     covered = np.zeros(area.size, dtype=bool)
     chosen: list[int] = []
-    while float(area[covered].sum()) < goal:
+    while not goal.met(covered, area):
         gain = (matrix @ np.where(covered, 0.0, area)) * weight
+        if float(area[covered].sum()) >= goal.area_m2:  # the area is in: the sites left, area breaking ties
+            sites = (matrix @ (needed & ~covered).astype(np.float64)) * weight
+            gain = sites * (float(gain.max()) + 1.0) + gain
         best = int(np.argmax(gain))  # the first of equals: deterministic
         if gain[best] <= 0:
             break
@@ -252,6 +267,29 @@ def greedy_cover(candidates: list[Candidate], area: FloatArray, target: float) -
         covered[candidates[best].seen] = True
     kept = _pair_swaps(_pruned(chosen, candidates, area, goal), matrix, candidates, area, goal)
     return kept, float(area[coverable].sum() / area.sum())
+
+
+@dataclass(frozen=True)
+class _Goal:
+    """What a cover must reach: an area (m^2) and every sample flagged in `needed`."""
+
+    area_m2: float
+    needed: BoolArray
+
+    def met(self, seen: BoolArray, area: FloatArray) -> bool:
+        return float(area[seen].sum()) >= self.area_m2 and not (self.needed & ~seen).any()
+
+
+def _must_inputs(must: object, size: int) -> BoolArray:
+    if must is None:
+        return np.zeros(size, dtype=bool)
+    flags = np.asarray(must)
+    if flags.dtype != np.bool_ or flags.shape != (size,):
+        raise InputError(
+            f"must must be a boolean array of one flag per sample ({size}); got {must!r}. "
+            "Leave it None to cover by area alone."
+        )
+    return flags
 
 
 def _cover_inputs(
@@ -278,7 +316,7 @@ def _cover_inputs(
 
 
 def _pair_swaps(
-    kept: list[int], matrix: Any, candidates: list[Candidate], area: FloatArray, goal: float
+    kept: list[int], matrix: Any, candidates: list[Candidate], area: FloatArray, goal: _Goal
 ) -> list[int]:
     """Replace any two points by one candidate while the goal is still met (greedy's first, widest pick
     often leaves two half views where one offset view would do), until no pair can be."""
@@ -293,26 +331,33 @@ def _pair_swaps(
             left[candidates[kept[a]].seen] -= 1
             left[candidates[kept[b]].seen] -= 1
             have = float(area[left > 0].sum())
+            lost = goal.needed & (left == 0)
             gain = matrix @ np.where(left > 0, 0.0, area)
+            # only a candidate that sees every needed sample the pair took with it may replace the pair
+            gain[(matrix @ lost.astype(np.float64)) < lost.sum()] = -1.0
             best = int(np.argmax(gain))
-            if have + gain[best] >= goal:
+            if gain[best] >= 0 and have + gain[best] >= goal.area_m2:
                 kept = [k for i, k in enumerate(kept) if i not in (a, b)] + [best]
                 improved = True
                 break
     return kept
 
 
-def _pruned(chosen: list[int], candidates: list[Candidate], area: FloatArray, goal: float) -> list[int]:
-    """Drop, while the goal is still met, the point whose own area (seen by no other) is smallest."""
+def _pruned(chosen: list[int], candidates: list[Candidate], area: FloatArray, goal: _Goal) -> list[int]:
+    """Drop, while the goal is still met, the point whose own area (seen by no other) is smallest; a
+    point that alone sees a needed sample stays."""
     kept = list(chosen)
     while len(kept) > 1:
         counts = np.zeros(area.size, dtype=np.int64)
         for k in kept:
             counts[candidates[k].seen] += 1
         total = float(area[counts > 0].sum())
-        own = [float(area[candidates[k].seen][counts[candidates[k].seen] == 1].sum()) for k in kept]
+        own = []
+        for k in kept:
+            alone = candidates[k].seen[counts[candidates[k].seen] == 1]
+            own.append(math.inf if goal.needed[alone].any() else float(area[alone].sum()))
         weakest = int(np.argmin(own))
-        if total - own[weakest] < goal:
+        if not math.isfinite(own[weakest]) or total - own[weakest] < goal.area_m2:
             return kept
         kept.pop(weakest)
     return kept
@@ -506,7 +551,9 @@ def generate_plan(
     weighed = weigh_candidates(mockup, sight, settings.door_open_rad, arm_world)
     if not weighed:
         raise InputError("source's mock-up has no inspectable surface any candidate view covers.")
-    chosen, coverable = greedy_cover(weighed, sight.samples.area_m2, target)
+    chosen, coverable = greedy_cover(
+        weighed, sight.samples.area_m2, target, must=np.isin(sight.samples.kind, SITE_KINDS)
+    )
     picked = [weighed[k] for k in chosen]
     reached = [c.reachable for c in picked]
     start: FloatArray = np.asarray(picked[0].vista.position_m)
