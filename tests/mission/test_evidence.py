@@ -204,6 +204,38 @@ def test_the_comparison_finds_dark_and_bright_spots_and_their_contrast(sign: flo
     assert contrast(pair, flaw.bbox, "dark" if sign > 0 else "bright") < 0.03
 
 
+def _cluttered(spot_dn: float, offset_dn: float, noise_dn: float) -> Any:
+    """A textured pair whose inspection has a 60x60 part the noise model under-states (shifted by
+    `offset_dn`, `noise_dn` more noise: a dim face's compensation under another sun), a 3x3 spot of
+    `spot_dn` in its middle."""
+    rng = np.random.default_rng(6)
+    reference, inspection = (_textured() + rng.normal(0.0, 1.0, (120, 160)).astype(np.float32) for _ in "ab")
+    inspection[40:100, 30:90] += np.float32(offset_dn) + rng.normal(0, noise_dn, (60, 60)).astype(np.float32)
+    inspection[70:73, 60:63] += np.float32(spot_dn)
+    return compare(_image(reference, 1.0), _image(inspection, 1.0), SETTINGS.p_false_alarm, SETTINGS)
+
+
+def test_a_spot_is_judged_against_its_own_surroundings() -> None:
+    from rsi.mission.evidence import spot_score
+    from rsi.mission.visual import thresholds
+
+    confirm, kernel = thresholds(SETTINGS).confirm, SETTINGS.flaw_size_px
+    for sign, polarity in ((1.0, "bright"), (-1.0, "dark")):  # on a surface the model describes: as it is
+        clean = _cluttered(6.0 * sign, 0.0, 0.0)
+        (flaw,) = clean.flaws
+        assert spot_score(clean, flaw.bbox, flaw.score, polarity, kernel) == flaw.score
+    noise = _cluttered(0.0, 3.0, 1.0)
+    assert len(noise.flaws) > 20 and all(flaw.score > confirm for flaw in noise.flaws)
+    assert all(spot_score(noise, f.bbox, f.score, f.polarity, kernel) < confirm for f in noise.flaws)
+    strong = _cluttered(18.0, 3.0, 1.0)
+    score = float(strong.detection.score[70:73, 60:63].max())
+    assert spot_score(strong, (70, 60, 73, 63), score, "bright", kernel) > confirm  # it stands out
+    # the ring vetoes, never detects: a dark spot on a brightened part is not helped by it
+    dark = _cluttered(-6.0, 3.0, 1.0)
+    score = float(dark.detection.score[70:73, 60:63].max())
+    assert spot_score(dark, (70, 60, 73, 63), score, "dark", kernel) <= score
+
+
 def test_a_brighter_sun_shortens_the_inspection_shutter_and_leaves_the_strobe_image() -> None:
     from rsi.mission.run import ORBIT_START_S
     from rsi.mission.tour import Tour

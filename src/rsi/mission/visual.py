@@ -33,6 +33,7 @@ from rsi.mission.evidence import (
     screw_checks,
     second_look_score,
     shift_explained,
+    spot_score,
     unexplained,
 )
 from rsi.mission.exposure import shortened
@@ -438,8 +439,19 @@ def _new_blobs(
         comparison.scale,
         registration=comparison.aligned[1],
     )
+    sites = world.mockup.candidates.component_sites
+    kernel = settings.flaw_size_px
     for look in looks:
         look.score = min(look.score, second_look_score(other, view, look.position_m))
+        # seed §4: what is neither on a component nor broader than a component's least change can only be
+        # an impact, a millimetre spot: it must stand out of its own surroundings (spot_score), a large
+        # blob off every component at its peak
+        small = look.area_m2 <= settings.component_area_m2
+        look.spot = small or _component_of(look.position_m, sites) is None
+        if small:
+            look.score = spot_score(comparison.pair, look.bbox, look.score, look.flaw.polarity, kernel)
+        elif look.spot:
+            look.score = min(look.score, second_look_score(comparison.pair, view, look.position_m, kernel))
     floor = limits.preliminary if active else limits.confirm
     edges = near_model_edges(view, math.ceil(settings.local_shift_px) + settings.flaw_size_px)
     return [
@@ -537,7 +549,8 @@ def _second_looks(
         ]
     confirmed = 0
     for look in looks:
-        again = min(second_look_score(pair, second, look.position_m) for pair in pairs)
+        kernel = settings.flaw_size_px if look.spot else None
+        again = min(second_look_score(pair, second, look.position_m, kernel) for pair in pairs)
         # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3; a fused score
         # carried by the first look alone is no echo: the second must see the blob itself
         fused = (look.score + again) / math.sqrt(3.0) if again > limits.preliminary else 0.0
