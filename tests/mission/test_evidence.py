@@ -350,3 +350,56 @@ def test_small_looks_inside_a_swaps_blob_are_the_swaps() -> None:
     assert kept == [swap, beside]
     # without a swap every small look stands
     assert apart_from_swaps([inside, beside], SETTINGS) == [inside, beside]
+
+
+def test_a_removed_panel_screw_loses_its_glint_and_a_present_one_keeps_it() -> None:
+    """Seen from above at 16 deg off the axis, a polished head returns the metered flash of the dark panel
+    into saturation: the comparison cannot read the head's disc, the glint tells (both under a sun moved
+    300 s between the passes)."""
+    from rsi.mission.evidence import GLINT_MIN, head_glint, head_likeness, screw_checks
+    from rsi.mission.exposure import metered
+    from rsi.mission.run import ORBIT_START_S
+    from rsi.mission.tour import Tour
+    from rsi.mission.views import sense
+    from rsi.mission.visual import thresholds
+    from rsi.sim.mockup import vista
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=5, arm=False)  # its draw removes the panel's screws C_0 and C_1
+    try:
+        sites = {site.name: site for site in world.mockup.candidates.screw_sites}
+        tour = Tour(world, seed=0, size=(480, 640), arm=False)
+        found: dict[str, bool] = {}
+        for name, away in (("screw_C_0", (0.045, 0.085, 0.0)), ("screw_C_3", (-0.045, -0.085, 0.0))):
+            site = sites[name]
+            target = tuple(np.add(site.position_m, away))
+            world.add_vista(vista(name, target, site.normal, (1.0, 0.0, 0.0), 0.3425))
+            tour.start_pass("reference", ORBIT_START_S[0])
+            reference, shutter, energy = metered(
+                tour, sense(tour.visit(name, name, state="reference", truth=False)), SETTINGS
+            )
+            world.set_shutter(shutter)
+            world.set_strobe_energy(energy)
+            glint = head_glint(reference, site)
+            assert glint >= GLINT_MIN
+            tour.start_pass("inspection", ORBIT_START_S[1] + 300.0)
+            seen = sense(tour.visit(name, name, state="inspection", truth=False))
+            pair = compare(reference.strobe, seen.strobe, SETTINGS.p_false_alarm, SETTINGS)
+            assert head_likeness(pair, seen, site, SETTINGS.local_shift_px) is None  # saturated: unread
+            findings, checked = screw_checks(
+                world,
+                seen,
+                name,
+                settings=SETTINGS,
+                range_m=seen.range_m,
+                reliefs={},
+                glints={name: glint},
+                done=frozenset(),
+                pairs=(pair, pair),
+                confirm=thresholds(SETTINGS).confirm,
+            )
+            assert name in checked
+            found[name] = any(finding.position_m == site.position_m for finding in findings)
+    finally:
+        world.close()
+    assert found == {"screw_C_0": True, "screw_C_3": False}

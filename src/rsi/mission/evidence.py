@@ -228,6 +228,7 @@ def screw_checks(
     settings: MissionSettings,
     range_m: NDArray[np.float32],
     reliefs: Mapping[str, float],
+    glints: Mapping[str, float],
     done: frozenset[str],
     pairs: tuple[PairResult, PairResult],
     confirm: float,
@@ -235,34 +236,47 @@ def screw_checks(
     """Screws the frame sees and no earlier visit checked (`done`): a head 2 mm proud of the plate, or gone
     (seed §4: screws randomly removed).
 
-    Two measurements, the first that can answer decides. First the relief in the stereo range map against
-    the reference's. Matched stereo resolves a 2 mm head only where its range noise is well under it:
-    sigma_Z = Z^2 sigma_d / (f B) is ~1.4 mm per pixel for a 6 cm baseline at 0.5 m, and the matcher's
-    window smooths a 5 mm head into its plate. So a relief change counts only when both reliefs were
-    measured, the reference read the present head within half its height of the CAD's 2 mm, and the change
-    exceeds ``settings.screw_relief_lost_m``. Otherwise the comparison with the reference
-    (seed §2.4): a head that is gone darkens the image over its disc, and a dark-flaw statistic above the
-    confirming threshold `confirm` there against *both* pristine visits (`pairs`: a head's relief renders
-    differently at each viewpoint, and what one reference's sampling made is not new) is the screw's loss.
-    Either way the head's pattern must be gone from the image (:func:`head_likeness`): a removed screw
-    takes its whole slotted disc away, a present one keeps it however its slot's edges are sampled.
+    Three measurements, the first that can answer decides. First the relief in the stereo range map against
+    the reference's. Matched stereo resolves a 2 mm head only where its range noise is well under it: sigma_Z
+    = Z^2 sigma_d / (f B) is ~1.4 mm per pixel for a 6 cm baseline at 0.5 m, and the matcher's window smooths
+    a 5 mm head into its plate. So a relief change counts only when both reliefs were measured, the reference
+    read the present head within half its height of the CAD's 2 mm, and the change exceeds
+    ``settings.screw_relief_lost_m``. Then the head's glint (:func:`head_glint`): where the reference's head
+    saturated the camera over half its disc (`glints`), the comparison cannot read it, and a disc now under
+    half as saturated that no longer outshines its plate is its loss (a present head that lost the sun's glint
+    to a moved sun, or the flash's to a shorter shutter, still returns more of the flash than its plate).
+    Otherwise the comparison with the reference (seed §2.4): a head that is gone darkens the image over its
+    disc (at least half of it read), and a dark-flaw statistic above the confirming threshold `confirm` there
+    against *both* pristine visits (`pairs`: a head's relief renders differently at each viewpoint, and what
+    one reference's sampling made is not new) is the screw's loss. Either way the head's pattern must be gone
+    from the image (:func:`head_likeness`): a removed screw takes its whole slotted disc away, a present one
+    keeps it however its slot's edges are sampled.
 
-    Returns the missing screws' findings and the names of the screws this view checked.
+    Returns the missing screws' findings and the names of the screws this view checked: a screw none of the
+    three could judge here (its disc mostly outside the comparison, no relief, no glint) is left to a later
+    view.
     """
     findings = []
     screws = [s for s in world.mockup.candidates.screw_sites if s.name not in done]
     seen = visible(view, np.asarray([s.position_m for s in screws])) if screws else np.zeros(0, bool)
-    checked = [site for site, in_view in zip(screws, seen, strict=True) if in_view]
-    for site in checked:
-        if head_kept(pairs, view, site, settings.local_shift_px):
-            continue  # the reference's head is still there, whatever the range or a few edges say
+    checked = []
+    for site in (site for site, in_view in zip(screws, seen, strict=True) if in_view):
+        kept = head_kept(pairs, view, site, settings.local_shift_px)
+        glint = glints.get(site.name, 0.0)
         before = reliefs.get(site.name, math.nan)
-        lost = before - screw_relief_m(range_m, view, site)
         # the reference saw the head present: stereo that did not read it near its height cannot judge it
         resolved = abs(before - SCREW_HEIGHT_M) < 0.5 * SCREW_HEIGHT_M
+        if kept is None and not resolved and glint < GLINT_MIN:
+            continue  # nothing here can judge it
+        checked.append(site)
+        if kept:
+            continue  # the reference's head is still there, whatever the range or a few edges say
+        lost = before - screw_relief_m(range_m, view, site)
         if resolved and math.isfinite(lost) and lost > settings.screw_relief_lost_m:
             margin, score = (lost - settings.screw_relief_lost_m) / 2e-4, lost
-        elif (change := min(screw_change(pair, view, site) for pair in pairs)) > confirm:
+        elif (now := _glint_left(glint, view, site)) is not None:
+            margin, score = _glint_margin(glint, now, view, site), glint - now
+        elif kept is not None and (change := min(screw_change(pair, view, site) for pair in pairs)) > confirm:
             margin, score = change - confirm, change
         else:
             continue
@@ -277,6 +291,55 @@ def screw_checks(
             )
         )
     return findings, frozenset(site.name for site in checked)
+
+
+# A head's polished top returns the strobe beside the lens (seed §3) and, from some viewpoints, the sun: at
+# the metered flash of the dark panel it saturates the camera over most of its disc (development seeds 2
+# and 5, CAD plan: 0.55-0.80 of the disc in the reference). Half the disc is a glint: the comparison loses
+# the head's pattern there.
+GLINT_MIN = 0.5
+
+
+def head_glint(view: Sensed, site: Site) -> float:
+    """Fraction of the screw head's disc saturated in the visit's two frames (either one); 0 where the
+    disc falls on no pixel."""
+    frames = view.capture.frames
+    head = disc(frames[0].saturated.shape, view, site.position_m, 0.5 * site.size_m)
+    if not head.any():
+        return 0.0
+    saturated = frames[0].saturated | frames[1].saturated
+    return float(saturated[head].mean())
+
+
+def _glint_left(before: float, view: Sensed, site: Site) -> float | None:
+    """The head's glint now, where the reference's (`before`) is gone from it: under half of it and the
+    disc no longer outshining its plate; None while the glint, or the head, is still there."""
+    if before < GLINT_MIN:
+        return None
+    now = head_glint(view, site)
+    return now if now < 0.5 * before and not _outshines(view, site) else None
+
+
+def _outshines(view: Sensed, site: Site) -> bool:
+    """Whether the head's disc returns more of the flash than the plate around it (one and a half to three
+    head radii) by more than one pixel's noise: a polished head does (seed §3, the strobe beside the lens),
+    a hole does not. A present head whose glint the inspection's shorter shutter (less sun in the frame)
+    took away still outshines its plate."""
+    strobe, shape = view.strobe, view.strobe.image.shape
+    head = disc(shape, view, site.position_m, 0.5 * site.size_m) & strobe.valid
+    ring = disc(shape, view, site.position_m, 1.5 * site.size_m)
+    ring &= ~disc(shape, view, site.position_m, 0.75 * site.size_m) & strobe.valid
+    if not head.any() or not ring.any():
+        return True  # no unsaturated disc to read: the glint is still there
+    excess = float(np.median(strobe.image[head]) - np.median(strobe.image[ring]))
+    return excess > math.sqrt(float(np.median(strobe.variance[head])))
+
+
+def _glint_margin(before: float, now: float, view: Sensed, site: Site) -> float:
+    """How surely the glint is gone, in sigmas: the drop below half the reference's saturated fraction over
+    the binomial spread of a fraction of the disc's pixels at one half."""
+    pixels = int(disc(view.capture.frames[0].saturated.shape, view, site.position_m, 0.5 * site.size_m).sum())
+    return (0.5 * before - now) * 2.0 * math.sqrt(max(pixels, 1))
 
 
 # The head is kept when the reference's disc, moved by a local shift, explains at least half of the
@@ -297,13 +360,15 @@ def head_kept(pairs: Sequence[PairResult], view: Sensed, site: Site, max_shift_p
 def head_likeness(pair: PairResult, view: Sensed, site: Site, max_shift_px: float) -> float | None:
     """Best normalised correlation of the screw head's disc between the registered reference and the
     inspection over local shifts of at most `max_shift_px` in quarter pixels (seed §2.3: a residual
-    mis-registration is locally a translation); None where the disc has too few valid pixels to say."""
+    mis-registration is locally a translation); None where under half the disc is valid in the comparison
+    (a saturated reference, the frame's border, an occluder): too few pixels to say."""
     import cv2
 
     detection = pair.detection
     head = disc(detection.score.shape, view, site.position_m, 0.5 * site.size_m)
-    head = _widened(head) & detection.valid
-    if head.sum() < 9:
+    whole = _widened(head)
+    head = whole & detection.valid
+    if head.sum() < max(9, whole.sum() / 2):  # a pattern judged on its disc's rim says nothing of the head
         return None
     rows, cols = np.nonzero(head)
     pad = math.ceil(max_shift_px) + 1

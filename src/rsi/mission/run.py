@@ -25,7 +25,7 @@ import numpy as np
 from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.mission.coverage import coverage
-from rsi.mission.evidence import screw_relief_m
+from rsi.mission.evidence import head_glint, screw_relief_m
 from rsi.mission.exposure import metered, settle
 from rsi.mission.plan import plan_vistas
 from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
@@ -217,7 +217,9 @@ def _reference_pass(
         world.set_strobe_energy(energy)
         reference = view.strobe
         depth = view.range_m
-        reliefs = {site.name: screw_relief_m(depth, view, site) for site in seen_screws(world, view)}
+        screws = seen_screws(world, view)
+        reliefs = {site.name: screw_relief_m(depth, view, site) for site in screws}
+        glints = {site.name: head_glint(view, site) for site in screws}
         again = sense(tour.visit(point.name, point.vista, state="reference", truth=False))
         second = again.strobe
         scale = nuisance_scale(
@@ -230,7 +232,15 @@ def _reference_pass(
             spread_px=settings.nuisance_spread_px,
         )
         stored[point.name] = StoredView(
-            reference, second, scale, depth, reliefs, energy, shutter, second_range_m=again.range_m
+            reference,
+            second,
+            scale,
+            depth,
+            reliefs,
+            energy,
+            shutter,
+            second_range_m=again.range_m,
+            glints=glints,
         )
         report(f"reference {point.name}")
     return stored

@@ -15,7 +15,7 @@ A visit's steps, in order:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
@@ -79,6 +79,8 @@ class StoredView:
         The reference's stereo range map (NaN where unmatched), for the dents.
     reliefs : mapping of str to float
         Stereo relief of every screw site the reference saw, metres.
+    glints : mapping of str to float
+        Fraction of every seen screw head's disc the reference's frames saturated (its glint).
     strobe_energy, shutter : float
         The metered flash energy and shutter, kept for every later visit of the point.
     second_range_m : ndarray of shape (M, N), float32, or None
@@ -93,6 +95,7 @@ class StoredView:
     strobe_energy: float
     shutter: float
     second_range_m: NDArray[np.float32] | None = None
+    glints: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -229,6 +232,7 @@ def inspect_visit(
         settings=settings,
         range_m=view.range_m,
         reliefs=stored.reliefs,
+        glints=stored.glints,
         done=screws_checked,
         pairs=(
             comparison.pair,
