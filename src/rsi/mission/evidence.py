@@ -228,7 +228,7 @@ def screw_checks(
     settings: MissionSettings,
     range_m: NDArray[np.float32],
     reliefs: Mapping[str, float],
-    glints: Mapping[str, float],
+    glints: Mapping[str, HeadGlint],
     done: frozenset[str],
     pairs: tuple[PairResult, PairResult],
     confirm: float,
@@ -241,10 +241,10 @@ def screw_checks(
     = Z^2 sigma_d / (f B) is ~1.4 mm per pixel for a 6 cm baseline at 0.5 m, and the matcher's window smooths
     a 5 mm head into its plate. So a relief change counts only when both reliefs were measured, the reference
     read the present head within half its height of the CAD's 2 mm, and the change exceeds
-    ``settings.screw_relief_lost_m``. Then the head's glint (:func:`head_glint`): where the reference's head
-    saturated the camera over half its disc (`glints`), the comparison cannot read it, and a disc now under
-    half as saturated that no longer outshines its plate is its loss (a present head that lost the sun's glint
-    to a moved sun, or the flash's to a shorter shutter, still returns more of the flash than its plate).
+    ``settings.screw_relief_lost_m``. Then the head's glint (:func:`head_glint`): where the flash saturated
+    the reference's head over half its disc (`glints`), the comparison cannot read it, and a disc of which
+    under half as much now returns that flash (the same energy: at least the sensor's top less the
+    reference's ambient, or saturated) is its loss; a sun's glint bounds nothing and is not read.
     Otherwise the comparison with the reference (seed §2.4): a head that is gone darkens the image over its
     disc (at least half of it read), and a dark-flaw statistic above the confirming threshold `confirm` there
     against *both* pristine visits (`pairs`: a head's relief renders differently at each viewpoint, and what
@@ -262,11 +262,11 @@ def screw_checks(
     checked = []
     for site in (site for site, in_view in zip(screws, seen, strict=True) if in_view):
         kept = head_kept(pairs, view, site, settings.local_shift_px)
-        glint = glints.get(site.name, 0.0)
+        glint = glints.get(site.name, NO_GLINT)
         before = reliefs.get(site.name, math.nan)
         # the reference saw the head present: stereo that did not read it near its height cannot judge it
         resolved = abs(before - SCREW_HEIGHT_M) < 0.5 * SCREW_HEIGHT_M
-        if kept is None and not resolved and glint < GLINT_MIN:
+        if kept is None and not resolved and glint.fraction < GLINT_MIN:
             continue  # nothing here can judge it
         checked.append(site)
         if kept:
@@ -275,7 +275,7 @@ def screw_checks(
         if resolved and math.isfinite(lost) and lost > settings.screw_relief_lost_m:
             margin, score = (lost - settings.screw_relief_lost_m) / 2e-4, lost
         elif (now := _glint_left(glint, view, site)) is not None:
-            margin, score = _glint_margin(glint, now, view, site), glint - now
+            margin, score = _glint_margin(glint, now, view, site), glint.fraction - now
         elif kept is not None and (change := min(screw_change(pair, view, site) for pair in pairs)) > confirm:
             margin, score = change - confirm, change
         else:
@@ -293,53 +293,85 @@ def screw_checks(
     return findings, frozenset(site.name for site in checked)
 
 
-# A head's polished top returns the strobe beside the lens (seed §3) and, from some viewpoints, the sun: at
-# the metered flash of the dark panel it saturates the camera over most of its disc (development seeds 2
-# and 5, CAD plan: 0.55-0.80 of the disc in the reference). Half the disc is a glint: the comparison loses
-# the head's pattern there.
+# A head's polished top returns the strobe beside the lens (seed §3): at the metered flash of the dark panel
+# it saturates the camera over most of its disc (development seeds 1, 2 and 5, CAD plan: 0.55-0.80 of the
+# disc in the reference, every pixel in the strobe's field, none in the ambient's). Half the disc is a glint:
+# the comparison loses the head's pattern there.
 GLINT_MIN = 0.5
+# A pixel's strobe return reaches the reference glint's floor within this many standard deviations of its
+# noise (a present head's pixel falls short of it once in ~700)
+_GLINT_NOISE_SD = 3.0
 
 
-def head_glint(view: Sensed, site: Site) -> float:
-    """Fraction of the screw head's disc saturated in the visit's two frames (either one); 0 where the
-    disc falls on no pixel."""
-    frames = view.capture.frames
-    head = disc(frames[0].saturated.shape, view, site.position_m, 0.5 * site.size_m)
+@dataclass(frozen=True)
+class HeadGlint:
+    """The strobe's glint on a screw head in one visit.
+
+    Attributes
+    ----------
+    fraction : float
+        Of the head's disc, the pixels whose strobe-lit field saturated while their ambient-only sample (the
+        same row of the other frame, seed §2.2) did not: the flash's glint, not the sun's.
+    floor_dn : float
+        What the flash alone returned there at least: the sensor's top less the ambient, median over those
+        pixels (0 without a glint).
+    """
+
+    fraction: float
+    floor_dn: float
+
+
+NO_GLINT = HeadGlint(0.0, 0.0)
+
+
+def head_glint(view: Sensed, site: Site) -> HeadGlint:
+    """The flash's glint on the screw head's disc in the visit's two frames (strobes in opposite fields)."""
+    first, second = view.capture.frames
+    head = disc(first.saturated.shape, view, site.position_m, 0.5 * site.size_m)
     if not head.any():
-        return 0.0
-    saturated = frames[0].saturated | frames[1].saturated
-    return float(saturated[head].mean())
+        return NO_GLINT
+    rows = np.arange(head.shape[0])[:, None] % 2
+    first_lit = np.broadcast_to(rows == (1 if first.lit_field == "odd" else 0), head.shape)
+    lit_saturated = np.where(first_lit, first.saturated, second.saturated)
+    ambient_saturated = np.where(first_lit, second.saturated, first.saturated)
+    glint = head & lit_saturated & ~ambient_saturated
+    if not glint.any():
+        return NO_GLINT
+    ambient_dn = np.where(first_lit, second.raw, first.raw)[glint].astype(np.float64)
+    floor = float(first.camera.max_dn - np.median(ambient_dn))
+    return HeadGlint(float(glint.sum() / head.sum()), floor)
 
 
-def _glint_left(before: float, view: Sensed, site: Site) -> float | None:
-    """The head's glint now, where the reference's (`before`) is gone from it: under half of it and the
-    disc no longer outshining its plate; None while the glint, or the head, is still there."""
-    if before < GLINT_MIN:
+def _glint_left(before: HeadGlint, view: Sensed, site: Site) -> float | None:
+    """The head's glint now, where the reference's (`before`) is gone from it: under half of it; None while
+    the glint is still there (or there was none to lose)."""
+    if before.fraction < GLINT_MIN:
         return None
-    now = head_glint(view, site)
-    return now if now < 0.5 * before and not _outshines(view, site) else None
+    now = _glint_reached(before, view, site)
+    return now if now < 0.5 * before.fraction else None
 
 
-def _outshines(view: Sensed, site: Site) -> bool:
-    """Whether the head's disc returns more of the flash than the plate around it (one and a half to three
-    head radii) by more than one pixel's noise: a polished head does (seed §3, the strobe beside the lens),
-    a hole does not. A present head whose glint the inspection's shorter shutter (less sun in the frame)
-    took away still outshines its plate."""
-    strobe, shape = view.strobe, view.strobe.image.shape
-    head = disc(shape, view, site.position_m, 0.5 * site.size_m) & strobe.valid
-    ring = disc(shape, view, site.position_m, 1.5 * site.size_m)
-    ring &= ~disc(shape, view, site.position_m, 0.75 * site.size_m) & strobe.valid
-    if not head.any() or not ring.any():
-        return True  # no unsaturated disc to read: the glint is still there
-    excess = float(np.median(strobe.image[head]) - np.median(strobe.image[ring]))
-    return excess > math.sqrt(float(np.median(strobe.variance[head])))
+def _glint_reached(before: HeadGlint, view: Sensed, site: Site) -> float:
+    """Fraction of the head's disc whose strobe return reaches the reference glint's floor (less
+    :data:`_GLINT_NOISE_SD` of its noise) or saturates. The inspection pass keeps the reference's strobe
+    energy (:func:`rsi.mission.exposure.shortened`) and its pose to the repeatability: a present polished
+    head returns the same flash, whatever the sun or the shutter now adds; a hole returns the plate's."""
+    strobe, frames = view.strobe, view.capture.frames
+    head = disc(strobe.image.shape, view, site.position_m, 0.5 * site.size_m)
+    if not head.any():
+        return 1.0  # the disc on no pixel: nothing says the glint is gone
+    floor = before.floor_dn - _GLINT_NOISE_SD * np.sqrt(strobe.variance[head])
+    reached = (strobe.valid[head] & (strobe.image[head] >= floor)) | (
+        frames[0].saturated[head] | frames[1].saturated[head]
+    )
+    return float(reached.mean())
 
 
-def _glint_margin(before: float, now: float, view: Sensed, site: Site) -> float:
-    """How surely the glint is gone, in sigmas: the drop below half the reference's saturated fraction over
+def _glint_margin(before: HeadGlint, now: float, view: Sensed, site: Site) -> float:
+    """How surely the glint is gone, in sigmas: the drop below half the reference's glint fraction over
     the binomial spread of a fraction of the disc's pixels at one half."""
     pixels = int(disc(view.capture.frames[0].saturated.shape, view, site.position_m, 0.5 * site.size_m).sum())
-    return (0.5 * before - now) * 2.0 * math.sqrt(max(pixels, 1))
+    return (0.5 * before.fraction - now) * 2.0 * math.sqrt(max(pixels, 1))
 
 
 # The head is kept when the reference's disc, moved by a local shift, explains at least half of the

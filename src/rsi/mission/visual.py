@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from rsi.errors import InputError
 from rsi.mission.evidence import (
     Explanation,
+    HeadGlint,
     Look,
     apart_from_swaps,
     blobs,
@@ -79,8 +80,8 @@ class StoredView:
         The reference's stereo range map (NaN where unmatched), for the dents.
     reliefs : mapping of str to float
         Stereo relief of every screw site the reference saw, metres.
-    glints : mapping of str to float
-        Fraction of every seen screw head's disc the reference's frames saturated (its glint).
+    glints : mapping of str to HeadGlint
+        The flash's glint on every seen screw head in the reference (:func:`rsi.mission.evidence.head_glint`).
     strobe_energy, shutter : float
         The metered flash energy and shutter, kept for every later visit of the point.
     second_range_m : ndarray of shape (M, N), float32, or None
@@ -95,7 +96,7 @@ class StoredView:
     strobe_energy: float
     shutter: float
     second_range_m: NDArray[np.float32] | None = None
-    glints: Mapping[str, float] = field(default_factory=dict)
+    glints: Mapping[str, HeadGlint] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -369,7 +370,49 @@ def _predicted(
         elapsed_s=0.0,
     )
     reference = _past_own_body(predicted.reference, fit.shift_xy, looking)
-    return reference, predicted.range_m, fit.shift_xy, aligned
+    return reference, predicted.range_m, fit.shift_xy, photometric_refit(aligned, reference, inspection)
+
+
+# Pixels beyond this many robust sigmas of the photometric fit leave it: the registration's own trim (seed
+# §2.3, rsi.imaging.register: flaws must not pull the fit)
+_PHOTOMETRIC_TRIM_SIGMAS = 4.0
+# Trimmed refits: the second already settles gain and bias to 1e-3 and 0.1 DN on truss seed 0's frames
+_PHOTOMETRIC_REFITS = 3
+# Fewer pixels than a flaw kernel's few hundred cannot fit two parameters against the trim
+_PHOTOMETRIC_MIN_PIXELS = 256
+
+
+def photometric_refit(aligned: Registration, reference: Compensated, inspection: Compensated) -> Registration:
+    """`aligned` with its gain and bias fitted again on the reference as predicted in depth (trimmed least
+    squares, the inspection on the reference, outliers beyond 4 robust sigmas out).
+
+    The first registration fitted them before the parallax was taken out: every surface off the median
+    depth was misregistered, and what its trim kept pulled the fit. Two passes' strobe images at one flash
+    energy (:func:`rsi.mission.exposure.shortened`) differ by the flash's gain and the compensation's
+    zero-mean error (seed §2.2), not by an offset: truss seed 0 under a 300 s sun, CAD plan point cad_03,
+    agreed to 0.02 DN at every brightness, yet the first fit gave gain 0.943 and bias +11 DN, and a dark
+    tube end of 7.6 DN read 7 DN under its prediction, 16 sigma over 31 mm: a false swapped component
+    (refitted: 0.997 and +0.5 DN).
+    """
+    warped, inside = aligned.warp(reference.image, output_shape=inspection.image.shape, photometric=False)
+    seen, _ = aligned.warp(
+        reference.valid.astype(np.float32), output_shape=inspection.image.shape, photometric=False
+    )
+    used = inside & (seen > 0.999) & inspection.valid
+    if int(used.sum()) < _PHOTOMETRIC_MIN_PIXELS:
+        return aligned
+    before, after = warped[used].astype(np.float64), inspection.image[used].astype(np.float64)
+    kept = np.ones(before.size, dtype=bool)
+    gain, bias = aligned.gain, aligned.bias
+    for _ in range(_PHOTOMETRIC_REFITS):
+        if int(kept.sum()) < _PHOTOMETRIC_MIN_PIXELS:
+            break
+        design = np.column_stack([before[kept], np.ones(int(kept.sum()))])
+        (gain, bias), *_ = np.linalg.lstsq(design, after[kept], rcond=None)
+        residual = after - (gain * before + bias)
+        sigma = 1.4826 * float(np.median(np.abs(residual - np.median(residual))))
+        kept = np.abs(residual) <= _PHOTOMETRIC_TRIM_SIGMAS * max(sigma, 1e-6)
+    return replace(aligned, gain=float(gain), bias=float(bias))
 
 
 def _past_own_body(reference: Compensated, shift_xy: tuple[float, float], looking: _Looking) -> Compensated:

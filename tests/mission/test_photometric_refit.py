@@ -1,0 +1,61 @@
+"""The comparison's gain and bias fitted again on the reference predicted in depth (seed §2.2-2.3)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from rsi.imaging.compensation import Compensated
+from rsi.imaging.registration import register
+from rsi.mission.visual import photometric_refit
+
+
+def _strobe_image(image: np.ndarray, valid: np.ndarray | None = None) -> Compensated:
+    shape = image.shape
+    return Compensated(
+        image=image.astype(np.float32),
+        valid=np.ones(shape, bool) if valid is None else valid,
+        variance=np.full(shape, 4.0, np.float32),
+        interpolation_variance=np.zeros(shape, np.float32),
+        row_step=1,
+    )
+
+
+def _scene() -> tuple[np.ndarray, np.ndarray]:
+    """A textured 150 DN plate with a 7.6 DN tube end, seen twice by one flash (gain 1, bias 0) with 2 DN of
+    noise each, and a strip of the plate that a surface off the median depth shifted by parallax (+60 DN
+    over 6 % of the frame)."""
+    rng = np.random.default_rng(3)
+    rows, cols = np.mgrid[0:200, 0:240]
+    scene = 150.0 + 20.0 * np.sin(cols / 7.0) * np.cos(rows / 11.0)
+    tube = (rows - 60) ** 2 + (cols - 80) ** 2 < 30**2
+    scene[tube] = 7.6
+    reference = scene + rng.normal(0.0, 2.0, scene.shape)
+    inspection = scene + rng.normal(0.0, 2.0, scene.shape)
+    inspection[:, 200:215] += 60.0
+    return reference, inspection
+
+
+def test_a_biased_first_fit_is_refitted_to_the_flash_gain_and_no_offset() -> None:
+    reference, inspection = _scene()
+    first = register(reference, inspection, model="translation")
+    pulled = replace(first, gain=0.943, bias=11.0)  # truss seed 0's cad_03 before the refit
+    refitted = photometric_refit(pulled, _strobe_image(reference), _strobe_image(inspection))
+    assert abs(refitted.gain - 1.0) < 0.01
+    assert abs(refitted.bias) < 1.0
+    # the tube end is predicted where it reads: no 7 DN darkening left for a swapped component
+    predicted = refitted.gain * 7.6 + refitted.bias
+    assert abs(predicted - 7.6) < 1.0
+    # the shifted strip stays a change of its own, not a gain
+    strip = refitted.gain * reference[:, 200:215] + refitted.bias
+    assert np.median(inspection[:, 200:215] - strip) > 55.0
+
+
+def test_too_few_valid_pixels_keep_the_first_fit() -> None:
+    reference, inspection = _scene()
+    first = replace(register(reference, inspection, model="translation"), gain=0.9, bias=5.0)
+    valid = np.zeros(reference.shape, bool)
+    valid[:10, :10] = True  # 100 pixels: two parameters against a 4-sigma trim need more
+    kept = photometric_refit(first, _strobe_image(reference, valid), _strobe_image(inspection, valid))
+    assert (kept.gain, kept.bias) == (0.9, 5.0)
