@@ -245,12 +245,12 @@ def screw_checks(
     the reference's head over half its disc (`glints`), the comparison cannot read it, and a disc of which
     under half as much now returns that flash (the same energy: at least the sensor's top less the
     reference's ambient, or saturated) is its loss; a sun's glint bounds nothing and is not read.
-    Otherwise the comparison with the reference (seed §2.4): the head's pattern must be gone from the image
-    (:func:`head_likeness`): a removed screw takes its whole slotted disc away, a present one keeps it
-    however its slot's edges are sampled. That alone is the loss (a removed head on a face of its own
-    reflectance darkens nothing: the ORU face's A_1 at 2.2-2.5 sigma, space seed 1706); a dark-flaw statistic
-    above the confirming threshold `confirm` over the disc against *both* pristine visits (`pairs`) is its
-    score where it shows.
+    Otherwise the comparison with the reference (seed §2.4): a head that is gone darkens the image over its
+    disc (at least half of it read), and a dark-flaw statistic above the confirming threshold `confirm` there
+    against *both* pristine visits (`pairs`: a head's relief renders differently at each viewpoint, and what
+    one reference's sampling made is not new) is the screw's loss. Either way the head's pattern must be gone
+    from the image (:func:`head_likeness`): a removed screw takes its whole slotted disc away, a present one
+    keeps it however its slot's edges are sampled.
 
     Returns the missing screws' findings and the names of the screws this view checked: a screw none of the
     three could judge here (its disc mostly outside the comparison, no relief, no glint) is left to a later
@@ -278,8 +278,6 @@ def screw_checks(
             margin, score = _glint_margin(glint, now, view, site), glint.fraction - now
         elif kept is not None and (change := min(screw_change(pair, view, site) for pair in pairs)) > confirm:
             margin, score = change - confirm, change
-        elif kept is not None:
-            margin, score = _pattern_margin(pairs, view, site, settings.local_shift_px), change
         else:
             continue
         findings.append(
@@ -381,19 +379,6 @@ def _glint_margin(before: HeadGlint, now: float, view: Sensed, site: Site) -> fl
 # sun 300 s apart, the best correlation against either pristine visit: 0.75-1.00 over present heads (their
 # slot's edges re-sampled at each viewpoint), -0.10-0.63 over removed ones (a hole where the slot was).
 HEAD_KEPT = math.sqrt(0.5)
-
-
-def _pattern_margin(pairs: Sequence[PairResult], view: Sensed, site: Site, max_shift_px: float) -> float:
-    """How surely the head's pattern is gone, in sigmas: Fisher's z of the best likeness against either
-    visit below that of :data:`HEAD_KEPT`, over its standard error with the disc's pixels correlated over
-    the flaw kernel's 9 (n_eff = pixels / 9)."""
-    likeness = [
-        value for pair in pairs if (value := head_likeness(pair, view, site, max_shift_px)) is not None
-    ]
-    pixels = int(disc(view.strobe.image.shape, view, site.position_m, 0.5 * site.size_m).sum())
-    spread = 1.0 / math.sqrt(max(pixels / 9.0 - 3.0, 1.0))
-    best = min(max(likeness, default=HEAD_KEPT), 0.999)
-    return (math.atanh(HEAD_KEPT) - math.atanh(best)) / spread
 
 
 def head_kept(pairs: Sequence[PairResult], view: Sensed, site: Site, max_shift_px: float) -> bool | None:
