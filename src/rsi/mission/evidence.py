@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import special
 
+from rsi.mission.exposure import unlit_rows
 from rsi.mission.records import MissionFinding
 from rsi.mission.settings import MissionSettings
 from rsi.mission.views import (
@@ -330,8 +331,7 @@ def head_glint(view: Sensed, site: Site) -> HeadGlint:
     head = disc(first.saturated.shape, view, site.position_m, 0.5 * site.size_m)
     if not head.any():
         return NO_GLINT
-    rows = np.arange(head.shape[0])[:, None] % 2
-    first_lit = np.broadcast_to(rows == (1 if first.lit_field == "odd" else 0), head.shape)
+    first_lit = ~unlit_rows(first)
     lit_saturated = np.where(first_lit, first.saturated, second.saturated)
     ambient_saturated = np.where(first_lit, second.saturated, first.saturated)
     glint = head & lit_saturated & ~ambient_saturated

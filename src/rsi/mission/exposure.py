@@ -26,7 +26,8 @@ _CLIPPED_DN = 3.0
 _METER_TRIES = 3
 
 
-def _unlit_rows(frame: Frame) -> NDArray[np.bool_]:
+def unlit_rows(frame: Frame) -> NDArray[np.bool_]:
+    """Pixels of the rows the strobe did not light in `frame` (seed §2.2: the ambient alone)."""
     rows = np.arange(frame.raw.shape[0])[:, None] % 2
     return np.broadcast_to((rows == 0) if frame.lit_field == "odd" else (rows == 1), frame.raw.shape)
 
@@ -38,7 +39,7 @@ def ambient_dn(sensed: Sensed, settings: MissionSettings, region: NDArray[np.boo
     """
     frame = sensed.capture.frames[0]
     region = inspection_region(sensed, settings) if region is None else region
-    pixels = region & _unlit_rows(frame)
+    pixels = region & unlit_rows(frame)
     if not pixels.any():
         return 0.0
     level = float(np.percentile(frame.raw[pixels], settings.meter_percentile))
