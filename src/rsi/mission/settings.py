@@ -65,6 +65,13 @@ class MissionSettings:
         Guard band around the truss and around depth jumps larger than 2 cm (seed §2.3: one registration
         cannot align surfaces at different depths; parallax over 2 cm at 0.5 m exceeds a pixel for the
         lab's few-mm pose error).
+    strobe_beam_margin_deg : float
+        The strobe's beam is trusted to its half-angle less this (seed §2.1 strobe beside the lens;
+        :func:`rsi.mission.views.within_strobe_beam`). The renderer lights each vertex and interpolates
+        across its triangle (MuJoCo's classic pipeline), so a triangle reaching past the 32 deg cut-off
+        darkens up to ~4 deg inside it: truss-b seed 1, CAD point cad_05, 11 % darker at 27.8 deg and
+        none at 27.3 deg; seed 2's cad_33 from 29 deg (development seeds). A real strobe's reflector
+        leaves a soft edge of its own.
     component_area_m2 : float
         A dark blob bigger than 1 cm^2 is a changed component, not a ~1 mm impact (seed §4).
     screw_relief_lost_m : float
@@ -131,6 +138,7 @@ class MissionSettings:
     dent_spot_contrast_min: float = 0.4
     inspection_guard_px: int = 2
     depth_jump_m: float = 0.02
+    strobe_beam_margin_deg: float = 5.0
     component_area_m2: float = 1.0e-4
     screw_relief_lost_m: float = 1.0e-3
     component_disc_m: float = 0.05

@@ -372,6 +372,29 @@ def inspection_region(sensed: Sensed, settings: MissionSettings) -> NDArray[np.b
     return ~off
 
 
+def within_strobe_beam(sensed: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
+    """Pixels whose surface the strobe lights from well inside its beam: at most the beam's half-angle
+    less ``settings.strobe_beam_margin_deg`` off its axis, seen from the strobe beside the lens (seed §2.1).
+
+    The strobe's light falls off at its beam's edge, and where the edge crosses a surface depends on the
+    surface's distance and the pose: a few millimetres of viewpoint error move a steep fall of the strobe
+    image, which no comparison tells from a flaw. At the CAD plan's closest standoffs (~0.21 m) the frame's
+    far corners reach 31 deg of a 32 deg beam. Sky pixels (no surface) count as inside: the region drops
+    them anyway.
+    """
+    from rsi.sim.scene import STROBE_CUTOFF_DEG, STROBE_OFFSET_M
+
+    depth = np.where(sensed.surface_m < FAR_M, sensed.surface_m, np.nan)
+    pose = sensed.believed_pose
+    rows, cols = depth.shape
+    row, col = np.mgrid[0:rows, 0:cols].astype(np.float32)
+    across = (col - (cols - 1) / 2) / np.float32(pose.focal_px) * depth - STROBE_OFFSET_M[0]
+    up = -(row - (rows - 1) / 2) / np.float32(pose.focal_px) * depth - STROBE_OFFSET_M[1]
+    off_axis_deg = np.degrees(np.arctan2(np.hypot(across, up), depth + STROBE_OFFSET_M[2]))
+    with np.errstate(invalid="ignore"):
+        return ~(off_axis_deg > STROBE_CUTOFF_DEG - settings.strobe_beam_margin_deg)
+
+
 # run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
 # :func:`rsi.mission.run_mission`, with values it built and checked (docs/reliability.md).
 __all__: list[str] = []

@@ -65,6 +65,10 @@ MESH_MATERIAL_SUFFIX = "_mesh"  # materials of mesh geoms: texture coordinates c
 # the uint8 basis images lose less than the camera's own 8-bit quantisation (see rsi.sim.render).
 SUN_LEVEL = 0.9
 STROBE_LEVEL = 0.2  # with 1/d^2 fall-off: 0.8 at the reference distance
+# The strobe beside the lens (seed §2.1), in the camera's frame (x right, y up, looking along -z), and its
+# beam's half-angle: at the CAD plan's closest standoffs (~0.24 m) the frame's far corners reach 30 deg
+STROBE_OFFSET_M = (0.0, 0.03, 0.0)
+STROBE_CUTOFF_DEG = 32.0
 HALOGEN_LEVEL = 0.1  # each of two lamps: 0.8 together at the reference distance
 REFERENCE_DISTANCE_M = 0.5  # seed §2.1 inspection standoff at which strobe and lamps are calibrated
 LAMP_DISTANCE_M = 3.0
@@ -582,7 +586,7 @@ def _document(
     materials: list[str], textures: list[str], world: list[str], door: list[str], mockup: Mockup
 ) -> str:
     lamp_dir = "0 0 -1"
-    strobe = _spot("strobe", (0.0, 0.03, 0.0), STROBE_LEVEL, 32.0)
+    strobe = _spot("strobe", STROBE_OFFSET_M, STROBE_LEVEL, STROBE_CUTOFF_DEG)
     halogens = "".join(
         _spot(f"halogen_{k}", (x, -0.03, 0.0), HALOGEN_LEVEL, 35.0) for k, x in enumerate((-0.05, 0.05))
     )
