@@ -392,7 +392,8 @@ def within_strobe_beam(sensed: Sensed, settings: MissionSettings) -> NDArray[np.
     up = -(row - (rows - 1) / 2) / np.float32(pose.focal_px) * depth - STROBE_OFFSET_M[1]
     off_axis_deg = np.degrees(np.arctan2(np.hypot(across, up), depth + STROBE_OFFSET_M[2]))
     with np.errstate(invalid="ignore"):
-        return ~(off_axis_deg > STROBE_CUTOFF_DEG - settings.strobe_beam_margin_deg)
+        beyond: NDArray[np.bool_] = off_axis_deg > STROBE_CUTOFF_DEG - settings.strobe_beam_margin_deg
+    return ~beyond
 
 
 # run_mission's internals, no public API (PEP 8: an empty __all__): every caller is
