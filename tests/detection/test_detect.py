@@ -319,6 +319,13 @@ def _sparse_and_full(**settings: object) -> tuple[Detection, Detection, float]:
         {"flaw_model": "uniform", "method": "erosion"},
         {"flaw_model": "single", "method": "lrt"},
         {"flaw_model": "uniform", "method": "erosion", "size": 5, "registration_model": "affine"},
+        # A local field, no floor: each box reads its crop of the field's per-pixel shift std.
+        {
+            "flaw_model": "uniform",
+            "method": "erosion",
+            "registration_model": "local",
+            "misregistration_std_px": 0.0,
+        },
         {"flaw_model": "uniform", "method": "erosion", "size": 5, "p_false_alarm": 1e-9},
         # A threshold below 0 bounds nothing: every pixel may be flagged, the maps are whole.
         {"flaw_model": "uniform", "method": "erosion", "p_false_alarm": 0.3},
@@ -354,7 +361,6 @@ def test_sparse_maps_equal_the_whole_frame_where_they_can_matter(settings: dict[
     [
         {"noise_sigma": None},  # self-calibrated: the variance is fitted per pixel
         {"flaw_model": "uniform", "method": "lrt"},  # a window test: |T| is not bounded by one |d|
-        {"registration_model": "local"},
         {"sparse_above": -1.0},
     ],
 )

@@ -39,7 +39,7 @@ from rsi.errors import InputError
 from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
 from rsi.imaging._warps import scratch
 from rsi.imaging.compensation import Compensated
-from rsi.imaging.registration import REGISTRATION_MODELS, LocalField, Registration, register
+from rsi.imaging.registration import REGISTRATION_MODELS, Registration, register
 
 Float32Array = NDArray[np.float32]
 BoolArray = NDArray[np.bool_]
@@ -256,13 +256,21 @@ def _sensor_variances(
 
 
 def _prediction_errors(
-    aligned: _Aligned, registration: Registration | None, shift_floor: float
+    aligned: _Aligned,
+    registration: Registration | None,
+    shift_floor: float,
+    local_std: Float32Array | None = None,
 ) -> tuple[Float32Array, ...]:
-    """Coherent one-sigma errors of the prediction: residual shift and resampling (seed §2.3-2.4)."""
+    """Coherent one-sigma errors of the prediction: residual shift and resampling (seed §2.3-2.4).
+
+    `local_std`: a local registration's per-pixel shift std over `aligned` (default: the field's own over
+    the whole frame; a box of the frame passes its crop)."""
     if registration is None and shift_floor == 0.0:
         return ()
     if registration is not None and registration.local is not None:
-        return _local_prediction_errors(aligned, registration.local, shift_floor)
+        shape = (int(aligned.predicted.shape[0]), int(aligned.predicted.shape[1]))
+        std = registration.local.std(shape) if local_std is None else local_std
+        return _local_prediction_errors(aligned, std, shift_floor)
     # Unregistered images are not resampled: no sub-pixel phase, hence no resampling error.
     fraction = (0.0, 0.0) if registration is None else aligned.fraction_xy
     own = (0.0, 0.0) if registration is None else registration.shift_std_px
@@ -271,12 +279,11 @@ def _prediction_errors(
 
 
 def _local_prediction_errors(
-    aligned: _Aligned, local: LocalField, shift_floor: float
+    aligned: _Aligned, std: Float32Array, shift_floor: float
 ) -> tuple[Float32Array, ...]:
-    """As _prediction_errors, with the local field's per-pixel shift std in place of one global value."""
-    shape = (int(aligned.predicted.shape[0]), int(aligned.predicted.shape[1]))
+    """As _prediction_errors, with the local field's per-pixel shift std `std` (rows, cols, 2) in place of
+    one global value."""
     unit_x, unit_y, curvature = noise.systematic_errors(aligned.predicted, None, (1.0, 1.0))
-    std = local.std(shape)
     floor = np.float32(shift_floor)
     return unit_x * np.maximum(std[..., 0], floor), unit_y * np.maximum(std[..., 1], floor), curvature
 
@@ -527,13 +534,13 @@ def _sparse_boxes(
 
 
 def _check_sparse(test: _Test, sparse_above: float) -> None:
-    """The bound |T| <= |d| / sqrt(v) needs one known variance, a pixel-wise test and one global shift std."""
-    local = test.registration is not None and test.registration.local is not None
-    if np.ndim(test.variance) != 0 or test.test_weights.shape != (1, 1) or local:
+    """The bound |T| <= |d| / sqrt(v) needs one known variance and a pixel-wise test (the mis-registration
+    terms, global or local, only add to sigma^2)."""
+    if np.ndim(test.variance) != 0 or test.test_weights.shape != (1, 1):
         raise InputError(
             f"sparse_above={sparse_above!r} needs a known noise_sigma on plain arrays (not Compensated "
-            "images), a pixel-wise test (method='erosion', or flaw_model='single') and a global "
-            "registration (not 'local'). Pass sparse_above=None for whole-frame maps."
+            "images) and a pixel-wise test (method='erosion', or flaw_model='single'). Pass "
+            "sparse_above=None for whole-frame maps."
         )
 
 
@@ -566,6 +573,8 @@ def _sparse_maps(
     sigma = np.full(difference.shape, np.inf, np.float32)
     halo = 1 + max(footprint.shape) // 2
     rows, cols = difference.shape
+    local = test.registration.local if test.registration is not None else None
+    local_std = None if local is None else local.std((rows, cols))
     for left, top, width, height in boxes:
         row0, row1 = max(0, top - halo), min(rows, top + height + halo)
         tight0, tight1 = max(0, left - halo), min(cols, left + width + halo)
@@ -576,7 +585,12 @@ def _sparse_maps(
         blocks = dataclasses.replace(aligned, predicted=aligned.predicted[row0:row1, col0:col1])
         errors = tuple(
             error[:, tight0 - col0 : tight1 - col0]
-            for error in _prediction_errors(blocks, test.registration, test.shift_floor)
+            for error in _prediction_errors(
+                blocks,
+                test.registration,
+                test.shift_floor,
+                None if local_std is None else local_std[row0:row1, col0:col1],
+            )
         )
         crop = (slice(row0, row1), slice(tight0, tight1))
         maps = _test_maps(
@@ -654,9 +668,9 @@ def detect(
         ``|difference| / sigma > s2`` for any ``s2 >= s`` holds exactly where it holds on the whole frame,
         among pixels connected to (a) (seed §2.4: ``sigma^2 = v + coherent errors >= v``, so
         ``|T| <= |d| / sqrt(v)`` bounds the statistic from the difference alone). Needs a known
-        `noise_sigma` on plain arrays, a pixel-wise test (``method="erosion"``, or ``flaw_model="single"``)
-        and a global registration (not ``"local"``). On a 640 x 640 DeepPCB pair the boxes cover about 1 %
-        of the frame (``docs/deeppcb.md``).
+        `noise_sigma` on plain arrays and a pixel-wise test (``method="erosion"``, or
+        ``flaw_model="single"``); a local registration's per-pixel shift std is read in each box. On a
+        640 x 640 DeepPCB pair the boxes cover about 1 % of the frame (``docs/deeppcb.md``).
 
     Returns
     -------

@@ -702,7 +702,9 @@ def register(
         neither preparing nor sampling the finer levels, and the fit is scaled back to full-resolution
         pixels; `tolerance` is then in that level's pixels, and flaws are trimmed there. Level 1 costs about
         half of level 0 and is typically within 0.1 px of it (``docs/registration.md``): enough when the
-        detector's mis-registration floor is far larger (DeepPCB's 3 px, ``docs/deeppcb.md``).
+        detector's mis-registration floor is far larger (DeepPCB's 3 px, ``docs/deeppcb.md``). With
+        ``model="local"`` the field is solved on that level too (its tiles keep `tile_px` full-resolution
+        pixels, at least 8 on the level: a finer level is used where they would not).
     coarsest_level : int, optional
         Coarsest pyramid level refined, >= `finest_level`; None (default): the coarsest that keeps at least
         128 px a side. Coarse levels widen the basin of convergence; a start already close to the answer
@@ -773,6 +775,7 @@ def register(
             ),
             mask=mask,
             tile_px=_DEFAULT_TILE_PX if tile_px is None else tile_px,
+            finest_level=positive_int(finest_level, "finest_level", minimum=0),
             started=started,
         )
     if tile_px is not None:
@@ -847,6 +850,7 @@ def _register_local(
     *,
     mask: NDArray[np.generic] | None,
     tile_px: int,
+    finest_level: int,
     started: float,
 ) -> Registration:
     """The global fit, then the local field between the warped reference and the inspection (seed §2.3)."""
@@ -864,7 +868,9 @@ def _register_local(
     if usable_mask is not None:
         usable &= as_mask(usable_mask, "mask", smoothed.shape)
     predicted = smoothed * np.float32(fit.gain) + np.float32(fit.bias)
-    field = estimate_field(predicted, smooth(inspection_image), fit.matrix, usable, tile_px)
+    field = estimate_field(
+        predicted, smooth(inspection_image), fit.matrix, usable, tile_px, finest_level=finest_level
+    )
     return dataclasses.replace(
         fit,
         model=LOCAL_MODEL,
