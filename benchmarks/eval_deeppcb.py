@@ -326,6 +326,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--root", type=Path, default=DEFAULT_ROOT, help="DeepPCB folder (holds PCBData/)")
     parser.add_argument("--split", default="trainval", choices=("trainval", "test"))
     parser.add_argument("--every", type=int, default=1, help="use every n-th pair (1: all)")
+    parser.add_argument("--offset", type=int, default=0, help="... starting from this pair (0: the first)")
     parser.add_argument(
         "--misregistration-std-px",
         default=None,
@@ -383,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.root / "PCBData").is_dir():
         print(f"DeepPCB not found at {args.root}; pass --root (see ../shared/data/deeppcb/README.md).")
         return 1
-    pairs = load_split(args.root, args.split)[:: args.every]
+    pairs = load_split(args.root, args.split)[args.offset :: args.every]
     if args.profile:
         profile(pairs, _settings(args.profile, default))
         return 0
