@@ -29,6 +29,7 @@ the global fit the globally warped reference ``W`` is compared with the inspecti
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import cv2
 import numpy as np
@@ -671,28 +672,11 @@ def estimate_field(
     level = min(finest_level, max(0, int(np.log2(tile_px / _MIN_TILE_PX))))
     # Bicubic resampling on the finest level: bilinear's bias follows the sub-pixel phase, which a smooth
     # field keeps nearly constant over a tile (0.045 px instead of 0.010 px on the 1 px test warps).
-    solver = _level_solver(
-        reference,
-        inspection,
-        matrix,
-        valid,
-        grid=grid,
-        tile_px=tile_px,
-        level=level,
-        interpolation=cv2.INTER_CUBIC,
-    )
+    on_level = partial(_level_solver, reference, inspection, matrix, valid, grid=grid, tile_px=tile_px)
+    solver = on_level(level=level, interpolation=cv2.INTER_CUBIC)
     if tile_px >> level >= 2 * _MIN_TILE_PX:
         # The field found one level coarser first: twice the capture range, a quarter of the cost.
-        coarse = _level_solver(
-            reference,
-            inspection,
-            matrix,
-            valid,
-            grid=grid,
-            tile_px=tile_px,
-            level=level + 1,
-            interpolation=cv2.INTER_LINEAR,
-        )
+        coarse = on_level(level=level + 1, interpolation=cv2.INTER_LINEAR)
         coarse.run(_MAX_ITERATIONS)
         solver.field = 2.0 * coarse.field
     residual = solver.run(_MAX_ITERATIONS)
