@@ -207,6 +207,28 @@ def test_textureless_tiles_fall_back_to_the_global_fit() -> None:
     assert float(np.abs(blank.local.shift_xy).max()) < 1e-6
 
 
+def test_no_node_leaves_the_trust_region() -> None:
+    # The field is a small correction to the global fit: no node departs more than an eighth of a tile
+    # along either axis. A 4 px warp on 16 px tiles (bound 2 px) needs more; the nodes held at the bound
+    # are reported as fallbacks, without an estimate of their own.
+    reference, inspection, _ = warped_pair(4.0, seed=0)
+    tile_px = 16
+    result = register(reference, inspection, model="local", tile_px=tile_px)
+    assert result.local is not None
+    bound = tile_px / 8
+    magnitude = np.abs(result.local.shift_xy).max(axis=-1)
+    assert float(magnitude.max()) <= bound + 1e-9
+    held = magnitude >= bound
+    assert held.any()
+    assert result.local.fallback[held].all()
+    assert np.isnan(result.local.tile_shift_xy[held]).all()
+    # The 64 px tiles of the same warp (bound 8 px) follow it without reaching the bound.
+    wide = register(reference, inspection, model="local", tile_px=64)
+    assert wide.local is not None
+    assert float(np.abs(wide.local.shift_xy).max()) < 8.0
+    assert not wide.local.fallback.any()
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [

@@ -24,6 +24,12 @@ the global fit the globally warped reference ``W`` is compared with the inspecti
    texture along one direction only) or a shift std above ``_MAX_STD_PX`` has no estimate of its own: the
    field there is the smooth continuation of its neighbours', the global fit where none has one, and the
    tile is reported in ``fallback``.
+7. **Trust region.** The field is a small correction to the global fit (seed §2.3: "small
+   mis-registrations"): no node moves more than an eighth of a tile along either axis (8 px for 64 px
+   tiles, well beyond the 1-3 px a scan's distortion shows). Without it a coarse level whose tiles see
+   parallel traces a few pixels apart locked onto the neighbouring trace: DeepPCB pair 20085203's nodes
+   went to 26 px, and the fine level, at a pixel per step, never came back. A node held at the bound is
+   reported in ``fallback``.
 """
 
 from __future__ import annotations
@@ -70,6 +76,8 @@ _MAX_STEP_PX = 1.0
 _TOLERANCE_PX = 0.01
 # Spacing of the exact inverse-map samples that the warp interpolates (source_maps).
 _MAP_STEP_PX = 4
+# Largest departure of a node from the global fit, as a fraction of the tile, per axis (step 7 above).
+_MAX_FIELD_TILES = 1.0 / 8.0
 
 
 @dataclass(frozen=True)
@@ -97,6 +105,7 @@ class LocalField:
     fallback : ndarray of shape (R, C), bool
         Tiles without an estimate of their own (too few usable pixels, no texture, or texture along one
         direction only): the field there continues the neighbours', or is the global fit if none has one.
+        Also the tiles whose node was held at the trust bound (an eighth of a tile from the global fit).
     iterations : int
         Resamplings of the inspection.
     trimmed_fraction : float
@@ -470,9 +479,11 @@ class _Solver:
         weight: Image,
         grid: _Grid,
         *,
+        tile_px: int,
         interpolation: int,
     ) -> None:
         self.reference, self.inspection, self.grid = reference, inspection, grid
+        self.field_limit = _MAX_FIELD_TILES * tile_px
         self.interpolation = interpolation
         self.gx, self.gy = _gradients(reference)
         self.energy = self.gx * self.gx + self.gy * self.gy
@@ -544,7 +555,7 @@ class _Solver:
             # A step beyond a pixel leaves the linear range of the lightly smoothed images: damp it.
             if largest > _MAX_STEP_PX:
                 change *= _MAX_STEP_PX / largest
-            self.field = self.field + change
+            self.field = np.clip(self.field + change, -self.field_limit, self.field_limit)
             residual = self.residual()
             if largest < _TOLERANCE_PX:
                 break
@@ -567,7 +578,8 @@ def _uncertainty(
     own_fit = solver.own_estimates(np.zeros_like(residual))
     misfit = np.nan_to_num(measured - own_fit)
     std = scale * np.sqrt(statistical + misfit * misfit)
-    fallback = ~t.own | (std.max(axis=-1) > _MAX_STD_PX)
+    held = np.abs(solver.field).max(axis=-1) >= solver.field_limit
+    fallback = ~t.own | held | (std.max(axis=-1) > _MAX_STD_PX)
     std[fallback] = _MAX_STD_PX
     return std, fallback
 
@@ -635,6 +647,7 @@ def _level_solver(
         scale @ matrix @ np.linalg.inv(scale),
         _inner_weight(level_valid.astype(bool), tile_px >> level),
         _level_grid(grid, level, shape),
+        tile_px=tile_px >> level,
         interpolation=interpolation,
     )
 
