@@ -144,6 +144,7 @@ def test_group_defects_rejects_non_2d_mask() -> None:
         ("registration_row_step", 0),
         ("registration_photometric", "no"),
         ("registration_presmooth", 1),
+        ("registration_field_tolerance_px", 0.0),
         ("merge_gap_px", -2),
         ("min_area_px", 0),
         ("border_px", -1),

@@ -207,6 +207,16 @@ def test_textureless_tiles_fall_back_to_the_global_fit() -> None:
     assert float(np.abs(blank.local.shift_xy).max()) < 1e-6
 
 
+def test_a_looser_field_tolerance_stops_sooner() -> None:
+    # The field's steps stop when no node moves more than field_tolerance_px (full-resolution pixels).
+    reference, inspection, field = warped_pair(3.0, seed=0)
+    tight = register(reference, inspection, model="local")
+    loose = register(reference, inspection, model="local", field_tolerance_px=1.0)
+    assert tight.local is not None and loose.local is not None
+    assert loose.local.iterations < tight.local.iterations
+    assert float(np.sqrt(np.mean(field_error_px(loose, field) ** 2))) < 1.0
+
+
 def test_no_node_leaves_the_trust_region() -> None:
     # The field is a small correction to the global fit: no node departs more than an eighth of a tile
     # along either axis. A 4 px warp on 16 px tiles (bound 2 px) needs more; the nodes held at the bound
@@ -235,6 +245,8 @@ def test_no_node_leaves_the_trust_region() -> None:
         ({"model": "local", "tile_px": 512}, "tile_px=512 is larger than the image"),
         ({"model": "local", "tile_px": 4}, "tile_px must be an int >= 8"),
         ({"model": "affine", "tile_px": 64}, "tile_px applies to model='local' only"),
+        ({"model": "affine", "field_tolerance_px": 0.1}, "field_tolerance_px applies to model='local' only"),
+        ({"model": "local", "field_tolerance_px": 0.0}, "field_tolerance_px"),
         ({"model": "warp"}, "model"),
     ],
 )

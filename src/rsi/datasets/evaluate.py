@@ -39,7 +39,7 @@ from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
 from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
 from rsi.imaging._warps import scratch
-from rsi.imaging.registration import REGISTRATION_MODELS, Registration
+from rsi.imaging.registration import LOCAL_MODEL, REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
     from rsi.datasets.official import OfficialTally
@@ -95,6 +95,12 @@ class DeepPcbSettings:
         Fit a gain and bias (:func:`rsi.register`'s ``photometric``). False: the images are binarised to 0
         and 255, so there is no exposure difference to fit, and the two photometric unknowns are a quarter of
         an affine fit's work. Measured on trainval, not tuned: a yes-or-no choice (``docs/deeppcb.md``).
+    registration_field_tolerance_px : float
+        The local field's convergence tolerance (:func:`rsi.register`'s ``field_tolerance_px``), pixels.
+        0.1: thirty times below the 3 px mis-registration floor. On these binarised boards the field creeps
+        by 0.03-0.05 px a step for its ten steps (on camera-like textures it converges in two or three), so
+        the default 0.01 px ran every level to its step limit; 0.1 px stops it ~40 % sooner
+        (``docs/deeppcb.md``).
     registration_presmooth : bool
         Smooth the full-resolution images before the registration's pyramid (:func:`rsi.register`'s
         ``presmooth``). False: the fit ends on the half-size images, which cv2.pyrDown's own Gaussian
@@ -142,6 +148,7 @@ class DeepPcbSettings:
     registration_row_step: int | None = 2
     registration_photometric: bool = False
     registration_presmooth: bool = False
+    registration_field_tolerance_px: float = 0.1
     flaw_model: str = "uniform"
     size: int = 3
     method: str = "erosion"
@@ -168,6 +175,12 @@ class DeepPcbSettings:
             positive_int(self.registration_row_step, "registration_row_step")
         instance_of(self.registration_photometric, "registration_photometric", bool, none_allowed=False)
         instance_of(self.registration_presmooth, "registration_presmooth", bool, none_allowed=False)
+        in_range(
+            self.registration_field_tolerance_px,
+            "registration_field_tolerance_px",
+            low=0.0,
+            low_inclusive=False,
+        )
         choice(self.flaw_model, "flaw_model", FLAW_MODELS)
         choice(self.method, "method", ("lrt", "erosion"))
         positive_int(self.size, "size")
@@ -489,6 +502,7 @@ def register_pair(
     row_step: int | None = None,
     photometric: bool = True,
     presmooth: bool = True,
+    field_tolerance_px: float | None = None,
 ) -> Registration:
     """Register a DeepPCB pair: start at the identity (the pairs are pre-aligned), keep a plausible fit.
 
@@ -496,8 +510,9 @@ def register_pair(
     :func:`rsi.register` pick a wrong peak; 20 of the 1,000 trainval pairs then diverged or locked onto a
     5-40 % scale, and every defect of the pair was missed. From the identity, the model's fit is kept if
     plausible, else a translation's, else the identity itself (``reason="implausible"``). `finest_level`,
-    `coarsest_level`, `row_step`, `photometric` and `presmooth` are :func:`rsi.register`'s
-    (``DeepPcbSettings``'s ``registration_*``; :func:`registration_options` gives them).
+    `coarsest_level`, `row_step`, `photometric`, `presmooth` and `field_tolerance_px` (the local model's
+    only) are :func:`rsi.register`'s (``DeepPcbSettings``'s ``registration_*``; :func:`registration_options`
+    gives them).
     """
     from rsi.imaging.registration import register
 
@@ -513,6 +528,7 @@ def register_pair(
             row_step=row_step,
             photometric=photometric,
             presmooth=presmooth,
+            field_tolerance_px=field_tolerance_px if candidate == LOCAL_MODEL else None,
         )
         if _plausible(fit):
             return fit
@@ -645,6 +661,7 @@ def registration_options(settings: DeepPcbSettings) -> dict[str, Any]:
         "row_step": settings.registration_row_step,
         "photometric": settings.registration_photometric,
         "presmooth": settings.registration_presmooth,
+        "field_tolerance_px": settings.registration_field_tolerance_px,
     }
 
 

@@ -35,7 +35,7 @@ the global fit the globally warped reference ``W`` is compared with the inspecti
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
+from functools import lru_cache, partial
 
 import cv2
 import numpy as np
@@ -73,7 +73,8 @@ _INVERSE_ROUNDS = 3
 # Largest change of the field in one Gauss-Newton step, pixels of the level: beyond it the linearisation
 # of lightly smoothed images (a binarised board's edges are ~2 px wide) no longer holds.
 _MAX_STEP_PX = 1.0
-_TOLERANCE_PX = 0.01
+# Default convergence tolerance of the field, full-resolution pixels (estimate_field's tolerance_px).
+TOLERANCE_PX = 0.01
 # Spacing of the exact inverse-map samples that the warp interpolates (source_maps).
 _MAP_STEP_PX = 4
 # Largest departure of a node from the global fit, as a fraction of the tile, per axis (step 7 above).
@@ -130,7 +131,7 @@ class LocalField:
 
     def displacement(self, shape: tuple[int, int]) -> Image:
         """The field at every reference pixel, `shape` (rows, cols): array (rows, cols, 2), (ux, uy)."""
-        return _interpolate(self.shift_xy, self.node_rows, self.node_cols, shape)
+        return _interpolate(self.shift_xy, _node_maps(self.node_rows, self.node_cols, shape))
 
     def source_maps(self, matrix: FloatArray, shape: tuple[int, int]) -> tuple[Image, Image]:
         """Reference coordinates (map_x, map_y) of every inspection pixel ``y`` of `shape`.
@@ -171,7 +172,7 @@ class LocalField:
         The uncertainty varies over a tile's size; read in the inspection frame, the global fit's few pixels
         of offset do not matter.
         """
-        return _interpolate(self.shift_std_px, self.node_rows, self.node_cols, shape)
+        return _interpolate(self.shift_std_px, _node_maps(self.node_rows, self.node_cols, shape))
 
 
 def _node_positions(nodes: FloatArray, size: int) -> NDArray[np.float32]:
@@ -181,18 +182,24 @@ def _node_positions(nodes: FloatArray, size: int) -> NDArray[np.float32]:
     ).astype(np.float32)
 
 
-def _interpolate(values: FloatArray, rows: FloatArray, cols: FloatArray, shape: tuple[int, int]) -> Image:
-    """Bilinear interpolation of node values (R, C, K) to every pixel, constant beyond the outer nodes."""
+def _node_maps(rows: FloatArray, cols: FloatArray, shape: tuple[int, int]) -> tuple[Image, Image]:
+    """Every pixel's fractional node column and row: the maps of :func:`_interpolate` (fixed per grid)."""
     map_x = np.broadcast_to(_node_positions(cols, shape[1])[None, :], shape)
     map_y = np.broadcast_to(_node_positions(rows, shape[0])[:, None], shape)
+    return np.ascontiguousarray(map_x), np.ascontiguousarray(map_y)
+
+
+def _interpolate(values: FloatArray, maps: tuple[Image, Image]) -> Image:
+    """Bilinear interpolation of node values (R, C, K) to every pixel (`maps` from :func:`_node_maps`),
+    constant beyond the outer nodes."""
     # A remap of the tiny node image: exact bilinear weights, no BLAS (whose threads stall on busy cores).
     out = cv2.remap(
         np.ascontiguousarray(values, dtype=np.float32),
-        np.ascontiguousarray(map_x),
-        np.ascontiguousarray(map_y),
+        *maps,
         cv2.INTER_LINEAR,
         borderMode=cv2.BORDER_REPLICATE,
     )
+    shape = maps[0].shape
     return np.asarray(out, dtype=np.float32).reshape(shape[0], shape[1], values.shape[2])
 
 
@@ -329,6 +336,13 @@ def _tiles(xx: FloatArray, xy: FloatArray, yy: FloatArray, used: FloatArray, are
     return _Tiles(xx, xy, yy, used, own)
 
 
+@lru_cache(maxsize=8)
+def _prior(rows: int, cols: int) -> sparse.csr_matrix:
+    """The membrane and the global pull on both components of an R x C node grid (fixed per grid shape)."""
+    laplacian = _SMOOTHNESS * _membrane(rows, cols) + _GLOBAL_PULL * sparse.eye(rows * cols)
+    return sparse.block_diag([laplacian, laplacian], format="csr")
+
+
 def _membrane(rows: int, cols: int) -> sparse.csr_matrix:
     def path(n: int) -> sparse.csr_matrix:
         difference = sparse.diags([np.ones(n - 1), -np.ones(n - 1)], [0, 1], shape=(n - 1, n))
@@ -382,8 +396,7 @@ class _Mesh:
         normal_xx, normal_xy, normal_yy = (block / self.scale for block in blocks)
         self.normal = sparse.bmat([[normal_xx, normal_xy], [normal_xy.T, normal_yy]], format="csr")
         nodes = self.shape[0] * self.shape[1]
-        laplacian = _SMOOTHNESS * _membrane(*self.shape) + _GLOBAL_PULL * sparse.eye(nodes)
-        self.prior = sparse.block_diag([laplacian, laplacian], format="csr")
+        self.prior = _prior(*self.shape)
         # Levenberg-Marquardt damping: a node whose texture barely fixes it (a trace seen along its length,
         # a flaw's residual with little gradient under it) moves slowly instead of leaping; at convergence
         # the step is zero, so the damping does not bias the field.
@@ -480,10 +493,12 @@ class _Solver:
         grid: _Grid,
         *,
         tile_px: int,
+        tolerance: float,
         interpolation: int,
     ) -> None:
         self.reference, self.inspection, self.grid = reference, inspection, grid
         self.field_limit = _MAX_FIELD_TILES * tile_px
+        self.tolerance = tolerance
         self.interpolation = interpolation
         self.gx, self.gy = _gradients(reference)
         self.energy = self.gx * self.gx + self.gy * self.gy
@@ -492,7 +507,7 @@ class _Solver:
         # The inspection's gradient at the matched point is J^-T times the reference's (J: the global
         # fit's Jacobian, exact for an affine fit; a homography's hardly varies over a board).
         self.inverse = np.linalg.inv(np.asarray(matrix[:2, :2] / matrix[2, 2], dtype=np.float64))
-        self.nodes = grid.nodes
+        self.node_maps = _node_maps(*grid.nodes, shape)
         self.field = np.zeros((*grid.tiles_shape, 2))
         self.iterations = 0
         self.set_weight(weight)
@@ -500,11 +515,11 @@ class _Solver:
     def set_weight(self, weight: Image) -> None:
         self.weight = weight
         self.mesh = _Mesh(self.grid, self.gx, self.gy, weight, self.inverse)
+        self.textured = _textured_samples(weight, self.energy)
         self.tiles = self.mesh.tiles
 
     def residual(self) -> Image:
-        shape = (int(self.reference.shape[0]), int(self.reference.shape[1]))
-        field = _interpolate(self.field, self.nodes[0], self.nodes[1], shape)
+        field = _interpolate(self.field, self.node_maps)
         map_x = np.add(self.base_x, field[..., 0], dtype=np.float32)
         map_y = np.add(self.base_y, field[..., 1], dtype=np.float32)
         moved = cv2.remap(self.inspection, map_x, map_y, self.interpolation, borderMode=cv2.BORDER_REPLICATE)
@@ -521,7 +536,7 @@ class _Solver:
         A flaw's residual then pulls no harder than a mis-registered edge's; as Huber's weight never
         exceeds 1, the fixed normal matrix still bounds the curvature and every step still descends.
         """
-        sigma = _textured_sigma(residual, self.weight, self.energy)
+        sigma = _robust_sigma(residual, self.textured)
         if sigma > 0.0:
             limit = np.float32(_HUBER_SIGMAS * sigma)
             residual = np.clip(residual, -limit, limit)
@@ -540,8 +555,7 @@ class _Solver:
             axis=-1,
         )
         means = self.grid.tile_sums(np.ones(self.reference.shape, np.float32))
-        shape = (int(self.reference.shape[0]), int(self.reference.shape[1]))
-        field = _interpolate(self.field, self.nodes[0], self.nodes[1], shape)
+        field = _interpolate(self.field, self.node_maps)
         mean = np.stack([self.grid.tile_sums(field[..., axis]) / means for axis in (0, 1)], axis=-1)
         return np.where(t.own[..., None], mean - step, np.nan)
 
@@ -555,9 +569,11 @@ class _Solver:
             # A step beyond a pixel leaves the linear range of the lightly smoothed images: damp it.
             if largest > _MAX_STEP_PX:
                 change *= _MAX_STEP_PX / largest
-            self.field = np.clip(self.field + change, -self.field_limit, self.field_limit)
+            moved = np.clip(self.field + change, -self.field_limit, self.field_limit)
+            # Converged when no node moves (one held at the trust bound may press on, in vain).
+            change, self.field = moved - self.field, moved
             residual = self.residual()
-            if largest < _TOLERANCE_PX:
+            if float(np.abs(change).max(initial=0.0)) < self.tolerance:
                 break
         return residual
 
@@ -584,24 +600,28 @@ def _uncertainty(
     return std, fallback
 
 
-def _textured_sigma(residual: Image, weight: Image, energy: Image) -> float:
-    """Robust sigma of the residual where the reference has texture (gradient energy above the median).
+def _textured_samples(weight: Image, energy: Image) -> NDArray[np.intp]:
+    """Flat indices of the pixels a robust residual scale is taken on: every _SIGMA_STRIDE-th used pixel
+    whose reference gradient energy is above the median of those (a sample is enough for a scale).
 
     On a binarised board the flat copper and substrate have no residual at all, and their zeros would make
-    every edge an outlier. A sample of every _SIGMA_STRIDE-th pixel is enough for a scale.
+    every edge an outlier. Fixed for a weight: computed once, not at every step.
     """
-    used = (weight > 0).ravel()[::_SIGMA_STRIDE]
-    if not used.any():
-        return 0.0
-    sampled_energy = energy.ravel()[::_SIGMA_STRIDE][used]
-    sampled = residual.ravel()[::_SIGMA_STRIDE][used]
-    textured = sampled[sampled_energy >= np.median(sampled_energy)]
-    return _MAD_TO_SIGMA * float(np.median(np.abs(textured))) if textured.size else 0.0
+    sampled = np.flatnonzero(weight.ravel()[::_SIGMA_STRIDE] > 0) * _SIGMA_STRIDE
+    if not sampled.size:
+        return sampled
+    sampled_energy = energy.ravel()[sampled]
+    return sampled[sampled_energy >= np.median(sampled_energy)]
 
 
-def _trim_weight(residual: Image, weight: Image, energy: Image, floor: float) -> Image:
+def _robust_sigma(residual: Image, samples: NDArray[np.intp]) -> float:
+    """Robust (MAD) sigma of the residual at the textured samples; 0 without any."""
+    return _MAD_TO_SIGMA * float(np.median(np.abs(residual.ravel()[samples]))) if samples.size else 0.0
+
+
+def _trim_weight(residual: Image, weight: Image, samples: NDArray[np.intp], floor: float) -> Image:
     """`weight` less the outliers: |residual| beyond _TRIM_SIGMAS robust sigmas of the textured pixels."""
-    sigma = max(_textured_sigma(residual, weight, energy), floor)
+    sigma = max(_robust_sigma(residual, samples), floor)
     return np.asarray(weight * (np.abs(residual) <= _TRIM_SIGMAS * sigma), dtype=np.float32)
 
 
@@ -634,6 +654,7 @@ def _level_solver(
     grid: _Grid,
     tile_px: int,
     level: int,
+    tolerance: float,
     interpolation: int,
 ) -> _Solver:
     """A solver on the images ``2**level`` times smaller, `matrix` and `grid` carried to them."""
@@ -648,6 +669,7 @@ def _level_solver(
         _inner_weight(level_valid.astype(bool), tile_px >> level),
         _level_grid(grid, level, shape),
         tile_px=tile_px >> level,
+        tolerance=tolerance,
         interpolation=interpolation,
     )
 
@@ -660,6 +682,7 @@ def estimate_field(
     tile_px: int,
     *,
     finest_level: int = 0,
+    tolerance_px: float = TOLERANCE_PX,
 ) -> LocalField:
     """The local field between the smoothed reference and the smoothed inspection, after a global fit.
 
@@ -679,6 +702,9 @@ def estimate_field(
         The field is solved on the images ``2**finest_level`` times smaller (0: full resolution) and scaled
         back to full-resolution pixels; tiles keep their full-resolution size, so a level keeps
         ``tile_px >> finest_level`` >= _MIN_TILE_PX pixels a side (coarser levels are not used).
+    tolerance_px : float
+        The Gauss-Newton steps stop when no node moves more than this, full-resolution pixels (the coarser
+        level that gives the start: this many of its own pixels).
     """
     shape = (int(reference.shape[0]), int(reference.shape[1]))
     grid = _grid(shape, tile_px)
@@ -686,17 +712,17 @@ def estimate_field(
     # Bicubic resampling on the finest level: bilinear's bias follows the sub-pixel phase, which a smooth
     # field keeps nearly constant over a tile (0.045 px instead of 0.010 px on the 1 px test warps).
     on_level = partial(_level_solver, reference, inspection, matrix, valid, grid=grid, tile_px=tile_px)
-    solver = on_level(level=level, interpolation=cv2.INTER_CUBIC)
+    solver = on_level(level=level, tolerance=tolerance_px / 2.0**level, interpolation=cv2.INTER_CUBIC)
     if tile_px >> level >= 2 * _MIN_TILE_PX:
         # The field found one level coarser first: twice the capture range, a quarter of the cost.
-        coarse = on_level(level=level + 1, interpolation=cv2.INTER_LINEAR)
+        coarse = on_level(level=level + 1, tolerance=tolerance_px, interpolation=cv2.INTER_LINEAR)
         coarse.run(_MAX_ITERATIONS)
         solver.field = 2.0 * coarse.field
     residual = solver.run(_MAX_ITERATIONS)
     # seed §2.4: a flaw is an outlier of the registration model; drop it and refine (a flaw must not pull
     # its tile).
     floor = 1e-3 * float(np.std(reference[valid])) if valid.any() else 0.0
-    trimmed_weight = _trim_weight(residual, solver.weight, solver.energy, floor)
+    trimmed_weight = _trim_weight(residual, solver.weight, solver.textured, floor)
     used = float(solver.weight.sum())
     trimmed_fraction = float((used - float(trimmed_weight.sum())) / used) if used else 0.0
     if trimmed_fraction > 0.0:

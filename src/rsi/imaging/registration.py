@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from rsi._validate import as_intensity_image, as_mask, choice, in_range, intensity_range, positive_int
 from rsi.errors import InputError
 from rsi.imaging._gauss_newton import Settings, Terms, reference_terms, solve_level
-from rsi.imaging._local import LocalField, estimate_field
+from rsi.imaging._local import TOLERANCE_PX, LocalField, estimate_field
 from rsi.imaging._pyramid import (
     Estimate,
     Level,
@@ -661,6 +661,7 @@ def register(
     deadline_s: float | None = None,
     initial: NDArray[np.floating] | Registration | None = None,
     tile_px: int | None = None,
+    field_tolerance_px: float | None = None,
     finest_level: int = 0,
     coarsest_level: int | None = None,
     row_step: int | None = None,
@@ -696,6 +697,10 @@ def register(
     tile_px : int, optional
         ``model="local"`` only: side of the overlapping tiles (default 64), at least 8 and at most the
         image's shorter side. Smaller tiles follow faster-varying distortion with less texture each.
+    field_tolerance_px : float, optional
+        ``model="local"`` only: the field's Gauss-Newton steps stop when no node moves more than this many
+        full-resolution pixels (default 0.01, > 0). A detector whose mis-registration floor is far larger
+        needs far less: DeepPCB's 0.1 px against its 3 px floor (``docs/deeppcb.md``).
     finest_level : int
         Finest pyramid level refined, >= 0: 0 (default) ends at full resolution; ``k`` ends on the images
         ``2**k`` times smaller (the coarsest level if the pyramid has fewer: it keeps at least 128 px a side),
@@ -775,11 +780,15 @@ def register(
             ),
             mask=mask,
             tile_px=_DEFAULT_TILE_PX if tile_px is None else tile_px,
+            tolerance_px=TOLERANCE_PX
+            if field_tolerance_px is None
+            else in_range(field_tolerance_px, "field_tolerance_px", low=0.0, low_inclusive=False),
             finest_level=positive_int(finest_level, "finest_level", minimum=0),
             started=started,
         )
-    if tile_px is not None:
-        raise InputError(f"tile_px applies to model='local' only; got model={model!r}. Omit tile_px.")
+    for name, value in (("tile_px", tile_px), ("field_tolerance_px", field_tolerance_px)):
+        if value is not None:
+            raise InputError(f"{name} applies to model='local' only; got model={model!r}. Omit {name}.")
     inspection_image, inspection_span = _checked_float32(inspection, "inspection")
     if isinstance(reference, PreparedReference):
         _check_prepared(reference, model, photometric, mask, row_step=row_step, presmooth=presmooth)
@@ -850,6 +859,7 @@ def _register_local(
     *,
     mask: NDArray[np.generic] | None,
     tile_px: int,
+    tolerance_px: float,
     finest_level: int,
     started: float,
 ) -> Registration:
@@ -869,7 +879,13 @@ def _register_local(
         usable &= as_mask(usable_mask, "mask", smoothed.shape)
     predicted = smoothed * np.float32(fit.gain) + np.float32(fit.bias)
     field = estimate_field(
-        predicted, smooth(inspection_image), fit.matrix, usable, tile_px, finest_level=finest_level
+        predicted,
+        smooth(inspection_image),
+        fit.matrix,
+        usable,
+        tile_px,
+        finest_level=finest_level,
+        tolerance_px=tolerance_px,
     )
     return dataclasses.replace(
         fit,
