@@ -246,12 +246,12 @@ def screw_checks(
     the reference's head over half its disc (`glints`), the comparison cannot read it, and a disc of which
     under half as much now returns that flash (the same energy: at least the sensor's top less the
     reference's ambient, or saturated) is its loss; a sun's glint bounds nothing and is not read.
-    Otherwise the comparison with the reference (seed §2.4): a head that is gone darkens the image over its
-    disc (at least half of it read), and a dark-flaw statistic above the confirming threshold `confirm` there
-    against *both* pristine visits (`pairs`: a head's relief renders differently at each viewpoint, and what
-    one reference's sampling made is not new) is the screw's loss. Either way the head's pattern must be gone
-    from the image (:func:`head_likeness`): a removed screw takes its whole slotted disc away, a present one
-    keeps it however its slot's edges are sampled.
+    Otherwise the comparison with the reference (seed §2.4): a head that is gone leaves a dark hole, and
+    a darkening of its disc beyond any local shift of the reference (:func:`screw_change`) above the
+    confirming threshold `confirm` against *both* pristine visits (`pairs`: a head's relief renders
+    differently at each viewpoint, and what one reference's sampling made is not new) is the screw's loss.
+    Either way the head's pattern must be gone from the image (:func:`head_likeness`): a removed screw takes
+    its whole slotted disc away, a present one keeps it however its slot's edges are sampled.
 
     Returns the missing screws' findings and the names of the screws this view checked: a screw none of the
     three could judge here (its disc mostly outside the comparison, no relief, no glint) is left to a later
@@ -277,7 +277,7 @@ def screw_checks(
             margin, score = (lost - settings.screw_relief_lost_m) / 2e-4, lost
         elif (now := _glint_left(glint, view, site)) is not None:
             margin, score = _glint_margin(glint, now, view, site), glint.fraction - now
-        elif kept is not None and (change := min(screw_change(pair, view, site) for pair in pairs)) > confirm:
+        elif kept is not None and (change := _darkened(pairs, view, site, settings.local_shift_px)) > confirm:
             margin, score = change - confirm, change
         else:
             continue
@@ -423,23 +423,64 @@ def head_likeness(pair: PairResult, view: Sensed, site: Site, max_shift_px: floa
     return best
 
 
+def _darkened(pairs: Sequence[PairResult], view: Sensed, site: Site, max_shift_px: float) -> float:
+    """The head's darkening against both pristine visits (:func:`screw_change`): the smaller of the two."""
+    return min(screw_change(pair, view, site, max_shift_px) for pair in pairs)
+
+
 def _quarter_shifts(max_shift_px: float) -> list[tuple[float, float]]:
     steps = np.arange(-max_shift_px, max_shift_px + 1e-9, 0.25)
     return [(float(dy), float(dx)) for dy in steps for dx in steps]
 
 
-def screw_change(pair: PairResult, view: Sensed, site: Site) -> float:
-    """Peak dark-flaw statistic of the comparison over the screw head's disc and a pixel beyond (seed §2.4).
+def screw_change(pair: PairResult, view: Sensed, site: Site, max_shift_px: float) -> float:
+    """How far the screw head's disc darkened beyond what any local shift of the reference explains, in
+    sigmas of the plate's residual around it (seed §2.3-2.4): the dark hole a removed screw leaves.
 
-    Dark only, whatever signs the comparison tests: the head's polished top returned the flash of the
-    strobe beside the lens (seed §3), its hole returns less. Read on both signs, a present head's relief
-    (rendered a little differently at each viewpoint) brightened enough to count: false missing screws
-    rose from 0.3 to 1.25 per run (seeds 700-707, which then left the held-out pool).
+    Dark only: the head's polished top returned the flash of the strobe beside the lens (seed §3), its
+    hole returns less. Read on both signs, a present head's relief (rendered a little differently at each
+    viewpoint) brightened enough to count: false missing screws rose from 0.3 to 1.25 per run (seeds
+    700-707, which then left the held-out pool).
+
+    The comparison's own statistic cannot read it: its noise model adds a residual shift's error
+    (``misregistration_std_px`` times the reference's gradient), and a head's slot and rim are all
+    gradient, so a hole's 50 DN dip in the slot's place scored 0.8 sigma (truss seed 1911, two plate
+    screws seen from the tank's vista). Here the shift is searched instead, as :func:`head_likeness`
+    searches it: the reference moved by quarter pixels up to `max_shift_px`, the darkest 3 x 3 sum of
+    the residual over the disc (and a pixel beyond) of the best shift, over its spread on the plate in the
+    ring 1.5-2.5 head radii out (the 97.5 % bound, as :func:`spot_score`'s ring). 0 where the disc or its
+    ring is mostly out of the comparison.
     """
+    import cv2
+
     detection = pair.detection
-    head = disc(detection.score.shape, view, site.position_m, 0.5 * site.size_m)
-    head = _widened(head) & detection.valid
-    return float(-detection.statistic[head].min()) if head.any() else 0.0
+    radius = 0.5 * site.size_m
+    head = _widened(disc(detection.score.shape, view, site.position_m, radius)) & detection.valid
+    distance = surface_distance_m(detection.score.shape, view, site.position_m)
+    ring = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & detection.valid
+    if head.sum() < 9 or ring.sum() < _RING_MIN_SAMPLES:
+        return 0.0
+    rows, cols = np.nonzero(head | ring)
+    pad = math.ceil(max_shift_px) + 2
+    r0, c0 = max(rows.min() - pad, 0), max(cols.min() - pad, 0)
+    r1, c1 = rows.max() + 1 + pad, cols.max() + 1 + pad
+    inspection = pair.inspection[r0:r1, c0:c1].astype(np.float32)
+    predicted = inspection - detection.difference[r0:r1, c0:c1].astype(np.float32)
+    inside, around = head[r0:r1, c0:c1], ring[r0:r1, c0:c1]
+
+    def darkening(shift: tuple[float, float]) -> float:
+        move = np.array([[1.0, 0.0, shift[1]], [0.0, 1.0, shift[0]]], dtype=np.float32)
+        moved = cv2.warpAffine(
+            predicted, move, inside.shape[::-1], flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        )
+        sums = cv2.boxFilter(inspection - moved, -1, (3, 3), normalize=False)
+        plate = sums[around].astype(np.float64)
+        independent = plate.size / 9.0
+        spread = 1.4826 * float(np.median(np.abs(plate - np.median(plate))))
+        spread *= 1.0 + 1.96 * MAD_SE / math.sqrt(independent)
+        return -float(sums[inside].min()) / max(spread, 1e-6)
+
+    return max(0.0, min(darkening(shift) for shift in _quarter_shifts(max_shift_px)))
 
 
 def _widened(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
