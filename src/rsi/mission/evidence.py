@@ -187,14 +187,7 @@ def shift_explained(pair: PairResult, look: Look, threshold: float, max_shift_px
     inner &= valid
 
     def peak(shift: tuple[float, float]) -> float:
-        moved = cv2.warpAffine(
-            predicted,
-            np.array([[1.0, 0.0, shift[1]], [0.0, 1.0, shift[0]]], dtype=np.float32),
-            (predicted.shape[1], predicted.shape[0]),
-            flags=cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REPLICATE,
-        )
-        residual = np.where(valid, inspection - moved, np.float32(0.0))
+        residual = np.where(valid, inspection - _moved(predicted, shift), np.float32(0.0))
         score = np.abs(cv2.boxFilter(residual, -1, (3, 3), normalize=False)) / spread
         return float(score[inner].max()) if inner.any() else 0.0
 
@@ -394,33 +387,50 @@ def head_likeness(pair: PairResult, view: Sensed, site: Site, max_shift_px: floa
     inspection over local shifts of at most `max_shift_px` in quarter pixels (seed §2.3: a residual
     mis-registration is locally a translation); None where under half the disc is valid in the comparison
     (a saturated reference, the frame's border, an occluder): too few pixels to say."""
-    import cv2
-
     detection = pair.detection
     head = disc(detection.score.shape, view, site.position_m, 0.5 * site.size_m)
     whole = _widened(head)
     head = whole & detection.valid
     if head.sum() < max(9, whole.sum() / 2):  # a pattern judged on its disc's rim says nothing of the head
         return None
-    rows, cols = np.nonzero(head)
-    pad = math.ceil(max_shift_px) + 1
-    r0, c0 = max(rows.min() - pad, 0), max(cols.min() - pad, 0)
-    r1, c1 = rows.max() + 1 + pad, cols.max() + 1 + pad
-    inspection = pair.inspection[r0:r1, c0:c1].astype(np.float32)
-    predicted = inspection - detection.difference[r0:r1, c0:c1].astype(np.float32)
-    inside = head[r0:r1, c0:c1]
+    inspection, predicted, box = _around(pair, head, math.ceil(max_shift_px) + 1)
+    inside = head[box]
     seen = inspection[inside] - inspection[inside].mean()
     best = -1.0
-    for dy, dx in _quarter_shifts(max_shift_px):
-        move = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]], dtype=np.float32)
-        moved = cv2.warpAffine(
-            predicted, move, inside.shape[::-1], flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-        )[inside]
+    for shift in _quarter_shifts(max_shift_px):
+        moved = _moved(predicted, shift)[inside]
         moved = moved - moved.mean()
         norm = math.sqrt(float(seen @ seen) * float(moved @ moved))
         if norm > 0.0:
             best = max(best, float(seen @ moved) / norm)
     return best
+
+
+def _around(
+    pair: PairResult, mask: NDArray[np.bool_], pad: int
+) -> tuple[NDArray[np.float32], NDArray[np.float32], tuple[slice, slice]]:
+    """The inspection and the registered reference's prediction over `mask`'s box grown by `pad` pixels,
+    and the box."""
+    rows, cols = np.nonzero(mask)
+    box = (
+        slice(max(rows.min() - pad, 0), rows.max() + 1 + pad),
+        slice(max(cols.min() - pad, 0), cols.max() + 1 + pad),
+    )
+    inspection = pair.inspection[box].astype(np.float32)
+    return inspection, inspection - pair.detection.difference[box].astype(np.float32), box
+
+
+def _moved(image: NDArray[np.float32], shift: tuple[float, float]) -> NDArray[np.float32]:
+    """`image` translated by `shift` (rows, columns), bilinear, its edge replicated."""
+    import cv2
+
+    move = np.array([[1.0, 0.0, shift[1]], [0.0, 1.0, shift[0]]], dtype=np.float32)
+    return np.asarray(
+        cv2.warpAffine(
+            image, move, image.shape[::-1], flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        ),
+        dtype=np.float32,
+    )
 
 
 def _darkened(pairs: Sequence[PairResult], view: Sensed, site: Site, max_shift_px: float) -> float:
@@ -448,8 +458,8 @@ def screw_change(pair: PairResult, view: Sensed, site: Site, max_shift_px: float
     screws seen from the tank's vista). Here the shift is searched instead, as :func:`head_likeness`
     searches it: the reference moved by quarter pixels up to `max_shift_px`, the darkest 3 x 3 sum of
     the residual over the disc (and a pixel beyond) of the best shift, over its spread on the plate in the
-    ring 1.5-2.5 head radii out (the 97.5 % bound, as :func:`spot_score`'s ring). 0 where the disc or its
-    ring is mostly out of the comparison.
+    ring 1.5-2.5 head radii out (its 97.5 % upper bound: only a darkening surely beyond the plate's spread
+    counts). 0 where the disc or its ring is mostly out of the comparison.
     """
     import cv2
 
@@ -460,20 +470,11 @@ def screw_change(pair: PairResult, view: Sensed, site: Site, max_shift_px: float
     ring = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & detection.valid
     if head.sum() < 9 or ring.sum() < _RING_MIN_SAMPLES:
         return 0.0
-    rows, cols = np.nonzero(head | ring)
-    pad = math.ceil(max_shift_px) + 2
-    r0, c0 = max(rows.min() - pad, 0), max(cols.min() - pad, 0)
-    r1, c1 = rows.max() + 1 + pad, cols.max() + 1 + pad
-    inspection = pair.inspection[r0:r1, c0:c1].astype(np.float32)
-    predicted = inspection - detection.difference[r0:r1, c0:c1].astype(np.float32)
-    inside, around = head[r0:r1, c0:c1], ring[r0:r1, c0:c1]
+    inspection, predicted, box = _around(pair, head | ring, math.ceil(max_shift_px) + 2)
+    inside, around = head[box], ring[box]
 
     def darkening(shift: tuple[float, float]) -> float:
-        move = np.array([[1.0, 0.0, shift[1]], [0.0, 1.0, shift[0]]], dtype=np.float32)
-        moved = cv2.warpAffine(
-            predicted, move, inside.shape[::-1], flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-        )
-        sums = cv2.boxFilter(inspection - moved, -1, (3, 3), normalize=False)
+        sums = cv2.boxFilter(inspection - _moved(predicted, shift), -1, (3, 3), normalize=False)
         plate = sums[around].astype(np.float64)
         independent = plate.size / 9.0
         spread = 1.4826 * float(np.median(np.abs(plate - np.median(plate))))
