@@ -14,6 +14,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from rsi.archive import Archive
 from rsi.errors import InputError
 from rsi.mission import (
+    ORBIT_START_S,
     PLAN,
     SCORED_TYPES,
     MissionFinding,
@@ -342,6 +343,24 @@ def test_screws_and_the_swapped_component_are_found_at_full_size() -> None:
     # the view which finds the dent explains. Six is what this seed gives with the range-map dent check; the
     # crater's image predicted from the reference and the range map is the next step (README roadmap)
     assert score.per_type["impact"].false_findings <= 6
+
+
+def test_impacts_on_a_discoloured_replacement_are_found_on_its_own_pixels_and_seen_again() -> None:
+    # Truss seed 2 replaced the solar panel by one reflecting 1.22 times as much, and two impacts of 2.7 mm
+    # sit on its cells. The frame's comparison leaves a discoloured component's pixels out; its own
+    # comparison (its own gain and bias, seed §2.3) finds them, and no line or glint of it becomes an
+    # impact. At space repeatability nothing on the panel places the pose, and the second look finds the
+    # blob by registering the two visits, not where the believed poses put it (11 px off on this seed).
+    result = run_mission(2, repeatability="space", orbit_start_s=(ORBIT_START_S[0], ORBIT_START_S[1] + 300.0))
+    truth = result.truth.anomalies
+    panel = next(a for a in truth if a.KIND == "swapped_component" and a.site == "C_panel")
+    assert panel.defect == "discoloured" and panel.reflectance_factor > 1.0  # type: ignore[attr-defined]
+    on_panel = {k for k, a in enumerate(truth) if a.KIND == "impact" and a.site == "C_cells"}
+    assert len(on_panel) >= 2
+    score = score_mission(result)
+    assert not on_panel & {miss.index for miss in score.misses}
+    assert score.per_type["swapped_component"].found == score.per_type["swapped_component"].truth
+    assert score.per_type["impact"].false_findings == 0
 
 
 def test_score_matches_each_finding_to_an_anomaly_of_its_kind(archived: tuple[MissionResult, Path]) -> None:

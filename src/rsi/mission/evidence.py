@@ -24,7 +24,6 @@ from rsi.mission.views import (
     pixel_size_m,
     seen_components,
     surface_distance_m,
-    to_field,
     visible,
 )
 from rsi.sim.mockup import SCREW_HEIGHT_M
@@ -55,11 +54,24 @@ class Look:
     second_look: bool = False
     contrast: float = 0.0
     spot: bool = False  # judged as a spot against its ring (spot_score): it can only be an impact
+    # the changed component whose own comparison found it (rsi.mission.visual): its second look compares
+    # that component's pixels alone, and the swap's blob around it does not absorb it
+    component: str | None = None
+    peak_px: tuple[int, int] | None = None  # field-image (row, col) of its peak score (:func:`blobs`)
 
     @property
     def bbox(self) -> tuple[int, int, int, int]:
         """The flaw's field-image box ``(row0, col0, row1, col1)``."""
         return self.flaw.bbox
+
+    @property
+    def at_px(self) -> tuple[float, float]:
+        """Where the look is read again (:func:`second_look_score`): its peak, else the flaw's centroid."""
+        return (
+            (float(self.peak_px[0]), float(self.peak_px[1]))
+            if self.peak_px
+            else (self.flaw.row, self.flaw.col)
+        )
 
 
 def contrast(pair: PairResult, bbox: tuple[int, int, int, int], polarity: str) -> float:
@@ -97,7 +109,14 @@ def blobs(pair: PairResult, view: Sensed) -> list[Look]:
         pixel = pixel_size_m(view, position)
         area_m2 = flaw.area_px * pixel * pixel
         looks.append(
-            Look(flaw, position, area_m2, flaw.score, contrast=contrast(pair, flaw.bbox, flaw.polarity))
+            Look(
+                flaw,
+                position,
+                area_m2,
+                flaw.score,
+                contrast=contrast(pair, flaw.bbox, flaw.polarity),
+                peak_px=(int(row0 + peak_row), int(col0 + peak_col)),
+            )
         )
     return looks
 
@@ -614,12 +633,15 @@ def apart_from_swaps(looks: list[Look], settings: MissionSettings) -> list[Look]
 
     A blob's change is round about its box's centre, out to half the box's diagonal plus the surround a
     swap's edge blurs into (``settings.surround_px``); a small look within that circle is the same change.
+    A look that a changed component's own comparison found (`Look.component`) is not: that comparison
+    fitted the replacement's reflectance, and what stands out of it is on the new surface.
     """
     swaps = [look.bbox for look in looks if look.area_m2 > settings.component_area_m2]
     return [
         look
         for look in looks
         if look.area_m2 > settings.component_area_m2
+        or look.component is not None
         or not any(_within(look.bbox, box, settings.surround_px) for box in swaps)
     ]
 
@@ -725,14 +747,12 @@ def discoloured_pixels(
     return np.asarray(changed, dtype=bool)
 
 
-def second_look_score(
-    pair: PairResult, view: Sensed, position: tuple[float, float, float], kernel_px: int | None = None
-) -> float:
-    """Peak score of the second look within 2 px of where the first look's blob is (seed §2.5); 0 where
-    none of those pixels is valid in it: a place the look cannot see is not seen again. With `kernel_px`
-    (a small blob's look), judged against its ring in this look (:func:`spot_score`)."""
-    row, col, _ = to_field(view, np.asarray([position]))
-    r, c = round(row[0]), round(col[0])
+def second_look_score(pair: PairResult, at_px: tuple[float, float], kernel_px: int | None = None) -> float:
+    """Peak score of the second look within 2 px of field pixel `at_px` (row, col), where the first look's
+    blob lies in this look's frame (seed §2.5); 0 where none of those pixels is valid in it: a place the
+    look cannot see is not seen again. With `kernel_px` (a small blob's look), judged against its ring in
+    this look (:func:`spot_score`)."""
+    r, c = round(at_px[0]), round(at_px[1])
     rows, cols = slice(max(r - 2, 0), max(r + 3, 0)), slice(max(c - 2, 0), max(c + 3, 0))
     valid = pair.detection.valid[rows, cols]
     if not valid.any():

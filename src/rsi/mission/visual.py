@@ -48,6 +48,7 @@ from rsi.mission.views import (
     near_model_seams,
     own_body,
     sense,
+    to_field,
     within_strobe_beam,
 )
 
@@ -258,11 +259,26 @@ def inspect_visit(
         settings=settings,
     )
     explanations = [explanation for _, explanation in checks]
+    whole = comparison
     comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
 
     looks = _new_blobs(comparison, view, world, explanations, active=active, limits=limits, settings=settings)
+    for component in _changed_components(view, explanations):
+        looks += _on_changed_component(
+            whole,
+            view,
+            world,
+            explanations,
+            component,
+            p_false_alarm=p_first,
+            active=active,
+            limits=limits,
+            settings=settings,
+        )
     counts = (
-        _second_looks(stored, looks, point, explanations, limits=limits, settings=settings, tour=tour)
+        _second_looks(
+            stored, looks, point, explanations, first=inspection, limits=limits, settings=settings, tour=tour
+        )
         if active
         else (0, 0, 0)
     )
@@ -495,7 +511,7 @@ def _new_blobs(
     sites = world.mockup.candidates.component_sites
     kernel = settings.flaw_size_px
     for look in looks:
-        look.score = min(look.score, second_look_score(other, view, look.position_m))
+        look.score = min(look.score, second_look_score(other, look.at_px))
         # seed §4: what is neither on a component nor broader than a component's least change can only be
         # an impact, a millimetre spot: it must stand out of its own surroundings (spot_score), a large
         # blob off every component at its peak
@@ -504,7 +520,7 @@ def _new_blobs(
         if small:
             look.score = spot_score(comparison.pair, look.bbox, look.score, look.flaw.polarity, kernel)
         elif look.spot:
-            look.score = min(look.score, second_look_score(comparison.pair, view, look.position_m, kernel))
+            look.score = min(look.score, second_look_score(comparison.pair, look.at_px, kernel))
     floor = limits.preliminary if active else limits.confirm
     edges = near_model_edges(view, math.ceil(settings.local_shift_px) + settings.flaw_size_px)
     return [
@@ -516,10 +532,96 @@ def _new_blobs(
             or (
                 look.area_m2 <= settings.component_area_m2
                 and look.contrast >= settings.impact_contrast_min
+                and not _line(look)
                 and not shift_explained(comparison.pair, look, floor, _shift_bound_px(look, edges, settings))
             )
         )
     ]
+
+
+def _changed_components(view: Sensed, explanations: list[Explanation]) -> list[str]:
+    """The components in view that this visit found discoloured (:func:`component_checks`)."""
+    names = [explanation.component for explanation in explanations if explanation.component is not None]
+    return [name for name in dict.fromkeys(names) if name in view.capture.cad.components]
+
+
+def _on_changed_component(
+    whole: _Comparison,
+    view: Sensed,
+    world: World,
+    explanations: list[Explanation],
+    component: str,
+    *,
+    p_false_alarm: float,
+    active: bool,
+    limits: Thresholds,
+    settings: MissionSettings,
+) -> list[Look]:
+    """The impacts on a changed component: the small new blobs of its own comparison (:func:`_on_component`),
+    each marked with the component (its second look compares the same pixels).
+
+    Seed §4 plants impacts and swaps independently, and an impact on a replacement is as much a flaw, but
+    the frame's comparison leaves a discoloured component's pixels out (:func:`_without_discoloured`):
+    truss development seed 2 at a 300 s sun lost two impacts of 2.7 mm on its brighter solar panel so, seed
+    1911 one of 2.2 mm on its brighter B tank. What the component's own photometric fit leaves of the swap
+    (a discoloured patch) is a blob of a swap's size there too, and the small blobs within it are the same
+    change (:func:`apart_from_swaps`).
+    """
+    own = _on_component(whole, view, component, p_false_alarm, settings)
+    if own is None:
+        return []
+    others = [explanation for explanation in explanations if explanation.component != component]
+    looks = _new_blobs(own, view, world, others, active=active, limits=limits, settings=settings)
+    small = [look for look in apart_from_swaps(looks, settings) if look.area_m2 <= settings.component_area_m2]
+    for look in small:
+        look.component = component
+    return small
+
+
+def _on_component(
+    whole: _Comparison, view: Sensed, component: str, p_false_alarm: float, settings: MissionSettings
+) -> _Comparison | None:
+    """The comparison of one component's own pixels, each reference with its gain and bias fitted there
+    alone (:func:`photometric_refit`); None where the view shows too few of them.
+
+    Seed §2.3 fits one gain and bias per frame because one light lights one surface; a replacement of
+    another reflectance (seed §4: 0.4-0.8 or 1.2-1.5 times the original) is another gain on its own pixels,
+    which a fit over them takes out. Its CAD outline, less the margin the pose error may move it by
+    (``settings.discoloured_margin_px``), keeps the frame's other surfaces out of that fit.
+    """
+    import cv2
+
+    mask = view.capture.cad.components[component].astype(np.uint8)
+    side = 2 * settings.discoloured_margin_px + 1
+    inner = cv2.erode(mask, np.ones((side, side), np.uint8)) > 0
+    if int(inner.sum()) < _PHOTOMETRIC_MIN_PIXELS:
+        return None
+    reference, second, inspection = (
+        _restricted(image, inner) for image in (whole.reference, whole.second, whole.inspection)
+    )
+    first, other = (
+        None if aligned is None else photometric_refit(aligned, image, inspection)
+        for aligned, image in zip(whole.aligned, (reference, second), strict=True)
+    )
+    pair = compare(reference, inspection, p_false_alarm, settings, whole.scale, registration=first)
+    return _Comparison(reference, second, inspection, whole.scale, pair, whole.range_m, (first, other))
+
+
+# seed §2.4's flaw is a disc (a square at the flaw model's size): its blob is about as wide as it is long,
+# 4 px against 3 px at the most for the few pixels of a faint one. The widest impact is 4 mm, 8 px at 0.5 mm
+# pixels: a blob longer than that and 4 times longer than wide is a line.
+_LINE_ELONGATION = 4.0
+_LINE_MIN_PX = 8
+
+
+def _line(look: Look) -> bool:
+    """Whether a small blob is a line, not a spot: an edge sampled differently by the two viewpoints, or a
+    row the field compensation left (seed §2.2: each field's ambient is interpolated from the rows around
+    it), however strong. Truss development seed 2 at a 300 s sun: a dark line one row high and 42 px long on
+    a discoloured solar panel's own comparison (:func:`_on_component`), 6.4 sigma."""
+    row0, col0, row1, col1 = look.bbox
+    longer = max(row1 - row0, col1 - col0)
+    return longer > _LINE_MIN_PX and longer * longer > _LINE_ELONGATION * look.flaw.area_px
 
 
 def _on_seam(look: Look, pair: PairResult, seams: NDArray[np.bool_]) -> bool:
@@ -580,6 +682,7 @@ def _second_looks(
     point: PlanPoint,
     explanations: list[Explanation],
     *,
+    first: Compensated,
     limits: Thresholds,
     settings: MissionSettings,
     tour: Tour,
@@ -609,21 +712,90 @@ def _second_looks(
         # as in the first look (:func:`_without_discoloured`): a swap found there drags this look's
         # photometric fit too (seed 1307: a brighter B tank left the plate beside it at 11x the noise and
         # hid three impacts there), so its pixels leave and both references are registered again
-        image = _restricted(image, ~changed)
         pairs = [
-            compare(_restricted(reference, ~changed), image, settings.p_preliminary, settings, stored.scale)
+            compare(
+                _restricted(reference, ~changed),
+                _restricted(image, ~changed),
+                settings.p_preliminary,
+                settings,
+                stored.scale,
+            )
             for reference in (seen.reference, seen.second)
         ]
+    whole = _Comparison(
+        seen.reference, seen.second, image, stored.scale, pairs[0], seen.range_m, seen.aligned
+    )
+    on_component = {
+        name: _component_pairs(whole, second, name, settings)
+        for name in {look.component for look in looks if look.component is not None}
+    }
     confirmed = 0
     for look in looks:
         kernel = settings.flaw_size_px if look.spot else None
-        again = min(second_look_score(pair, second, look.position_m, kernel) for pair in pairs)
+        read = pairs if look.component is None else on_component[look.component]
+        at = _followed(first, image, look, _believed_px(second, look))
+        again = min((second_look_score(pair, at, kernel) for pair in read), default=0.0)
         # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3; a fused score
         # carried by the first look alone is no echo: the second must see the blob itself
         fused = (look.score + again) / math.sqrt(3.0) if again > limits.preliminary else 0.0
         look.score, look.second_look = fused, True
         confirmed += fused > limits.confirm
     return (len(looks), confirmed, len(looks) - confirmed)
+
+
+def _believed_px(view: Sensed, look: Look) -> tuple[float, float]:
+    """Where `look`'s world point lies in `view`'s frame by its placed model and believed pose."""
+    row, col, _ = to_field(view, np.asarray([look.position_m]))
+    return float(row[0]), float(col[0])
+
+
+# Half the side of the window about a look in which its two visits are registered: 4x the ring a blob is
+# judged against (evidence.CLUTTER_REACH_PX, 3x the widest impact), texture enough for two parameters
+_FOLLOW_HALF_PX = 48
+
+
+def _followed(
+    first: Compensated, second: Compensated, look: Look, believed: tuple[float, float]
+) -> tuple[float, float]:
+    """Where `look`'s peak lies in the second look's frame: the first look's image about it registered on
+    the second by a translation (seed §2.3: a small mis-registration is locally a translation); where the
+    believed poses put it (`believed`) when the fit fails or lands more than half the window from there.
+
+    Each visit has its own viewpoint error, and where the frame shows no model edge to place the pose by
+    (the solar panel filling the frame from above) the believed pose keeps it: truss development seed 2 at
+    repeatability "space" put a 2.7 mm impact on the panel, 67 sigma in the first look, 11 px from where the
+    believed poses put it in the second, which read noise there and rejected it.
+    """
+    from rsi.imaging.registration import register
+
+    row, col = look.at_px
+    window = np.zeros(first.image.shape, bool)
+    top, left = max(round(row) - _FOLLOW_HALF_PX, 0), max(round(col) - _FOLLOW_HALF_PX, 0)
+    window[top : round(row) + _FOLLOW_HALF_PX + 1, left : round(col) + _FOLLOW_HALF_PX + 1] = True
+    # started by phase correlation (register's default): a start at the believed offset, 11 px off in
+    # that case, stalls on the panel's periodic cells
+    fit = register(first.image, second.image, model="translation", mask=window & first.valid)
+    dx, dy = fit.translation_xy
+    here = (row + dy, col + dx)
+    if not fit.converged or max(abs(here[0] - believed[0]), abs(here[1] - believed[1])) > _FOLLOW_HALF_PX / 2:
+        return believed
+    return here
+
+
+def _component_pairs(
+    whole: _Comparison, view: Sensed, component: str, settings: MissionSettings
+) -> list[PairResult]:
+    """The second look's comparisons of a changed component's own pixels with both references
+    (:func:`_on_component`); none where this view shows too few of them."""
+    if component not in view.capture.cad.components:
+        return []
+    own = _on_component(whole, view, component, settings.p_preliminary, settings)
+    if own is None:
+        return []
+    other = compare(
+        own.second, own.inspection, settings.p_preliminary, settings, own.scale, registration=own.aligned[1]
+    )
+    return [own.pair, other]
 
 
 def _visual_finding(look: Look, source: str, limits: Thresholds, settings: MissionSettings) -> MissionFinding:
