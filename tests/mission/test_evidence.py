@@ -414,3 +414,40 @@ def test_a_removed_panel_screw_loses_its_glint_and_a_present_one_keeps_it() -> N
     finally:
         world.close()
     assert found == {"screw_C_0": True, "screw_C_3": False}
+
+
+def test_a_long_thin_blob_is_a_line_and_a_round_one_a_spot() -> None:
+    from rsi.mission.evidence import LINE_MIN_PX, line_shaped
+
+    def blob(rows: int, cols: int, area_px: int) -> Look:
+        flaw = Flaw(rows / 2, cols / 2, (10, 10, 10 + rows, 10 + cols), area_px, 9.0, "dark")
+        return Look(flaw, (0.0, 0.0, 0.0), 1e-6, 9.0)
+
+    assert line_shaped(blob(1, 42, 42))  # seed 2's row left by the field compensation
+    assert line_shaped(blob(2, 12, 24))  # 12 px long, 2 wide
+    assert not line_shaped(blob(3, 3, 9))  # a millimetre spot
+    assert not line_shaped(blob(8, 8, 50))  # the widest impact, blurred
+    assert not line_shaped(blob(1, LINE_MIN_PX, LINE_MIN_PX))  # no longer than the widest impact: a spot
+    assert not line_shaped(blob(3, 12, 36))  # 4x longer than wide at the most
+
+
+def test_a_look_is_followed_into_the_second_visits_frame_by_its_texture() -> None:
+    from rsi.mission.evidence import FOLLOW_HALF_PX, followed
+
+    texture = _textured(7)
+    texture = 80.0 + 8.0 * (texture - 80.0)  # the panel's cells: contrast enough to register by
+    first = texture[20:100, 20:140]
+    shift_rows, shift_cols = 3, -11  # the second visit's viewpoint error, against the first's
+    second = texture[20 - shift_rows : 100 - shift_rows, 20 - shift_cols : 140 - shift_cols]
+    at = (40.0, 60.0)
+    believed = (at[0], at[1])  # the believed poses saw no difference
+    row, col = followed(_image(first), _image(second), at, believed)
+    assert row == pytest.approx(at[0] + shift_rows, abs=0.2) and col == pytest.approx(
+        at[1] + shift_cols, abs=0.2
+    )
+    # nothing to register by (a flat surface): where the believed poses put it
+    flat = np.full(first.shape, 80.0)
+    assert followed(_image(flat), _image(flat), at, believed) == believed
+    # a fit further than half the window from the believed place is no fit of this look
+    far = (at[0], at[1] + FOLLOW_HALF_PX)
+    assert followed(_image(first), _image(second), at, far) == far

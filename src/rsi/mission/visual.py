@@ -31,6 +31,8 @@ from rsi.mission.evidence import (
     component_checks,
     confidence,
     discoloured_pixels,
+    followed,
+    line_shaped,
     screw_checks,
     second_look_score,
     shift_explained,
@@ -532,7 +534,7 @@ def _new_blobs(
             or (
                 look.area_m2 <= settings.component_area_m2
                 and look.contrast >= settings.impact_contrast_min
-                and not _line(look)
+                and not line_shaped(look)
                 and not shift_explained(comparison.pair, look, floor, _shift_bound_px(look, edges, settings))
             )
         )
@@ -605,23 +607,6 @@ def _on_component(
     )
     pair = compare(reference, inspection, p_false_alarm, settings, whole.scale, registration=first)
     return _Comparison(reference, second, inspection, whole.scale, pair, whole.range_m, (first, other))
-
-
-# seed §2.4's flaw is a disc (a square at the flaw model's size): its blob is about as wide as it is long,
-# 4 px against 3 px at the most for the few pixels of a faint one. The widest impact is 4 mm, 8 px at 0.5 mm
-# pixels: a blob longer than that and 4 times longer than wide is a line.
-_LINE_ELONGATION = 4.0
-_LINE_MIN_PX = 8
-
-
-def _line(look: Look) -> bool:
-    """Whether a small blob is a line, not a spot: an edge sampled differently by the two viewpoints, or a
-    row the field compensation left (seed §2.2: each field's ambient is interpolated from the rows around
-    it), however strong. Truss development seed 2 at a 300 s sun: a dark line one row high and 42 px long on
-    a discoloured solar panel's own comparison (:func:`_on_component`), 6.4 sigma."""
-    row0, col0, row1, col1 = look.bbox
-    longer = max(row1 - row0, col1 - col0)
-    return longer > _LINE_MIN_PX and longer * longer > _LINE_ELONGATION * look.flaw.area_px
 
 
 def _on_seam(look: Look, pair: PairResult, seams: NDArray[np.bool_]) -> bool:
@@ -733,7 +718,7 @@ def _second_looks(
     for look in looks:
         kernel = settings.flaw_size_px if look.spot else None
         read = pairs if look.component is None else on_component[look.component]
-        at = _followed(first, image, look, _believed_px(second, look))
+        at = followed(first, image, look.at_px, _believed_px(second, look))
         again = min((second_look_score(pair, at, kernel) for pair in read), default=0.0)
         # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3; a fused score
         # carried by the first look alone is no echo: the second must see the blob itself
@@ -747,39 +732,6 @@ def _believed_px(view: Sensed, look: Look) -> tuple[float, float]:
     """Where `look`'s world point lies in `view`'s frame by its placed model and believed pose."""
     row, col, _ = to_field(view, np.asarray([look.position_m]))
     return float(row[0]), float(col[0])
-
-
-# Half the side of the window about a look in which its two visits are registered: 4x the ring a blob is
-# judged against (evidence.CLUTTER_REACH_PX, 3x the widest impact), texture enough for two parameters
-_FOLLOW_HALF_PX = 48
-
-
-def _followed(
-    first: Compensated, second: Compensated, look: Look, believed: tuple[float, float]
-) -> tuple[float, float]:
-    """Where `look`'s peak lies in the second look's frame: the first look's image about it registered on
-    the second by a translation (seed §2.3: a small mis-registration is locally a translation); where the
-    believed poses put it (`believed`) when the fit fails or lands more than half the window from there.
-
-    Each visit has its own viewpoint error, and where the frame shows no model edge to place the pose by
-    (the solar panel filling the frame from above) the believed pose keeps it: truss development seed 2 at
-    repeatability "space" put a 2.7 mm impact on the panel, 67 sigma in the first look, 11 px from where the
-    believed poses put it in the second, which read noise there and rejected it.
-    """
-    from rsi.imaging.registration import register
-
-    row, col = look.at_px
-    window = np.zeros(first.image.shape, bool)
-    top, left = max(round(row) - _FOLLOW_HALF_PX, 0), max(round(col) - _FOLLOW_HALF_PX, 0)
-    window[top : round(row) + _FOLLOW_HALF_PX + 1, left : round(col) + _FOLLOW_HALF_PX + 1] = True
-    # started by phase correlation (register's default): a start at the believed offset, 11 px off in
-    # that case, stalls on the panel's periodic cells
-    fit = register(first.image, second.image, model="translation", mask=window & first.valid)
-    dx, dy = fit.translation_xy
-    here = (row + dy, col + dx)
-    if not fit.converged or max(abs(here[0] - believed[0]), abs(here[1] - believed[1])) > _FOLLOW_HALF_PX / 2:
-        return believed
-    return here
 
 
 def _component_pairs(
