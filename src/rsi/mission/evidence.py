@@ -724,6 +724,12 @@ def component_checks(
     return found
 
 
+def discoloured_components(view: Sensed, explanations: list[Explanation]) -> list[str]:
+    """The components in view that the visit found discoloured (:func:`component_checks`), each once."""
+    names = [explanation.component for explanation in explanations if explanation.component is not None]
+    return [name for name in dict.fromkeys(names) if name in view.capture.cad.components]
+
+
 def discoloured_pixels(
     view: Sensed, explanations: list[Explanation], settings: MissionSettings
 ) -> NDArray[np.bool_] | None:
@@ -736,11 +742,7 @@ def discoloured_pixels(
     """
     import cv2
 
-    masks = [
-        view.capture.cad.components[e.component]
-        for e in explanations
-        if e.component is not None and e.component in view.capture.cad.components
-    ]
+    masks = [view.capture.cad.components[name] for name in discoloured_components(view, explanations)]
     if not masks:
         return None
     side = 2 * settings.discoloured_margin_px + 1

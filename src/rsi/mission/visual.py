@@ -30,6 +30,7 @@ from rsi.mission.evidence import (
     blobs,
     component_checks,
     confidence,
+    discoloured_components,
     discoloured_pixels,
     followed,
     line_shaped,
@@ -265,7 +266,7 @@ def inspect_visit(
     comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
 
     looks = _new_blobs(comparison, view, world, explanations, active=active, limits=limits, settings=settings)
-    for component in _changed_components(view, explanations):
+    for component in discoloured_components(view, explanations):
         looks += _on_changed_component(
             whole,
             view,
@@ -539,12 +540,6 @@ def _new_blobs(
             )
         )
     ]
-
-
-def _changed_components(view: Sensed, explanations: list[Explanation]) -> list[str]:
-    """The components in view that this visit found discoloured (:func:`component_checks`)."""
-    names = [explanation.component for explanation in explanations if explanation.component is not None]
-    return [name for name in dict.fromkeys(names) if name in view.capture.cad.components]
 
 
 def _on_changed_component(
