@@ -156,6 +156,21 @@ def test_sigma_z_is_the_derivative_of_triangulation() -> None:
     )
 
 
+@pytest.mark.parametrize("least_disparity_px", [0, 16])
+def test_a_near_limit_closer_than_the_frame_can_show_searches_the_whole_width(
+    world: World, least_disparity_px: int
+) -> None:
+    # the search is clamped to the frame: every disparity from the far limit's to the width's, whatever
+    # the near limit asks (OpenCV's matcher fails where they reach the width exactly)
+    view = world.render("B_tank", size=SIZE, stereo=True)
+    assert view.stereo is not None
+    rig = StereoRig(view.pose.focal_px, SIZE, 0.06)
+    far = rig.focal_px * rig.baseline_m / (least_disparity_px + 0.5)
+    ranges = range_map(*view.stereo, rig, depth_limits_m=(1e-4, far))
+    assert ranges.shape == SIZE
+    assert np.isfinite(ranges).any()
+
+
 @pytest.mark.parametrize(
     ("limits", "message"),
     [

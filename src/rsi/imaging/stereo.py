@@ -119,13 +119,15 @@ def range_map(
     focal_baseline = rig.focal_px * rig.baseline_m
     low = max(math.floor(focal_baseline / far), 0)
     count = math.ceil((focal_baseline / near - low) / 16.0) * 16
-    if low + 16 > rig.shape[1]:
+    if low + 16 >= rig.shape[1]:
         raise InputError(
             f"depth_limits_m={depth_limits_m!r} asks for disparities beyond the {rig.shape[1]} px frame "
             "width: pass a farther far limit."
         )
-    # a near limit closer than the frame can show is the frame's limit
-    count = max(16, min(count, 16 * ((rig.shape[1] - low) // 16)))
+    # a near limit closer than the frame can show is the frame's limit; OpenCV's matcher needs one column
+    # left over past the largest disparity (low + count == width fails its buffer allocation: truss-b seed 1
+    # in space brought the camera close enough to ask for that)
+    count = max(16, min(count, 16 * ((rig.shape[1] - 1 - low) // 16)))
     first, second = _lit_field(left), _lit_field(right)
     matcher = cv2.StereoSGBM_create(  # type: ignore[attr-defined]
         minDisparity=low,
