@@ -316,6 +316,8 @@ def _chosen_settings(args: argparse.Namespace) -> DeepPcbSettings:
         default = dataclasses.replace(default, registration_presmooth=True)
     if args.whole_frame:
         default = dataclasses.replace(default, sparse=False)
+    if args.field_tolerance_px is not None:
+        default = dataclasses.replace(default, registration_field_tolerance_px=args.field_tolerance_px)
     return default
 
 
@@ -372,6 +374,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument(
         "--model", default=None, help="registration_model (default: DeepPcbSettings()'s), e.g. local"
+    )
+    parser.add_argument(
+        "--field-tolerance-px",
+        type=float,
+        default=None,
+        help="registration_field_tolerance_px (default: DeepPcbSettings()'s): the local field's tolerance",
     )
     parser.add_argument(
         "--distort-px",
