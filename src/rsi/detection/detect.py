@@ -574,7 +574,6 @@ def _sparse_maps(
     halo = 1 + max(footprint.shape) // 2
     rows, cols = difference.shape
     local = test.registration.local if test.registration is not None else None
-    local_std = None if local is None else local.std((rows, cols))
     for left, top, width, height in boxes:
         row0, row1 = max(0, top - halo), min(rows, top + height + halo)
         tight0, tight1 = max(0, left - halo), min(cols, left + width + halo)
@@ -589,7 +588,7 @@ def _sparse_maps(
                 blocks,
                 test.registration,
                 test.shift_floor,
-                None if local_std is None else local_std[row0:row1, col0:col1],
+                None if local is None else local.std((rows, cols), (slice(row0, row1), slice(col0, col1))),
             )
         )
         crop = (slice(row0, row1), slice(tight0, tight1))

@@ -206,13 +206,17 @@ class LocalField:
         return first, second
 
     @_one_blas_thread
-    def std(self, shape: tuple[int, int]) -> Image:
+    def std(self, shape: tuple[int, int], window: tuple[slice, slice] | None = None) -> Image:
         """The field's one-sigma uncertainty at every reference pixel: array (rows, cols, 2), (sx, sy), px.
 
         The uncertainty varies over a tile's size; read in the inspection frame, the global fit's few pixels
-        of offset do not matter.
+        of offset do not matter. `window` (rows, cols) of a frame of `shape`: only its pixels (a detector's
+        box), the same values as the whole frame's there.
         """
-        return _interpolate(self.shift_std_px, self._hats(shape))
+        row_hat, col_hat = self._hats(shape)
+        if window is not None:
+            row_hat, col_hat = row_hat[window[0]], col_hat[window[1]]
+        return _interpolate(self.shift_std_px, (row_hat, col_hat))
 
     def _hats(self, shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
         return _hats(self.node_rows, shape[0]), _hats(self.node_cols, shape[1])
