@@ -11,6 +11,7 @@ for scoring and tests.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -68,6 +69,10 @@ class Capture:
         The CAD model projected from `believed_pose`.
     camera : CameraModel
         The camera's calibration (gain, black level, bits): what turns DN into light.
+    model : callable or None
+        The robot's CAD model drawn from any pose it believes, ``model(pose) -> CadView``
+        (:meth:`rsi.sim.world.World.cad_projection`: the pristine mock-up, the door and arm as commanded),
+        for a pose the robot corrects from what it sees (seed §2.3); None where no model can be drawn.
     """
 
     vista: str
@@ -77,6 +82,7 @@ class Capture:
     believed_pose: CameraPose
     cad: CadView
     camera: CameraModel
+    model: Callable[[CameraPose], CadView] | None = field(default=None, compare=False, repr=False)
 
 
 def capture(world: World, view: View, *, cad: CadView | None = None) -> Capture:
@@ -106,6 +112,7 @@ def capture(world: World, view: View, *, cad: CadView | None = None) -> Capture:
         believed_pose=pose,
         cad=world.cad_projection(pose) if cad is None else cad,
         camera=world.camera,
+        model=world.cad_projection,
     )
 
 
