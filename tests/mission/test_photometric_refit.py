@@ -41,7 +41,7 @@ def test_a_biased_first_fit_is_refitted_to_the_flash_gain_and_no_offset() -> Non
     reference, inspection = _scene()
     first = register(reference, inspection, model="translation")
     pulled = replace(first, gain=0.943, bias=11.0)  # truss seed 0's cad_03 before the refit
-    refitted = photometric_refit(pulled, _strobe_image(reference), _strobe_image(inspection))
+    refitted, relit = photometric_refit(pulled, _strobe_image(reference), _strobe_image(inspection))
     assert abs(refitted.gain - 1.0) < 0.01
     assert abs(refitted.bias) < 1.0
     # the tube end is predicted where it reads: no 7 DN darkening left for a swapped component
@@ -57,5 +57,57 @@ def test_too_few_valid_pixels_keep_the_first_fit() -> None:
     first = replace(register(reference, inspection, model="translation"), gain=0.9, bias=5.0)
     valid = np.zeros(reference.shape, bool)
     valid[:10, :10] = True  # 100 pixels: two parameters against a 4-sigma trim need more
-    kept = photometric_refit(first, _strobe_image(reference, valid), _strobe_image(inspection, valid))
+    image = _strobe_image(reference, valid)
+    kept, same = photometric_refit(first, image, _strobe_image(inspection, valid))
     assert (kept.gain, kept.bias) == (0.9, 5.0)
+    assert same is image
+
+
+def _shaded(scene: np.ndarray, slope: float) -> np.ndarray:
+    """`scene` lit by a strobe whose beam moved: a smooth gain, 1 at the centre, `slope` per half frame
+    along x and half as much along y, with a gentle bend."""
+    rows, cols = np.mgrid[0 : scene.shape[0], 0 : scene.shape[1]]
+    x = 2.0 * cols / (scene.shape[1] - 1) - 1.0
+    y = 2.0 * rows / (scene.shape[0] - 1) - 1.0
+    return scene * (1.0 + slope * x + 0.5 * slope * y - 0.3 * slope * x * x)
+
+
+def test_the_strobe_moved_with_the_camera_shades_the_reference_and_leaves_a_flaw() -> None:
+    # seed §3: the strobe rides on the gripper, so a viewpoint error moves its beam over the surface; the
+    # inspection is the reference's scene shaded by 12 % across half the frame, with a 3 x 3 dark flaw
+    rng = np.random.default_rng(5)
+    rows, cols = np.mgrid[0:200, 0:240]
+    scene = 150.0 + 20.0 * np.sin(cols / 7.0) * np.cos(rows / 11.0)
+    reference = scene + rng.normal(0.0, 2.0, scene.shape)
+    inspection = _shaded(scene, 0.12) + rng.normal(0.0, 2.0, scene.shape)
+    inspection[100:103, 120:123] -= 30.0
+    first = register(reference, inspection, model="translation")
+    refitted, relit = photometric_refit(first, _strobe_image(reference), _strobe_image(inspection))
+    predicted = refitted.gain * relit.image + refitted.bias
+    left = inspection - predicted
+    away = np.ones(left.shape, bool)
+    away[95:108, 115:128] = False
+    # the shading is predicted to the noise (2 DN per image): a flat gain leaves up to 18 DN at the sides
+    assert np.std(left[away]) < 3.5
+    flat = inspection - (first.gain * reference + first.bias)
+    assert np.abs(flat[away]).max() > 15.0
+    # the flaw stands out whole: no smooth field bends around 3 x 3 pixels
+    assert left[100:103, 120:123].mean() < -25.0
+    # the variance goes with the image
+    np.testing.assert_allclose(relit.variance, 4.0 * (relit.image / reference) ** 2, rtol=1e-4)
+
+
+def test_a_change_beyond_any_strobe_shading_keeps_the_flat_gain() -> None:
+    # half the frame repainted 1.3 times as bright (seed §4 replacements: 1.2-1.5): no quadratic of the
+    # strobe's shading may take it, and the reference is left as it was
+    rng = np.random.default_rng(6)
+    rows, cols = np.mgrid[0:200, 0:240]
+    scene = 150.0 + 20.0 * np.sin(cols / 7.0) * np.cos(rows / 11.0)
+    reference = scene + rng.normal(0.0, 2.0, scene.shape)
+    inspection = scene * np.where(cols < 120, 1.0, 1.3) * (1.0 + 0.5 * cols / 240) + rng.normal(
+        0, 2.0, scene.shape
+    )
+    first = register(reference, inspection, model="translation")
+    image = _strobe_image(reference)
+    _, relit = photometric_refit(first, image, _strobe_image(inspection))
+    assert relit is image

@@ -99,3 +99,47 @@ def test_a_blanket_a_tenth_of_a_millimetre_thick_is_no_seam() -> None:
     assert not model_seams(depth).any()
     depth[:, 100:] -= 2e-3  # a 2 mm plate edge is one
     assert model_seams(depth)[:, 99:101].any(axis=1).all()
+
+
+def _seen_from(depth: NDArray[np.float64]) -> object:
+    """A visit whose placed model shows `depth` to a camera of FOCAL_PX (what seen_head_on reads)."""
+    from types import SimpleNamespace
+
+    cad = SimpleNamespace(expected_depth_m=depth.astype(np.float32))
+    pose = SimpleNamespace(focal_px=FOCAL_PX)
+    return SimpleNamespace(capture=SimpleNamespace(cad=cad), believed_pose=pose)
+
+
+def test_a_tank_is_seen_head_on_up_to_the_grazing_incidence_and_not_at_its_limb() -> None:
+    from rsi.mission.settings import MissionSettings
+    from rsi.mission.views import seen_head_on
+
+    axis_y, axis_z = 0.06, 0.45
+    depth = _cylinder_depth(0.07, axis_z, axis_y_m=axis_y)
+    points = _rays() * depth[..., None]
+    normals = points - np.array([0.0, axis_y, axis_z])
+    normals[..., 0] = 0.0
+    cosine = np.abs(np.sum(normals * points, axis=-1)) / (
+        np.linalg.norm(normals, axis=-1) * np.linalg.norm(points, axis=-1)
+    )
+    incidence_deg = np.degrees(np.arccos(np.clip(cosine, 0.0, 1.0)))
+    head_on = seen_head_on(_seen_from(depth), MissionSettings())  # type: ignore[arg-type]
+    skin = _interior(depth, 1)  # the derivatives of a pixel beside the sky read the jump
+    assert head_on[skin & (incidence_deg < 78.0)].all()
+    limb = (depth < FAR_M) & (incidence_deg > 82.0)
+    assert limb.sum() > 50  # the upper limb is in view
+    assert not head_on[limb].any()
+
+
+@pytest.mark.parametrize(("tilt_deg", "seen"), [(0.0, True), (60.0, True), (85.0, False)])
+def test_a_plane_is_seen_head_on_below_the_grazing_incidence(tilt_deg: float, seen: bool) -> None:
+    from rsi.mission.settings import MissionSettings
+    from rsi.mission.views import seen_head_on
+
+    tilt = np.radians(tilt_deg)
+    depth = _plane_depth((np.sin(tilt), 0.0, np.cos(tilt)), (0.0, 0.0, 0.38))
+    inside = _interior(np.where(depth > 0, depth, FAR_M), 2)
+    head_on = seen_head_on(_seen_from(np.where(depth > 0, depth, FAR_M)), MissionSettings())  # type: ignore[arg-type]
+    # at 85 deg the rays across the frame meet it between ~80 and ~90 deg: most of it is grazing
+    share = head_on[inside].mean()
+    assert share == 1.0 if seen else share < 0.5

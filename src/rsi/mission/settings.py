@@ -72,6 +72,13 @@ class MissionSettings:
         darkens up to ~4 deg inside it: truss-b seed 1, CAD point cad_05, 11 % darker at 27.8 deg and
         none at 27.3 deg; seed 2's cad_33 from 29 deg (development seeds). A real strobe's reflector
         leaves a soft edge of its own.
+    grazing_incidence_deg : float
+        A blob mostly on surfaces the model shows at more than this angle from their normal is not a flaw
+        (:func:`rsi.mission.views.seen_head_on`): there a surface's image is foreshortened more than six
+        times (1 / cos 80 deg = 5.8), so a fraction of a pixel of placement or depth error moves its
+        sample by pixels of surface, and the prediction in depth resamples it wrong (a tank's end cap seen
+        edge-on, a limb at the frame's side: truss-b development seeds 1 and 2 in space, crescents of
+        score 9-20). The CAD plan sees every surface from some vista within 45 deg (issue 15).
     component_area_m2 : float
         A dark blob bigger than 1 cm^2 is a changed component, not a ~1 mm impact (seed §4).
     screw_relief_lost_m : float
@@ -139,6 +146,7 @@ class MissionSettings:
     inspection_guard_px: int = 2
     depth_jump_m: float = 0.02
     strobe_beam_margin_deg: float = 5.0
+    grazing_incidence_deg: float = 80.0
     component_area_m2: float = 1.0e-4
     screw_relief_lost_m: float = 1.0e-3
     component_disc_m: float = 0.05

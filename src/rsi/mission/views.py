@@ -412,6 +412,32 @@ def inspection_region(sensed: Sensed, settings: MissionSettings) -> NDArray[np.b
     return ~off
 
 
+def seen_head_on(sensed: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
+    """Pixels whose model surface the camera sees within ``settings.grazing_incidence_deg`` of its normal.
+
+    The normal of the placed model's surface at each pixel is the cross product of the surface point's
+    derivatives along the row and the column (the point ``Z (x, y, 1)``, x and y the pixel's ray); the
+    incidence is its angle to the ray. Depth jumps and the sky read as grazing (they are out of the region
+    anyway).
+    """
+    depth = np.minimum(sensed.capture.cad.expected_depth_m, np.float32(FAR_M)).astype(np.float64)
+    pose = sensed.believed_pose
+    rows, cols = depth.shape
+    x = (np.arange(cols, dtype=np.float64)[None, :] - (cols - 1) / 2) / pose.focal_px
+    y = (np.arange(rows, dtype=np.float64)[:, None] - (rows - 1) / 2) / pose.focal_px
+    ray = np.stack(np.broadcast_arrays(x, y, np.ones_like(depth)), axis=-1)
+    along_rows, along_cols = (np.asarray(part, dtype=np.float64) for part in np.gradient(depth))
+    across = along_cols[..., None] * ray
+    across[..., 0] += depth / pose.focal_px
+    down = along_rows[..., None] * ray
+    down[..., 1] += depth / pose.focal_px
+    normal = np.cross(across, down)
+    cosine = np.abs(np.sum(normal * ray, axis=-1)) / (
+        np.linalg.norm(normal, axis=-1) * np.linalg.norm(ray, axis=-1) + 1e-30
+    )
+    return np.asarray(cosine > math.cos(math.radians(settings.grazing_incidence_deg)))
+
+
 def within_strobe_beam(sensed: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
     """Pixels whose surface the strobe lights from well inside its beam: at most the beam's half-angle
     less ``settings.strobe_beam_margin_deg`` off its axis, seen from the strobe beside the lens (seed §2.1).

@@ -50,6 +50,7 @@ from rsi.mission.views import (
     near_model_edges,
     near_model_seams,
     own_body,
+    seen_head_on,
     sense,
     to_field,
     within_strobe_beam,
@@ -65,6 +66,8 @@ if TYPE_CHECKING:
     from rsi.sim.anomalies import Site
     from rsi.sim.world import World
 
+
+FloatArray = NDArray[np.float64]
 
 # Seed §4's impacts are black tape, but a micrometeoroid spalls paint off and bares brighter metal: the
 # comparison tests both signs (its thresholds count both tails, seed §2.4)
@@ -390,7 +393,8 @@ def _predicted(
         elapsed_s=0.0,
     )
     reference = _past_own_body(predicted.reference, fit.shift_xy, looking)
-    return reference, predicted.range_m, fit.shift_xy, photometric_refit(aligned, reference, inspection)
+    aligned, reference = photometric_refit(aligned, reference, inspection)
+    return reference, predicted.range_m, fit.shift_xy, aligned
 
 
 # Pixels beyond this many robust sigmas of the photometric fit leave it: the registration's own trim (seed
@@ -398,21 +402,37 @@ def _predicted(
 _PHOTOMETRIC_TRIM_SIGMAS = 4.0
 # Trimmed refits: the second already settles gain and bias to 1e-3 and 0.1 DN on truss seed 0's frames
 _PHOTOMETRIC_REFITS = 3
-# Fewer pixels than a flaw kernel's few hundred cannot fit two parameters against the trim
+# Fewer pixels than a flaw kernel's few hundred cannot fit the shading's seven parameters against the trim
 _PHOTOMETRIC_MIN_PIXELS = 256
+# The strobe's shading moves by at most this fraction of its gain over the compared pixels: truss-b's close
+# panel views at space repeatability moved it by 8-15 % across half a frame; a field that departs further
+# is a change of the surface (a replacement reflects 0.4-0.8 or 1.2-1.5 times the original, seed §4), and
+# the flat gain stands
+_MAX_SHADING = 0.25
 
 
-def photometric_refit(aligned: Registration, reference: Compensated, inspection: Compensated) -> Registration:
-    """`aligned` with its gain and bias fitted again on the reference as predicted in depth (trimmed least
-    squares, the inspection on the reference, outliers beyond 4 robust sigmas out).
+def photometric_refit(
+    aligned: Registration, reference: Compensated, inspection: Compensated
+) -> tuple[Registration, Compensated]:
+    """`aligned` with its gain and bias fitted again on the reference as predicted in depth, and the
+    reference relit by the strobe's smooth change of shading (trimmed least squares, the inspection on the
+    reference, outliers beyond 4 robust sigmas out).
 
-    The first registration fitted them before the parallax was taken out: every surface off the median
-    depth was misregistered, and what its trim kept pulled the fit. Two passes' strobe images at one flash
-    energy (:func:`rsi.mission.exposure.shortened`) differ by the flash's gain and the compensation's
+    The first registration fitted gain and bias before the parallax was taken out: every surface off the
+    median depth was misregistered, and what its trim kept pulled the fit. Two passes' strobe images at one
+    flash energy (:func:`rsi.mission.exposure.shortened`) differ by the flash's gain and the compensation's
     zero-mean error (seed §2.2), not by an offset: truss seed 0 under a 300 s sun, CAD plan point cad_03,
     agreed to 0.02 DN at every brightness, yet the first fit gave gain 0.943 and bias +11 DN, and a dark
     tube end of 7.6 DN read 7 DN under its prediction, 16 sigma over 31 mm: a false swapped component
     (refitted: 0.997 and +0.5 DN).
+
+    The strobe rides with the camera (seed §3: on the gripper's jaws), so a viewpoint error moves its beam
+    and its glare over the surface: the strobe image's gain changes smoothly across the frame. The gain is
+    a quadratic in the frame's coordinates (1, x, y, x^2, xy, y^2): no millimetre flaw bends it, and on
+    truss-b's close panel views at space repeatability it took the comparison's robust sigma from 4-4.7 DN
+    to 2.3-3.0 DN (a flat gain left 8-15 % across half the frame, read as swapped components). The returned
+    registration carries the gain at the frame's centre; the reference is multiplied by the field over it
+    (and its variance by the square).
     """
     warped, inside = aligned.warp(reference.image, output_shape=inspection.image.shape, photometric=False)
     seen, _ = aligned.warp(
@@ -420,19 +440,51 @@ def photometric_refit(aligned: Registration, reference: Compensated, inspection:
     )
     used = inside & (seen > 0.999) & inspection.valid
     if int(used.sum()) < _PHOTOMETRIC_MIN_PIXELS:
-        return aligned
+        return aligned, reference
+    rows, cols = np.nonzero(used)
+    shading = _shading_basis(rows, cols, inspection.image.shape)
     before, after = warped[used].astype(np.float64), inspection.image[used].astype(np.float64)
+    design = np.column_stack([shading * before[:, None], np.ones(before.size)])
+    coefficients = np.zeros(design.shape[1])
+    coefficients[0], coefficients[-1] = aligned.gain, aligned.bias
     kept = np.ones(before.size, dtype=bool)
-    gain, bias = aligned.gain, aligned.bias
     for _ in range(_PHOTOMETRIC_REFITS):
         if int(kept.sum()) < _PHOTOMETRIC_MIN_PIXELS:
             break
-        design = np.column_stack([before[kept], np.ones(int(kept.sum()))])
-        (gain, bias), *_ = np.linalg.lstsq(design, after[kept], rcond=None)
-        residual = after - (gain * before + bias)
+        coefficients, *_ = np.linalg.lstsq(design[kept], after[kept], rcond=None)
+        residual = after - design @ coefficients
         sigma = 1.4826 * float(np.median(np.abs(residual - np.median(residual))))
         kept = np.abs(residual) <= _PHOTOMETRIC_TRIM_SIGMAS * max(sigma, 1e-6)
-    return replace(aligned, gain=float(gain), bias=float(bias))
+    gain, bias = float(coefficients[0]), float(coefficients[-1])
+    field = shading @ coefficients[:-1] / gain
+    if not np.all(np.abs(field - 1.0) <= _MAX_SHADING):
+        flat = np.column_stack([before, np.ones(before.size)])[kept]
+        (gain, bias), *_ = np.linalg.lstsq(flat, after[kept], rcond=None)
+        return replace(aligned, gain=float(gain), bias=float(bias)), reference
+    return replace(aligned, gain=gain, bias=bias), _relit(reference, aligned, coefficients[:-1] / gain)
+
+
+def _shading_basis(rows: NDArray[np.intp], cols: NDArray[np.intp], shape: tuple[int, ...]) -> FloatArray:
+    """The quadratic shading's terms (1, x, y, x^2, xy, y^2) at pixels, x and y -1..1 across the frame."""
+    x = 2.0 * cols / max(shape[1] - 1, 1) - 1.0
+    y = 2.0 * rows / max(shape[0] - 1, 1) - 1.0
+    return np.column_stack([np.ones(x.size), x, y, x * x, x * y, y * y])
+
+
+def _relit(reference: Compensated, aligned: Registration, shape_coefficients: FloatArray) -> Compensated:
+    """`reference` times the shading field (fitted in the inspection's frame, read where `aligned` puts each
+    reference pixel), its variance times the field's square."""
+    rows, cols = np.indices(reference.image.shape)
+    matrix = aligned.matrix
+    at_cols = matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2]
+    at_rows = matrix[1, 0] * cols + matrix[1, 1] * rows + matrix[1, 2]
+    basis = _shading_basis(at_rows.ravel(), at_cols.ravel(), reference.image.shape)
+    field = (basis @ shape_coefficients).reshape(reference.image.shape).astype(np.float32)
+    return replace(
+        reference,
+        image=(reference.image * field).astype(np.float32),
+        variance=(reference.variance * field * field).astype(np.float32),
+    )
 
 
 def _past_own_body(reference: Compensated, shift_xy: tuple[float, float], looking: _Looking) -> Compensated:
@@ -493,13 +545,16 @@ def _new_blobs(
     """
     screw_positions = np.asarray([s.position_m for s in world.mockup.candidates.screw_sites])
     looks = unexplained(blobs(comparison.pair, view), view, explanations, screw_positions, settings)
-    if looks:  # the seams and the beam only where there is a blob to test
+    if looks:  # the seams, the beam and the incidence only where there is a blob to test
         seams = near_model_seams(view, settings.inspection_guard_px)
         beam = within_strobe_beam(view, settings)
+        head_on = seen_head_on(view, settings)
         looks = [
             look
             for look in looks
-            if not _on_seam(look, comparison.pair, seams) and _mostly_in_beam(look, comparison.pair, beam)
+            if not _on_seam(look, comparison.pair, seams)
+            and _mostly_within(look, comparison.pair, beam)
+            and _mostly_within(look, comparison.pair, head_on)
         ]
     if not looks:
         return looks
@@ -596,10 +651,11 @@ def _on_component(
     reference, second, inspection = (
         _restricted(image, inner) for image in (whole.reference, whole.second, whole.inspection)
     )
-    first, other = (
-        None if aligned is None else photometric_refit(aligned, image, inspection)
-        for aligned, image in zip(whole.aligned, (reference, second), strict=True)
-    )
+    first, other = whole.aligned
+    if first is not None:
+        first, reference = photometric_refit(first, reference, inspection)
+    if other is not None:
+        other, second = photometric_refit(other, second, inspection)
     pair = compare(reference, inspection, p_false_alarm, settings, whole.scale, registration=first)
     return _Comparison(reference, second, inspection, whole.scale, pair, whole.range_m, (first, other))
 
@@ -615,18 +671,20 @@ def _on_seam(look: Look, pair: PairResult, seams: NDArray[np.bool_]) -> bool:
     return bool(blob.any() and not (blob & ~seams[row0:row1, col0:col1]).any())
 
 
-def _mostly_in_beam(look: Look, pair: PairResult, beam: NDArray[np.bool_]) -> bool:
-    """Whether most of the blob's pixels lie well inside the strobe's beam
-    (:func:`rsi.mission.views.within_strobe_beam`).
+def _mostly_within(look: Look, pair: PairResult, trusted: NDArray[np.bool_]) -> bool:
+    """Whether most of the blob's pixels lie where the comparison is trusted: well inside the strobe's beam
+    (:func:`rsi.mission.views.within_strobe_beam`), on a surface not seen at grazing incidence
+    (:func:`rsi.mission.views.seen_head_on`).
 
     At the beam's edge a few millimetres of viewpoint error move a steep fall of the strobe image over the
     frame's bottom corners, which no comparison tells from a flaw (truss-b development seed 1, CAD point
-    cad_05: a darkening 80 px wide in the inspection only, score 310). Screws and components are still
-    checked there, and the exposure is metered over the whole inspection region, as before.
+    cad_05: a darkening 80 px wide in the inspection only, score 310); a surface seen edge-on is resampled
+    wrong by the prediction in depth. Screws and components are still checked there, and the exposure is
+    metered over the whole inspection region, as before.
     """
     row0, col0, row1, col1 = look.bbox
     blob = pair.detection.mask[row0:row1, col0:col1]
-    return bool(2 * int((blob & beam[row0:row1, col0:col1]).sum()) > int(blob.sum()))
+    return bool(2 * int((blob & trusted[row0:row1, col0:col1]).sum()) > int(blob.sum()))
 
 
 def _shift_bound_px(look: Look, near_edges: NDArray[np.bool_], settings: MissionSettings) -> float:
