@@ -419,16 +419,30 @@ def test_a_removed_panel_screw_loses_its_glint_and_a_present_one_keeps_it() -> N
 def test_a_long_thin_blob_is_a_line_and_a_round_one_a_spot() -> None:
     from rsi.mission.evidence import LINE_MIN_PX, line_shaped
 
-    def blob(rows: int, cols: int, area_px: int) -> Look:
-        flaw = Flaw(rows / 2, cols / 2, (10, 10, 10 + rows, 10 + cols), area_px, 9.0, "dark")
-        return Look(flaw, (0.0, 0.0, 0.0), 1e-6, 9.0)
+    def shaped(pixels: np.ndarray) -> bool:
+        """Whether the blob of `pixels` (a mask placed at row 10, column 10 of a frame) is a line."""
+        mask = np.zeros((120, 120), bool)
+        mask[10 : 10 + pixels.shape[0], 10 : 10 + pixels.shape[1]] = pixels
+        rows, cols = np.nonzero(mask)
+        box = (int(rows.min()), int(cols.min()), int(rows.max()) + 1, int(cols.max()) + 1)
+        flaw = Flaw(float(rows.mean()), float(cols.mean()), box, int(rows.size), 9.0, "dark")
+        return line_shaped(Look(flaw, (0.0, 0.0, 0.0), 1e-6, 9.0, peak_px=(int(rows[0]), int(cols[0]))), mask)
 
-    assert line_shaped(blob(1, 42, 42))  # seed 2's row left by the field compensation
-    assert line_shaped(blob(2, 12, 24))  # 12 px long, 2 wide
-    assert not line_shaped(blob(3, 3, 9))  # a millimetre spot
-    assert not line_shaped(blob(8, 8, 50))  # the widest impact, blurred
-    assert not line_shaped(blob(1, LINE_MIN_PX, LINE_MIN_PX))  # no longer than the widest impact: a spot
-    assert not line_shaped(blob(3, 12, 36))  # 4x longer than wide at the most
+    def bar(rows: int, cols: int) -> np.ndarray:
+        return np.ones((rows, cols), bool)
+
+    assert shaped(bar(1, 42))  # seed 2's row left by the field compensation
+    assert shaped(bar(2, 12))  # 12 px long, 2 wide
+    assert shaped(np.eye(30, dtype=bool))  # an edge across the rows and columns alike
+    assert not shaped(bar(3, 3))  # a millimetre spot
+    assert not shaped(bar(8, 8))  # the widest impact, blurred
+    assert not shaped(bar(1, LINE_MIN_PX))  # no longer than the widest impact: a spot
+    assert not shaped(bar(3, 12))  # 4x longer than wide at the most
+    # a crater's bright rim: 50-odd pixels about a 9 x 15 px box, as wide as the crater (truss seed 2, space)
+    rows, cols = np.mgrid[0:9, 0:15]
+    ellipse = ((rows - 4) / 4.5) ** 2 + ((cols - 7) / 7.5) ** 2
+    rim = (ellipse <= 1.0) & (ellipse >= 0.55)
+    assert not shaped(rim)
 
 
 def test_a_look_is_followed_into_the_second_visits_frame_by_its_texture() -> None:

@@ -590,7 +590,7 @@ def _new_blobs(
             or (
                 look.area_m2 <= settings.component_area_m2
                 and look.contrast >= settings.impact_contrast_min
-                and not line_shaped(look)
+                and not line_shaped(look, comparison.pair.detection.mask)
                 and not shift_explained(comparison.pair, look, floor, _shift_bound_px(look, edges, settings))
             )
         )
