@@ -154,11 +154,13 @@ def _class_table(result: EvaluationResult) -> None:
 
 
 def _settings(spec: str, base: DeepPcbSettings | None = None) -> DeepPcbSettings:
-    """ "affine:3" -> `base` (default DeepPcbSettings()) with registration_model="affine" and a 3 px floor."""
-    model, floor = spec.split(":")
-    return dataclasses.replace(
+    """ "affine:3" -> `base` (default DeepPcbSettings()) with registration_model="affine" and a 3 px floor;
+    "local:3:10" also merges pieces within 10 px (merge_gap_px)."""
+    model, floor, *gap = spec.split(":")
+    chosen = dataclasses.replace(
         base or DeepPcbSettings(), registration_model=model, misregistration_std_px=float(floor)
     )
+    return dataclasses.replace(chosen, merge_gap_px=int(gap[0])) if gap else chosen
 
 
 Found = list[tuple[DeepPcbPair, PcbDetections, float]]
@@ -337,7 +339,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-baseline", action="store_true")
     parser.add_argument("--logo", action="store_true", help="leave-one-group-out over the board groups")
     parser.add_argument(
-        "--grid", default="affine:2,affine:3,affine:4", help="settings for --logo: model:floor_px, ..."
+        "--grid",
+        default="affine:2,affine:3,affine:4",
+        help="settings for --logo: model:floor_px[:merge_gap_px], ...",
     )
     parser.add_argument("--final-group", default="group50600", help="the final held-out check of --logo")
     parser.add_argument(
