@@ -41,7 +41,7 @@ def test_a_biased_first_fit_is_refitted_to_the_flash_gain_and_no_offset() -> Non
     reference, inspection = _scene()
     first = register(reference, inspection, model="translation")
     pulled = replace(first, gain=0.943, bias=11.0)  # truss seed 0's cad_03 before the refit
-    refitted, relit = photometric_refit(pulled, _strobe_image(reference), _strobe_image(inspection))
+    refitted, _ = photometric_refit(pulled, _strobe_image(reference), _strobe_image(inspection))
     assert abs(refitted.gain - 1.0) < 0.01
     assert abs(refitted.bias) < 1.0
     # the tube end is predicted where it reads: no 7 DN darkening left for a swapped component

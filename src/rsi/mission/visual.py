@@ -466,9 +466,17 @@ def photometric_refit(
 
 def _shading_basis(rows: NDArray[np.intp], cols: NDArray[np.intp], shape: tuple[int, ...]) -> FloatArray:
     """The quadratic shading's terms (1, x, y, x^2, xy, y^2) at pixels, x and y -1..1 across the frame."""
-    x = 2.0 * cols / max(shape[1] - 1, 1) - 1.0
-    y = 2.0 * rows / max(shape[0] - 1, 1) - 1.0
+    x, y = _frame_coordinates(rows, cols, shape)
     return np.column_stack([np.ones(x.size), x, y, x * x, x * y, y * y])
+
+
+def _frame_coordinates(
+    rows: NDArray[np.number], cols: NDArray[np.number], shape: tuple[int, ...]
+) -> tuple[FloatArray, FloatArray]:
+    """Pixel positions as x and y from -1 to 1 across the frame."""
+    x = 2.0 * np.asarray(cols, dtype=np.float64) / max(shape[1] - 1, 1) - 1.0
+    y = 2.0 * np.asarray(rows, dtype=np.float64) / max(shape[0] - 1, 1) - 1.0
+    return x, y
 
 
 def _relit(reference: Compensated, aligned: Registration, shape_coefficients: FloatArray) -> Compensated:
@@ -476,10 +484,13 @@ def _relit(reference: Compensated, aligned: Registration, shape_coefficients: Fl
     reference pixel), its variance times the field's square."""
     rows, cols = np.indices(reference.image.shape)
     matrix = aligned.matrix
-    at_cols = matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2]
-    at_rows = matrix[1, 0] * cols + matrix[1, 1] * rows + matrix[1, 2]
-    basis = _shading_basis(at_rows.ravel(), at_cols.ravel(), reference.image.shape)
-    field = (basis @ shape_coefficients).reshape(reference.image.shape).astype(np.float32)
+    x, y = _frame_coordinates(
+        matrix[1, 0] * cols + matrix[1, 1] * rows + matrix[1, 2],
+        matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2],
+        reference.image.shape,
+    )
+    c = shape_coefficients
+    field = (c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y).astype(np.float32)
     return replace(
         reference,
         image=(reference.image * field).astype(np.float32),
