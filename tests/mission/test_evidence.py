@@ -204,6 +204,29 @@ def test_the_comparison_finds_dark_and_bright_spots_and_their_contrast(sign: flo
     assert contrast(pair, flaw.bbox, "dark" if sign > 0 else "bright") < 0.03
 
 
+def test_a_component_changed_one_way_is_a_swap_and_noise_of_either_sign_is_not() -> None:
+    from rsi.mission.evidence import component_change
+    from rsi.mission.views import disc, seen_components
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=0)
+    view = _sensed(world, "B_tank")
+    site = next(site for site in seen_components(world, view) if site.name == "B_tank")
+    centre = disc((120, 160), view, site.position_m, SETTINGS.component_disc_m)
+    rng = np.random.default_rng(3)
+    reference = _textured(3)
+    repainted, unsettled = (reference + rng.normal(0.0, 1.0, reference.shape).astype(np.float32) for _ in "ab")
+    repainted[centre] *= np.float32(0.6)  # a replacement of 0.6 the reflectance (seed §4: 0.4-0.8)
+    unsettled[centre] += rng.normal(0.0, 8.0, int(centre.sum())).astype(np.float32)  # noise the model misses
+    swap = compare(_image(reference, 1.0), _image(repainted, 1.0), 1e-4, SETTINGS)
+    noise = compare(_image(reference, 1.0), _image(unsettled, 1.0), 1e-4, SETTINGS)
+    assert component_change(swap, view, site, SETTINGS) > 0.5  # type: ignore[arg-type]
+    # beyond 3 sigmas both ways over much of the disc, in equal measure: no repaint
+    z = noise.detection.difference[centre] / noise.detection.sigma[centre]
+    assert np.mean(z > 3.0) > 0.2 and np.mean(z < -3.0) > 0.2
+    assert component_change(noise, view, site, SETTINGS) < SETTINGS.component_change_min  # type: ignore[arg-type]
+
+
 def _cluttered(spot_dn: float, offset_dn: float, noise_dn: float) -> Any:
     """A textured pair whose inspection has a 60x60 part the noise model under-states (shifted by
     `offset_dn`, `noise_dn` more noise: a dim face's compensation under another sun), a 3x3 spot of

@@ -86,8 +86,8 @@ class MissionSettings:
     component_disc_m : float
         Central disc of a component every view of it shows.
     component_change_min : float
-        Changed fraction of that disc that makes a swap: discoloured 0.16-0.63, pristine <= 0.012
-        (measured, seeds 0-5).
+        Fraction of that disc changed one way (brighter less darker) that makes a swap: discoloured
+        0.16-0.63, pristine <= 0.012 (measured, seeds 0-5).
     component_dimming_min : float
         Discoloured replacements reflect 0.4-0.8 of the original (seed §4 defective components).
     dent_relief_min_m : float
