@@ -215,7 +215,9 @@ def test_a_component_changed_one_way_is_a_swap_and_noise_of_either_sign_is_not()
     centre = disc((120, 160), view, site.position_m, SETTINGS.component_disc_m)
     rng = np.random.default_rng(3)
     reference = _textured(3)
-    repainted, unsettled = (reference + rng.normal(0.0, 1.0, reference.shape).astype(np.float32) for _ in "ab")
+    repainted, unsettled = (
+        reference + rng.normal(0.0, 1.0, reference.shape).astype(np.float32) for _ in "ab"
+    )
     repainted[centre] *= np.float32(0.6)  # a replacement of 0.6 the reflectance (seed §4: 0.4-0.8)
     unsettled[centre] += rng.normal(0.0, 8.0, int(centre.sum())).astype(np.float32)  # noise the model misses
     swap = compare(_image(reference, 1.0), _image(repainted, 1.0), 1e-4, SETTINGS)
