@@ -155,12 +155,15 @@ def _class_table(result: EvaluationResult) -> None:
 
 def _settings(spec: str, base: DeepPcbSettings | None = None) -> DeepPcbSettings:
     """ "affine:3" -> `base` (default DeepPcbSettings()) with registration_model="affine" and a 3 px floor;
-    "local:3:10" also merges pieces within 10 px (merge_gap_px)."""
-    model, floor, *gap = spec.split(":")
+    "local:3:10" also merges pieces within 10 px (merge_gap_px), "local:3:10:disc" also tests with the
+    disc flaw model (flaw_model)."""
+    model, floor, *rest = spec.split(":")
     chosen = dataclasses.replace(
         base or DeepPcbSettings(), registration_model=model, misregistration_std_px=float(floor)
     )
-    return dataclasses.replace(chosen, merge_gap_px=int(gap[0])) if gap else chosen
+    if rest:
+        chosen = dataclasses.replace(chosen, merge_gap_px=int(rest[0]))
+    return dataclasses.replace(chosen, flaw_model=rest[1]) if len(rest) > 1 else chosen
 
 
 Found = list[tuple[DeepPcbPair, PcbDetections, float]]
@@ -341,7 +344,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--grid",
         default="affine:2,affine:3,affine:4",
-        help="settings for --logo: model:floor_px[:merge_gap_px], ...",
+        help="settings for --logo: model:floor_px[:merge_gap_px[:flaw_model]], ...",
     )
     parser.add_argument("--final-group", default="group50600", help="the final held-out check of --logo")
     parser.add_argument(

@@ -207,7 +207,7 @@ def test_register_reports_the_shift(png_pair: PngPair) -> None:
     assert "residual_rms" in table.stdout
 
 
-@pytest.mark.parametrize(("extra", "curves"), [((), 3), (("--flaw-model", "peak"), 1)])
+@pytest.mark.parametrize(("extra", "curves"), [((), 4), (("--flaw-model", "peak"), 1)])
 def test_roc_writes_theoretical_curves(tmp_path: Path, extra: tuple[str, ...], curves: int) -> None:
     result = invoke("roc", "--strength", "3", "--out", tmp_path, *extra)
     assert result.exit_code == 0, result.output

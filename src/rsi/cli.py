@@ -62,6 +62,7 @@ class FlawModel(str, Enum):
 
     single = "single"
     uniform = "uniform"
+    disc = "disc"
     peak = "peak"
 
 
@@ -616,7 +617,7 @@ def roc(
     *,
     strength: Annotated[float, typer.Option(help="Flaw strength in noise sigmas (strongest pixel).")],
     out: Annotated[Path, typer.Option("--out", help="Folder for roc.png and roc.csv.")],
-    flaw_model: Annotated[FlawModel | None, typer.Option(help="One flaw model; default: all three.")] = None,
+    flaw_model: Annotated[FlawModel | None, typer.Option(help="One flaw model; default: all four.")] = None,
     size: Annotated[int, typer.Option(help="Flaw window side in pixels (odd).")] = 3,
 ) -> None:
     """Theoretical ROC curves (seed §2.4: P_D against P_F) as roc.png and roc.csv."""

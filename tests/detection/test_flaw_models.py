@@ -23,6 +23,30 @@ def test_shapes_of_the_seed_models() -> None:
     peak = flaw_kernel("peak", size=5, peak_ratio=4.0)
     assert peak[2, 2] == 1.0
     assert np.count_nonzero(peak == 0.25) == 24
+    plus = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]])
+    np.testing.assert_array_equal(flaw_kernel("disc", size=3), plus)
+    # radius 2: the centre, its 8 neighbours (within sqrt 2) and the 4 pixels 2 px out along the axes
+    disc = flaw_kernel("disc", size=5)
+    assert np.count_nonzero(disc) == 13 and disc[0, 2] == 1.0 and disc[0, 1] == 0.0 and disc[1, 1] == 1.0
+
+
+def test_the_erosion_test_finds_a_round_bite_that_no_square_fits() -> None:
+    from rsi.detection.detect import detect
+
+    rng = np.random.default_rng(2)
+    reference = (100.0 + rng.normal(0.0, 1.0, (40, 40))).astype(np.float32)
+    inspection = (reference + rng.normal(0.0, 1.0, reference.shape)).astype(np.float32)
+    inspection[19:22, 20] -= 40.0  # a plus 3 px across: the smallest round bite with a centre pixel
+    inspection[20, 19:22] -= 40.0
+    found = {
+        model: detect(
+            reference, inspection, flaw_model=model, method="erosion", noise_sigma=1.4, registration=None
+        )
+        for model in ("uniform", "disc")
+    }
+    assert not found["uniform"].flaws
+    (flaw,) = found["disc"].flaws
+    assert (round(flaw.row), round(flaw.col)) == (20, 20)
 
 
 @pytest.mark.parametrize(

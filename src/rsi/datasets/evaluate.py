@@ -107,8 +107,11 @@ class DeepPcbSettings:
         smooths; the full-resolution filtering of both images only fed them. Measured on trainval, a
         yes-or-no choice like the last.
     flaw_model, size, method : str, int, str
-        Passed to :func:`rsi.detect`. The erosion variant of the uniform multi-pixel model: every pixel of
-        a ``size`` x ``size`` window must change the same way, which a 1-px edge residual never does.
+        Passed to :func:`rsi.detect`. The erosion variant of the disc model: every pixel of the disc of
+        ``size`` (for 3, a plus of five) must change the same way, which a 1-px edge residual never does.
+        A mousebite or a pin-hole 3 px across holds that plus whole, not a 3x3 square: leave-one-group-out
+        chose the disc over the square in all seven folds (pooled official F 0.981 -> 0.984, F1 0.993 ->
+        0.995, false alarms 0.045 -> 0.037 per image; ``docs/deeppcb.md``).
     p_false_alarm : float
         Per-pixel false-alarm probability the threshold is calibrated for.
     noise_sigma : float
@@ -153,7 +156,7 @@ class DeepPcbSettings:
     registration_photometric: bool = False
     registration_presmooth: bool = False
     registration_field_tolerance_px: float = 0.1
-    flaw_model: str = "uniform"
+    flaw_model: str = "disc"
     size: int = 3
     method: str = "erosion"
     p_false_alarm: float = 1e-5

@@ -630,7 +630,7 @@ def detect(
     reference, inspection : ndarray of shape (M, N) or Compensated
         Images (float32 used internally). A :class:`Compensated` image brings its validity and noise
         variance. Without registration they must have the same shape.
-    flaw_model : {"single", "uniform", "peak", "kernel"}
+    flaw_model : {"single", "uniform", "disc", "peak", "kernel"}
         Expected flaw shape; see :func:`rsi.detection.flaw_models.flaw_kernel` for ``size``,
         ``peak_ratio`` and ``kernel``.
     method : {"lrt", "erosion"}

@@ -19,7 +19,7 @@ from rsi.errors import InputError
 
 FloatArray = NDArray[np.float64]
 
-FLAW_MODELS = ("single", "uniform", "peak", "kernel")
+FLAW_MODELS = ("single", "uniform", "disc", "peak", "kernel")
 
 
 MAX_SIZE_PX = 255
@@ -42,6 +42,16 @@ def _single(size: int, peak_ratio: float, kernel: object) -> FloatArray:
 def _uniform(size: int, peak_ratio: float, kernel: object) -> FloatArray:
     # seed §2.4: every component of the flaw strength vector equal (a spot of paint).
     return np.ones((size, size))
+
+
+def _disc(size: int, peak_ratio: float, kernel: object) -> FloatArray:
+    # seed §2.4 calls the flaws ~1 mm spots: round, not square. The pixels within (size - 1) / 2 of the
+    # centre: for size 3 the centre and its four neighbours, which a bite or a pit 3 px across holds
+    # whole where the 3x3 square's corners (sqrt 2 px out) fall outside it.
+    radius = (size - 1) / 2
+    rows, cols = np.mgrid[0:size, 0:size] - radius
+    within: NDArray[np.bool_] = np.hypot(rows, cols) <= radius
+    return within.astype(np.float64)
 
 
 def _peak(size: int, peak_ratio: float, kernel: object) -> FloatArray:
@@ -70,6 +80,7 @@ def _user(size: int, peak_ratio: float, kernel: object) -> FloatArray:
 _BUILDERS: dict[str, Callable[[int, float, object], FloatArray]] = {
     "single": _single,
     "uniform": _uniform,
+    "disc": _disc,
     "peak": _peak,
     "kernel": _user,
 }
@@ -82,12 +93,13 @@ def flaw_kernel(
 
     Parameters
     ----------
-    flaw_model : {"single", "uniform", "peak", "kernel"}
+    flaw_model : {"single", "uniform", "disc", "peak", "kernel"}
         ``"single"``: one pixel. ``"uniform"``: a ``size`` x ``size`` square of equal strength.
-        ``"peak"``: the same square with the centre ``peak_ratio`` times stronger than the uniform
-        surround (crater model). ``"kernel"``: the user's ``kernel``.
+        ``"disc"``: the pixels of that square within ``(size - 1) / 2`` of its centre, of equal strength
+        (for size 3, a plus). ``"peak"``: the same square with the centre ``peak_ratio`` times stronger
+        than the uniform surround (crater model). ``"kernel"``: the user's ``kernel``.
     size : int
-        Odd side in pixels of the ``"uniform"`` and ``"peak"`` squares.
+        Odd side in pixels of the ``"uniform"``, ``"disc"`` and ``"peak"`` windows.
     peak_ratio : float
         Centre-to-surround strength ratio of the ``"peak"`` model, >= 1.
     kernel : ndarray of shape (K, L), optional

@@ -80,7 +80,7 @@ def inspect_pair(
     reference, inspection : ndarray of shape (M, N) or Compensated
         The earlier reference and the new inspection image. ``Compensated`` inputs (seed §2.2) carry their
         own noise variance and valid mask, which the detector uses.
-    flaw_model : {"single", "uniform", "peak"}
+    flaw_model : {"single", "uniform", "disc", "peak"}
         Seed §2.4 flaw model the likelihood-ratio test is matched to.
     size : int
         Side of the flaw window in pixels (odd); ignored by the single-pixel model.
