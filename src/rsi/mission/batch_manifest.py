@@ -29,7 +29,7 @@ REQUIRED_COLUMNS = ("reference", "inspection")
 """Manifest columns every row needs: image paths, relative to the manifest's folder or absolute."""
 # Kept in step with rsi.detection / rsi.imaging by a test; spelled out here so that checking a manifest
 # imports neither OpenCV nor the detector.
-FLAW_MODELS = ("single", "uniform", "peak")
+FLAW_MODELS = ("single", "uniform", "disc", "peak")
 POLARITIES = ("both", "dark", "bright")
 REGISTRATION_MODELS = ("translation", "euclidean", "similarity", "affine", "homography")
 METHODS = ("lrt", "erosion")
