@@ -249,7 +249,7 @@ def test_a_defect_mask_must_be_a_number_array() -> None:
 def test_mission_settings_name_an_array_given_for_a_choice() -> None:
     with pytest.raises(InputError, match="plan must be one of"):
         MissionSettings(plan=np.zeros(3))  # type: ignore[arg-type]
-    with pytest.raises(InputError, match="flaw_model must be 'single', 'uniform' or 'peak'"):
+    with pytest.raises(InputError, match="flaw_model must be 'single', 'uniform', 'disc' or 'peak'"):
         MissionSettings(flaw_model=np.zeros(3))  # type: ignore[arg-type]
 
 

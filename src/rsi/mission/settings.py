@@ -209,5 +209,5 @@ def _shown(value: object) -> str:
 
 
 def _check_flaw_model(value: object) -> None:
-    if not isinstance(value, str) or value not in ("single", "uniform", "peak"):
-        raise InputError(f"flaw_model must be 'single', 'uniform' or 'peak'; got {value!r}.")
+    if not isinstance(value, str) or value not in ("single", "uniform", "disc", "peak"):
+        raise InputError(f"flaw_model must be 'single', 'uniform', 'disc' or 'peak'; got {value!r}.")
