@@ -209,5 +209,9 @@ def _shown(value: object) -> str:
 
 
 def _check_flaw_model(value: object) -> None:
-    if not isinstance(value, str) or value not in ("single", "uniform", "disc", "peak"):
-        raise InputError(f"flaw_model must be 'single', 'uniform', 'disc' or 'peak'; got {value!r}.")
+    # the library's models a setting can name (no kernel array), the list batch manifests keep in step
+    from rsi.mission.batch_manifest import FLAW_MODELS
+
+    if not isinstance(value, str) or value not in FLAW_MODELS:
+        named = ", ".join(repr(model) for model in FLAW_MODELS[:-1]) + f" or {FLAW_MODELS[-1]!r}"
+        raise InputError(f"flaw_model must be {named}; got {value!r}.")

@@ -467,7 +467,12 @@ def photometric_refit(
 def _shading_basis(rows: NDArray[np.intp], cols: NDArray[np.intp], shape: tuple[int, ...]) -> FloatArray:
     """The quadratic shading's terms (1, x, y, x^2, xy, y^2) at pixels, x and y -1..1 across the frame."""
     x, y = _frame_coordinates(rows, cols, shape)
-    return np.column_stack([np.ones(x.size), x, y, x * x, x * y, y * y])
+    return np.column_stack([np.ones(x.size), *_shading_terms(x, y)])
+
+
+def _shading_terms(x: FloatArray, y: FloatArray) -> tuple[FloatArray, ...]:
+    """The quadratic shading's terms after the constant: x, y, x^2, xy, y^2."""
+    return (x, y, x * x, x * y, y * y)
 
 
 def _frame_coordinates(
@@ -489,8 +494,10 @@ def _relit(reference: Compensated, aligned: Registration, shape_coefficients: Fl
         matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2],
         reference.image.shape,
     )
-    c = shape_coefficients
-    field = (c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y).astype(np.float32)
+    shading = np.full(x.shape, shape_coefficients[0])
+    for coefficient, term in zip(shape_coefficients[1:], _shading_terms(x, y), strict=True):
+        shading += coefficient * term
+    field = shading.astype(np.float32)
     return replace(
         reference,
         image=(reference.image * field).astype(np.float32),
