@@ -176,6 +176,7 @@ def _world_values(world: World) -> dict[str, st.SearchStrategy[Any]]:
         "state": st.sampled_from(["inspection", "reference"]),
         "stereo": st.booleans(),
         "truth": st.booleans(),
+        "own_body": st.booleans(),
         "lit_field": st.sampled_from(["odd", "even"]),
         "exposure_s": st.sampled_from([None, 1e-4]),
         "unsensed_offset_m": st.just((0.0, 0.0)),

@@ -127,3 +127,51 @@ def test_no_compared_pixel_shows_the_references_jaws_moved_by_the_registration(t
     moved, _ = registration.warp(jaws, photometric=False)
     assert moved.max() > 0.5
     assert not (pair.detection.valid & (moved > 0.01)).any()
+
+
+def _compared_jaws(tour: Any, keep: Any) -> tuple[int, int]:
+    """(reference jaw pixels, of them compared) where the arm's ISEE took the reference (its jaws in the
+    frame) and the free camera the inspection (none), the reference kept by `keep(sensed)`."""
+    from rsi.sim.capture import capture
+
+    settings = MissionSettings()
+    carried = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
+    tour.visit("A_door", "A_door", state="reference", truth=False)  # the arm goes on, out of that view
+    free_view = tour.world.render("D_tubing", size=MISSION_SIZE, state="reference", truth=False, stereo=True)
+    free = sense(capture(tour.world, free_view))
+    assert not own_body(free.capture.cad).any()  # the free camera carries no jaws, and its model draws none
+    reference = keep(carried, settings)
+    stored = StoredView(
+        reference,
+        reference,
+        np.ones(reference.image.shape, np.float32),
+        carried.range_m,
+        {},
+        1.0,
+        1.0,
+        second_range_m=carried.range_m,
+    )
+    inspection = replace(free.strobe, valid=free.strobe.valid & inspection_region(free, settings))
+    seen = in_depth(stored, inspection, free, settings)
+    pair = compare(seen.reference, inspection, 1e-6, settings, registration=seen.aligned[0])
+    jaws = own_body(carried.capture.cad)
+    moved, _ = pair.detection.registration.warp(jaws.astype(np.float32), photometric=False)
+    # a jaw pixel where the registration's shift puts most of it (the parallax about the shift moves the
+    # surface behind by a fraction of a pixel more, so the bilinear fringe is not the jaw's)
+    return int(jaws.sum()), int((pair.detection.valid & (moved > 0.5)).sum())
+
+
+def test_jaws_only_the_reference_holds_are_never_compared(tour: Any) -> None:
+    from rsi.mission.visual import stored_strobe
+
+    # one pass's arm reached the vista, the other's did not (the tour's free-camera fallback): the
+    # inspection's model draws no jaws, so only the reference's own record of them can keep them out
+    jaws, compared = _compared_jaws(tour, stored_strobe)
+    assert jaws > 1000
+    assert compared == 0
+
+
+def test_the_raw_reference_would_compare_its_jaws_with_the_surface_behind_them(tour: Any) -> None:
+    # what stored_strobe is for: the reference's jaws fall on the free frame's inspected surface
+    _, compared = _compared_jaws(tour, lambda sensed, _settings: sensed.strobe)
+    assert compared > 100

@@ -107,6 +107,27 @@ def test_a_capture_holds_no_truth(world: World) -> None:
     assert (odd.lit_field, even.lit_field) == ("odd", "even")
 
 
+def test_the_model_draws_the_isee_only_in_frames_the_isee_took() -> None:
+    from rsi.mission.views import own_body
+    from rsi.sim.arm import JAW_LENGTH_M
+
+    # the free camera (the arm's fallback where it cannot reach) carries no jaws: its frame shows the
+    # surface where the arm's camera would see them (truss seed 11, lab: a 3.9 mm impact on the solar
+    # cells lay under jaws the model drew and the frame did not hold, and was never looked at)
+    built = load("truss", seed=4, arm=True)
+    try:
+        tool = built.render_from_tool(size=SIZE, stereo=True)
+        free = built.render("C_panel", size=SIZE, stereo=True)
+        jaws = own_body(capture(built, tool).cad)
+        assert tool.carried and not free.carried and jaws.any()
+        assert float(tool.depth_m[jaws].max()) < JAW_LENGTH_M  # the tool's frame holds its jaws
+        taken = capture(built, free)
+        assert not own_body(taken.cad).any() and not own_body(taken.model(taken.believed_pose)).any()
+        assert float(free.depth_m[jaws].min()) > JAW_LENGTH_M  # and the free frame a surface there
+    finally:
+        built.close()
+
+
 def test_the_believed_pose_is_the_commanded_pose_not_the_true_one() -> None:
     built = load("truss", seed=4, repeatability="space")
     try:
@@ -221,6 +242,8 @@ def test_capture_needs_a_stereo_view(world: World) -> None:
 def test_cad_projection_and_reflash_refuse_bad_input(world: World) -> None:
     with pytest.raises(InputError, match="pose"):
         world.cad_projection("here")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="own_body"):
+        world.cad_projection(world.render("B_tank", size=SIZE).pose, own_body="yes")  # type: ignore[arg-type]
     view = world.render("B_tank", size=SIZE)
     with pytest.raises(InputError, match="strobe_energy"):
         world.reflash(view, strobe_energy=math.inf, shutter=1.0)

@@ -34,7 +34,7 @@ from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, Mis
 from rsi.mission.surveys import gas_pass, pyrometer_pass
 from rsi.mission.truth import with_truth
 from rsi.mission.views import seen_screws, sense
-from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit
+from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit, stored_strobe
 from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.mockup import LAYOUT_NAMES as LAYOUTS
 from rsi.sim.orbit import orbital_period_s
@@ -215,13 +215,13 @@ def _reference_pass(
         # kept for this point's later visits, inspection pass included
         world.set_shutter(shutter)
         world.set_strobe_energy(energy)
-        reference = view.strobe
+        reference = stored_strobe(view, settings)
         depth = view.range_m
         screws = seen_screws(world, view)
         reliefs = {site.name: screw_relief_m(depth, view, site) for site in screws}
         glints = {site.name: head_glint(view, site) for site in screws}
         again = sense(tour.visit(point.name, point.vista, state="reference", truth=False))
-        second = again.strobe
+        second = stored_strobe(again, settings)
         scale = nuisance_scale(
             reference,
             second,

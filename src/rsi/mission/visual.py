@@ -107,6 +107,26 @@ class StoredView:
     glints: Mapping[str, HeadGlint] = field(default_factory=dict)
 
 
+def stored_strobe(view: Sensed, settings: MissionSettings) -> Compensated:
+    """A pristine visit's strobe image as the reference pass keeps it: without its view of the ISEE's own
+    jaws and a guard band (``settings.inspection_guard_px``) about their edges.
+
+    The jaws ride with the camera (:func:`rsi.mission.views.own_body`), but only in frames the arm's ISEE
+    took: where the arm cannot reach a vista the tour takes the frame with the free camera, which holds the
+    surface there. One pass may reach a vista and the other not; the inspection's own model then draws no
+    jaws where the reference holds them, and without this the jaws' edges would be compared with the
+    surface behind them (truss-b at space repeatability, 3.9 -> ~8 false impacts per run).
+    """
+    import cv2
+
+    own = own_body(view.capture.cad)
+    if not own.any():
+        return view.strobe
+    side = 2 * settings.inspection_guard_px + 1
+    near = cv2.dilate(own.astype(np.uint8), np.ones((side, side), np.uint8)) > 0
+    return _restricted(view.strobe, ~near)
+
+
 @dataclass(frozen=True)
 class Thresholds:
     """Score thresholds (noise sigmas) of the confirming and the preliminary test (seed §2.4-2.5)."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -71,8 +72,9 @@ class Capture:
         The camera's calibration (gain, black level, bits): what turns DN into light.
     model : callable or None
         The robot's CAD model drawn from any pose it believes, ``model(pose) -> CadView``
-        (:meth:`rsi.sim.world.World.cad_projection`: the pristine mock-up, the door and arm as commanded),
-        for a pose the robot corrects from what it sees (seed §2.3); None where no model can be drawn.
+        (:meth:`rsi.sim.world.World.cad_projection`: the pristine mock-up, the door and arm as commanded,
+        the ISEE's own body where the arm's ISEE took the frame), for a pose the robot corrects from what it
+        sees (seed §2.3); None where no model can be drawn.
     """
 
     vista: str
@@ -110,9 +112,10 @@ def capture(world: World, view: View, *, cad: CadView | None = None) -> Capture:
         stereo=view.stereo,
         rig=StereoRig(pose.focal_px, pose.shape, STEREO_BASELINE_M),
         believed_pose=pose,
-        cad=world.cad_projection(pose) if cad is None else cad,
+        cad=world.cad_projection(pose, own_body=view.carried) if cad is None else cad,
         camera=world.camera,
-        model=world.cad_projection,
+        # the free camera (the arm's fallback) carries no jaws: its model draws none
+        model=partial(world.cad_projection, own_body=view.carried),
     )
 
 

@@ -153,6 +153,10 @@ class View:
         encoders (:data:`ENCODER_POSITION_SIGMA_M`, :data:`ENCODER_ANGLE_SIGMA_RAD`). The flexure and
         thermal part of the visit's error (``repeatability``) is not in it (seed §2.3): registration must
         find it.
+    carried : bool
+        Whether the arm's ISEE took the frame (:meth:`World.render_from_tool`): its own housing and jaws
+        are then in the frame wherever its camera looks. False for the free camera of :meth:`World.render`
+        (the arm's fallback where it cannot reach a vista), which carries no body.
     """
 
     vista: str
@@ -169,6 +173,7 @@ class View:
     truss_mask: BoolArray | None = field(default=None, repr=False)
     component_masks: dict[str, BoolArray] = field(default_factory=dict, repr=False)
     believed_pose: CameraPose | None = field(default=None, repr=False)
+    carried: bool = field(default=False)
 
     @property
     def flaw_mask(self) -> BoolArray:
@@ -624,7 +629,7 @@ class World:
         cameras = (arm.camera_name("left"), arm.camera_name("left"), arm.camera_name("right"))
         view = self._view(TOOL_VIEW, pose, cameras, (0.0, 0.0), stereo=stereo, truth=truth, **settings)
         sensed = replace(pose, position_m=pose.position_m - pose.rotation[:, :2] @ offset)
-        return replace(view, believed_pose=self._through_encoders(sensed))
+        return replace(view, believed_pose=self._through_encoders(sensed), carried=True)
 
     def _through_encoders(self, pose: CameraPose) -> CameraPose:
         """`pose` as the joint encoders report it: their quantisation and noise added."""
@@ -632,16 +637,22 @@ class World:
         turn, _ = cv2.Rodrigues(self._encoder_rng.normal(0.0, ENCODER_ANGLE_SIGMA_RAD, 3))
         return replace(pose, position_m=position, rotation=turn @ pose.rotation)
 
-    def cad_projection(self, pose: CameraPose) -> CadView:
+    def cad_projection(self, pose: CameraPose, *, own_body: bool = True) -> CadView:
         """The robot's CAD model of the mock-up seen from `pose`: what it expects, not what is there.
 
         The pristine mock-up (no anomaly: the robot does not know them) with the door and the arm where
         they were commanded, rendered from `pose` (normally a view's ``believed_pose``): its depth, the
         truss frame and arm pixels, and each swappable component's pixels. The camera is put back after.
+        `own_body`: the ISEE's housing and jaws where its own camera sees them, for a frame the arm's ISEE
+        took (``View.carried``); False for the free camera, whose frame holds no body of its own.
         """
         if not isinstance(pose, CameraPose):
             raise InputError(
                 f"pose must be a CameraPose (a View's believed_pose); got {type(pose).__name__}."
+            )
+        if not isinstance(own_body, bool):
+            raise InputError(
+                f"own_body must be True or False (whether the arm's ISEE took the frame); got {own_body!r}."
             )
         mocap = int(self.model.body_mocapid[self._id("body", "isee")])
         kept = self.data.mocap_pos[mocap].copy(), self.data.mocap_quat[mocap].copy()
@@ -653,7 +664,7 @@ class World:
         finally:
             self.data.mocap_pos[mocap], self.data.mocap_quat[mocap] = kept
             self._mujoco.mj_forward(self.model, self.data)
-        if self._arm is not None:
+        if self._arm is not None and own_body:
             depth, segments = self._with_own_body(depth, segments, pose.shape)
         components = {
             site: mask
