@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from types import SimpleNamespace
 from typing import Any
@@ -468,6 +469,24 @@ def test_a_long_thin_blob_is_a_line_and_a_round_one_a_spot() -> None:
     ellipse = ((rows - 4) / 4.5) ** 2 + ((cols - 7) / 7.5) ** 2
     rim = (ellipse <= 1.0) & (ellipse >= 0.55)
     assert not shaped(rim)
+
+
+def test_a_large_blob_is_a_components_change_only_as_wide_as_the_least_one() -> None:
+    from rsi.mission.evidence import broad
+
+    settings = MissionSettings()
+    side_m = math.sqrt(settings.component_area_m2)  # 1 cm
+
+    def wide(rows: int, cols: int, metres_per_px: float) -> bool:
+        flaw = Flaw(rows / 2, cols / 2, (0, 0, rows, cols), rows * cols, 9.0, "dark")
+        return broad(Look(flaw, (0.0, 0.0, 0.0), rows * cols * metres_per_px**2, 9.0), settings)
+
+    # truss-b seed 3, space: a tank's limb against the panel behind it, 5 px by 475 at 0.42 mm a pixel
+    assert not wide(475, 5, 4.2e-4)
+    assert not wide(6, 163, 8.9e-4)  # seed 1's strap edge: 6 mm wide, 14 cm long
+    assert wide(26, 71, 7.4e-4)  # truss seed 14's repainted door, seen 19 mm wide
+    assert wide(50, 50, 1.01 * side_m / 50) and not wide(50, 50, 0.99 * side_m / 50)  # 1 cm^2's side
+    assert wide(40, 400, side_m / 40) == wide(400, 40, side_m / 40)  # either way round
 
 
 def test_a_look_is_followed_into_the_second_visits_frame_by_its_texture() -> None:

@@ -781,6 +781,22 @@ LINE_ELONGATION = 4.0
 LINE_MIN_PX = 8
 
 
+def broad(look: Look, settings: MissionSettings) -> bool:
+    """Whether a large blob is at least as wide as the least change that makes a component (the side of
+    ``settings.component_area_m2``: 1 cm), its width its area over its longer side.
+
+    A swapped component changes its whole surface (seed §4), and the narrowest component is a 15 cm tank;
+    the largest impact is 4 mm. A line a few millimetres wide and centimetres long is neither: it is a
+    silhouette left mis-registered (the arm's own edge; a tank's limb against the panel behind it, 2-6 mm
+    wide and up to 24 cm long in truss-b's close views at space repeatability, development seeds 0-4),
+    whatever its area. The swaps found by their blobs on development seeds were 19-46 mm wide.
+    """
+    row0, col0, row1, col1 = look.bbox
+    metres_per_px = math.sqrt(look.area_m2 / max(look.flaw.area_px, 1))
+    width_m = look.flaw.area_px / max(row1 - row0, col1 - col0, 1) * metres_per_px
+    return width_m >= math.sqrt(settings.component_area_m2)
+
+
 def line_shaped(look: Look, mask: NDArray[np.bool_]) -> bool:
     """Whether a small blob is a line, not a spot: an edge sampled differently by the two viewpoints, or a
     row the field compensation left (seed §2.2: each field's ambient is interpolated from the rows around

@@ -28,6 +28,7 @@ from rsi.mission.evidence import (
     Look,
     apart_from_swaps,
     blobs,
+    broad,
     component_checks,
     confidence,
     discoloured_components,
@@ -624,7 +625,7 @@ def _new_blobs(
         for look in looks
         if look.score > floor
         and (
-            (look.area_m2 > settings.component_area_m2 and _broad(look, settings))
+            (look.area_m2 > settings.component_area_m2 and broad(look, settings))
             or (
                 look.area_m2 <= settings.component_area_m2
                 and look.contrast >= settings.impact_contrast_min
@@ -739,17 +740,6 @@ def _shift_bound_px(look: Look, near_edges: NDArray[np.bool_], settings: Mission
     if near_edges[row0:row1, col0:col1].any():
         return settings.local_shift_px
     return min(3.0 * settings.misregistration_std_px, settings.local_shift_px)
-
-
-def _broad(look: Look, settings: MissionSettings) -> bool:
-    """Whether a large blob is as wide as the flaw model at least (its area over its longer side).
-
-    A swapped component changes its whole surface (seed §4); a line a pixel or two wide and centimetres long
-    is a silhouette left mis-registered (the arm's own edge, which the CAD projection from the believed
-    pose places to a few pixels), whatever its area.
-    """
-    row0, col0, row1, col1 = look.bbox
-    return look.flaw.area_px / max(row1 - row0, col1 - col0, 1) >= settings.flaw_size_px
 
 
 def _second_looks(
