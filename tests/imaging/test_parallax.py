@@ -121,6 +121,11 @@ def test_pixels_the_two_viewpoints_see_past_different_edges_leave_the_comparison
         (lambda r, d: fit_parallax(r, r[:, :-1], d), "one shape"),
         (lambda r, d: fit_parallax(r, r, np.full(SHAPE, np.nan)), "at least 200 pixels"),
         (lambda r, d: fit_parallax(r, r, d, valid=np.zeros(SHAPE, bool)), "at least 200 pixels"),
+        # no texture: no gradient to fit a motion by (truss-b seed 1963 in space, a second reference with
+        # its jaws left out, crashed the mission with numpy's LinAlgError before)
+        (lambda r, d: fit_parallax(np.full(SHAPE, 80.0), np.full(SHAPE, 80.0), d), "cannot determine"),
+        # every usable pixel carried out of the reference's frame by the starting shift
+        (lambda r, d: fit_parallax(r, r, d, start_xy=(1e4, 0.0)), "cannot determine"),
     ],
 )
 def test_bad_input_is_refused_by_name(call: object, message: str) -> None:

@@ -165,7 +165,8 @@ def fit_parallax(
     Raises
     ------
     InputError
-        Arrays of different shapes, or fewer than 200 usable pixels.
+        Arrays of different shapes, fewer than 200 usable pixels, or pixels that cannot determine the motion
+        (no texture where the range map has depths, or all of them moved out of the reference's frame).
     """
     ref, insp, inverse = _checked_inputs(reference, inspection, range_m, valid)
     start_xy, gain, bias, max_iterations, tolerance_px = _fit_settings(
@@ -190,7 +191,7 @@ def fit_parallax(
     params = np.array([0.0, 0.0, start_xy[0] / inverse_depth, start_xy[1] / inverse_depth])
     turn = np.diag([1.0, 1.0, 0.0, 0.0])
     normal, sigma, converged, iteration = np.eye(4), 1.0, False, 0
-    for iteration in range(1, max_iterations + 1):  # noqa: B007 (the count is reported)
+    for iteration in range(1, max_iterations + 1):
         at_x = (cols - params[0] - params[2] * inverse).astype(np.float32)
         at_y = (rows - params[1] - params[3] * inverse).astype(np.float32)
         inside = (at_x >= 0) & (at_y >= 0) & (at_x <= ref.shape[1] - 1) & (at_y <= ref.shape[0] - 1)
@@ -201,7 +202,14 @@ def fit_parallax(
         weights = np.where(inside, _huber(residual, sigma), 0.0)
         prior = (sigma / _TURN_STD_PX) ** 2 * turn  # the camera's turn, in image units like the data
         normal = (jacobian * weights[:, None]).T @ jacobian + prior
-        step = -np.linalg.solve(normal, (jacobian * weights[:, None]).T @ residual + prior @ params)
+        try:
+            step = -np.linalg.solve(normal, (jacobian * weights[:, None]).T @ residual + prior @ params)
+        except np.linalg.LinAlgError:
+            raise InputError(
+                f"fit_parallax cannot determine the motion: at iteration {iteration} the {rows.size} "
+                f"usable pixels gave no gradient in the reference's frame ({int(inside.sum())} inside). "
+                "Pass a reference with texture where the range map has depths, or register by translation."
+            ) from None
         params += step
         moved = np.hypot(step[0] + step[2] * inverse, step[1] + step[3] * inverse)
         if float(moved.max()) < tolerance_px:
