@@ -91,22 +91,27 @@ def test_the_jaws_edges_do_not_hold_the_model_where_the_robot_believes_it(tour: 
     np.testing.assert_array_equal(own_body(moved.cad), jaw)
 
 
+def _stored(reference: Any, second: Any, range_m: Any, second_range_m: Any) -> StoredView:
+    """Two pristine visits as the reference pass keeps them, with no nuisance, screw or exposure record."""
+    return StoredView(
+        reference,
+        second,
+        np.ones(reference.image.shape, np.float32),
+        range_m,
+        {},
+        1.0,
+        1.0,
+        second_range_m=second_range_m,
+    )
+
+
 def _comparison(tour: Any) -> tuple[Any, Any, Any]:
     """(view, pair, shift) of a flaw-free inspection of the D tubing against two pristine visits."""
     settings = MissionSettings()
     reference = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
     second = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
     view = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
-    stored = StoredView(
-        reference.strobe,
-        second.strobe,
-        np.ones(reference.strobe.image.shape, np.float32),
-        reference.range_m,
-        {},
-        1.0,
-        1.0,
-        second_range_m=second.range_m,
-    )
+    stored = _stored(reference.strobe, second.strobe, reference.range_m, second.range_m)
     inspection = replace(view.strobe, valid=view.strobe.valid & inspection_region(view, settings))
     seen = in_depth(stored, inspection, view, settings)
     return (
@@ -141,16 +146,7 @@ def _compared_jaws(tour: Any, keep: Any) -> tuple[int, int]:
     free = sense(capture(tour.world, free_view))
     assert not own_body(free.capture.cad).any()  # the free camera carries no jaws, and its model draws none
     reference = keep(carried, settings)
-    stored = StoredView(
-        reference,
-        reference,
-        np.ones(reference.image.shape, np.float32),
-        carried.range_m,
-        {},
-        1.0,
-        1.0,
-        second_range_m=carried.range_m,
-    )
+    stored = _stored(reference, reference, carried.range_m, carried.range_m)
     inspection = replace(free.strobe, valid=free.strobe.valid & inspection_region(free, settings))
     seen = in_depth(stored, inspection, free, settings)
     pair = compare(seen.reference, inspection, 1e-6, settings, registration=seen.aligned[0])

@@ -118,14 +118,18 @@ def stored_strobe(view: Sensed, settings: MissionSettings) -> Compensated:
     jaws where the reference holds them, and without this the jaws' edges would be compared with the
     surface behind them (truss-b at space repeatability, 3.9 -> ~8 false impacts per run).
     """
-    import cv2
-
     own = own_body(view.capture.cad)
     if not own.any():
         return view.strobe
-    side = 2 * settings.inspection_guard_px + 1
-    near = cv2.dilate(own.astype(np.uint8), np.ones((side, side), np.uint8)) > 0
-    return _restricted(view.strobe, ~near)
+    return _restricted(view.strobe, ~_grown(own, settings.inspection_guard_px))
+
+
+def _grown(mask: NDArray[np.bool_], reach_px: int) -> NDArray[np.bool_]:
+    """`mask` grown by `reach_px` pixels every way (a square's dilation)."""
+    import cv2
+
+    side = 2 * reach_px + 1
+    return np.asarray(cv2.dilate(mask.astype(np.uint8), np.ones((side, side), np.uint8)) > 0)
 
 
 @dataclass(frozen=True)
@@ -534,15 +538,11 @@ def _past_own_body(reference: Compensated, shift_xy: tuple[float, float], lookin
     both visits, so a registration that moves the scene by `shift_xy` moves their sharp, bright edges by as
     much, which no parallax model of the scene takes out (seed 1302: 1-2 px in the lab, 5 false impacts).
     """
-    import cv2
-
     own = looking["own_body"]
     if not own.any():
         return reference
     reach = math.ceil(math.hypot(*shift_xy)) + looking["settings"].inspection_guard_px
-    side = 2 * reach + 1
-    near = cv2.dilate(own.astype(np.uint8), np.ones((side, side), np.uint8)) > 0
-    return replace(reference, valid=reference.valid & ~near)
+    return _restricted(reference, ~_grown(own, reach))
 
 
 def _without_discoloured(
