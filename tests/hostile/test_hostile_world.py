@@ -177,6 +177,7 @@ def _world_values(world: World) -> dict[str, st.SearchStrategy[Any]]:
         "stereo": st.booleans(),
         "truth": st.booleans(),
         "own_body": st.booleans(),
+        "jaw_opening_m": st.sampled_from([None, 0.0, 0.04, 0.08]),
         "lit_field": st.sampled_from(["odd", "even"]),
         "exposure_s": st.sampled_from([None, 1e-4]),
         "unsensed_offset_m": st.just((0.0, 0.0)),
@@ -194,6 +195,7 @@ RENDERING = {
     "overview": 3,
     "overview_picture": 3,
     "cad_projection": 3,
+    "own_body_footprint": 3,
 }
 WORLD_METHODS = (
     "add_vista",
@@ -216,6 +218,7 @@ WORLD_METHODS = (
     "render",
     "render_from_tool",
     "cad_projection",
+    "own_body_footprint",
     "next_frame",
     "reflash",
     "overview",
@@ -270,6 +273,7 @@ ARM_METHODS = (
     "camera_name",
     "site_position_m",
     "step_velocity",
+    "set_jaw_opening",
 )
 ARM_READOUTS = (
     "tool_pose",
@@ -282,6 +286,7 @@ ARM_READOUTS = (
 _ARM_VALUES: dict[str, st.SearchStrategy[Any]] = {
     "joint_positions": st.sampled_from([None, HOME_Q]),
     "jaw_opening_m": st.floats(0.0, 0.08),
+    "opening_m": st.floats(0.0, 0.08),
     "rng": st.integers(0, 9),
     "margin": st.floats(0.0, 0.4),
     "camera": st.sampled_from(["left", "right"]),

@@ -175,22 +175,29 @@ def test_the_hand_plan_covers_half_the_truss_at_half_a_millimetre(truss_world: W
 def test_the_truss_plan_covers_99_percent_with_more_points_than_the_hand_plan(
     truss_plan: CadPlan,
 ) -> None:
-    """The acceptance asks >= 99 % with <= 10 points; at 0.5 mm pixels the generator needs 30, every site's
-    disc seen (an exact set cover of the same candidates by area, 23: docs/mission.md). Points out of the
-    arm's reach are flagged."""
+    """The acceptance asks >= 99 % with <= 10 points; at 0.5 mm pixels, the ISEE's jaws hiding part of every
+    frame, the generator needs 31, every site's disc seen (30 when the jaws were left out; an exact set
+    cover of the same candidates by area, 23: docs/mission.md). Points out of the arm's reach are
+    flagged."""
     assert truss_plan.coverage.fraction >= 0.99
     kinds = truss_plan.coverage.by_kind()
     assert kinds["screw"] == kinds["peltier"] == kinds["leak"] == 1.0
-    assert len(truss_plan.points) == 30
+    assert len(truss_plan.points) == 31
     assert truss_plan.generation_s < 60.0
     assert set(truss_plan.unreachable) < {point.name for point in truss_plan.points}
     assert all(name.startswith("cad_") for name in truss_plan.unreachable)
 
 
 def test_a_generated_plan_runs_on_a_world(truss_world: World, truss_plan: CadPlan) -> None:
-    points = add_plan_vistas(truss_world, truss_plan)
-    again = coverage(points, truss_world)
+    """Measured again where the arm's jaws hide part of each frame, as the generator weighed it; the free
+    camera of a world without the arm sees a little more."""
+    arm_world = load("truss", seed=0, arm=True)
+    try:
+        again = coverage(add_plan_vistas(arm_world, truss_plan), arm_world)
+    finally:
+        arm_world.close()
     assert again.fraction == pytest.approx(truss_plan.coverage.fraction)
+    assert coverage(add_plan_vistas(truss_world, truss_plan), truss_world).fraction >= again.fraction
 
 
 def test_a_needed_sample_is_not_traded_for_area() -> None:
@@ -208,7 +215,9 @@ def test_a_needed_sample_is_not_traded_for_area() -> None:
 def test_missionsettings_plan_chooses_the_generator() -> None:
     world = _world(_mockup(*map(list, zip(_plate(), strict=True))))
     points = plan_vistas(world, MissionSettings(plan="cad"))
-    assert len(points) == 1 and points[0].vista in world.vistas
+    # one view of the plate, or two where the ISEE's jaws would hide a corner of it
+    assert 1 <= len(points) <= 2 and all(point.vista in world.vistas for point in points)
+    assert coverage(points, world).fraction > 0.99
 
 
 # ------------------------------------------------------------------------------------------ bad input

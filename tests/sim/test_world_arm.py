@@ -185,3 +185,62 @@ def test_the_arm_in_its_own_frame_counts_as_not_inspected(arm_world: World) -> N
     assert view.truss_mask is not None
     assert on_arm.any()  # the gripper reaches into the ISEE's own view
     assert view.truss_mask[on_arm].all()
+
+
+# ------------------------------------------------------------------ the jaws in the ISEE's own frame
+
+
+def _rows_of(mask: np.ndarray) -> float:
+    return float(np.nonzero(mask)[0].mean())
+
+
+def test_the_jaws_footprint_moves_with_the_opening_and_not_with_the_pose(arm_world: World) -> None:
+    """Seed §3.1: the jaws are rigid with the cameras but for their opening, which slides them across the
+    frame's right-hand side (closed: the bottom, wide open: the top)."""
+    arm = _tool_at_oru_a(arm_world)
+    size = (120, 160)
+    half, closed, wide = (
+        arm_world.own_body_footprint(size, jaw_opening_m=opening) for opening in (0.04, 0.0, 0.08)
+    )
+    for footprint in (half, closed, wide):
+        assert 0.02 < footprint.mean() < 0.2
+        assert np.nonzero(footprint)[1].min() > size[1] // 2  # beside the left camera: the right half
+    assert _rows_of(closed) > _rows_of(half) > _rows_of(wide)
+    assert not (closed & wide).any()
+    assert arm.jaw_opening_m == pytest.approx(0.04)  # put back
+    q = arm.joint_positions
+    q[0] += 0.3
+    q[7] += 0.5
+    arm.reset(q)
+    np.testing.assert_array_equal(arm_world.own_body_footprint(size), half)
+
+
+def test_the_jaws_open_where_they_are_told_and_the_frame_shows_them_there(arm_world: World) -> None:
+    arm = _tool_at_oru_a(arm_world)
+    size = (120, 160)
+    try:
+        arm.set_jaw_opening(0.0)
+        assert arm.jaw_opening_m == pytest.approx(0.0)
+        assert arm.joint_positions[0] == pytest.approx(ORU_A_X_M - ARM_HOME_TOOL_TIP_M[0])  # the joints stay
+        view = arm_world.render_from_tool(size=size)
+        footprint = arm_world.own_body_footprint(size)
+        assert view.truss_mask is not None
+        assert view.truss_mask[footprint].mean() > 0.95  # the frame's own jaws, where the footprint says
+    finally:
+        arm.set_jaw_opening(0.04)
+
+
+def test_bad_jaw_input_names_the_argument(arm_world: World) -> None:
+    with pytest.raises(InputError, match="opening_m"):
+        arm_world.arm.set_jaw_opening(0.1)
+    with pytest.raises(InputError, match="jaw_opening_m"):
+        arm_world.own_body_footprint((120, 160), jaw_opening_m=-0.01)
+    with pytest.raises(InputError, match="size"):
+        arm_world.own_body_footprint((4, 4))
+    plain = load("truss", seed=SEED)
+    try:
+        assert not plain.has_arm and arm_world.has_arm
+        with pytest.raises(InputError, match="this world has no arm"):
+            plain.own_body_footprint((120, 160))
+    finally:
+        plain.close()

@@ -41,8 +41,9 @@ from numpy.typing import NDArray
 from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.mission.records import PlanPoint
-from rsi.mission.settings import MISSION_SIZE
+from rsi.mission.settings import FRAME_MARGIN_PX, MISSION_SIZE
 from rsi.mission.viewing import focal_px
+from rsi.mission.views import point_region
 from rsi.sim.anomalies import CylinderPatch, Patch, Site, Surface
 
 if TYPE_CHECKING:
@@ -81,7 +82,7 @@ class CoverageRules:
 
     max_pixel_m: float = 5e-4
     max_incidence_deg: float = 45.0
-    margin_px: int = 16
+    margin_px: int = FRAME_MARGIN_PX
     size: tuple[int, int] = MISSION_SIZE
     sample_spacing_m: float = 0.01
     depth_tolerance_m: float = 4e-3
@@ -268,8 +269,9 @@ class Sight:
         # the door: the only jointed body of the pristine world without the arm
         self.door_geoms = frozenset(g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in moving)
 
-    def candidates(self, vista: Vista) -> NDArray[np.intp]:
-        """Indices of the samples that meet the image, incidence and resolution rules from `vista`."""
+    def in_frame(self, vista: Vista) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+        """The samples that meet the image, incidence and resolution rules from `vista`: their indices and
+        the (row, col) pixel each falls on."""
         rules, samples = self.rules, self.samples
         camera = np.asarray(vista.position_m, dtype=np.float64)
         forward, up = np.asarray(vista.forward, float), np.asarray(vista.up, float)
@@ -293,7 +295,22 @@ class Sight:
         ok = (depth > 0) & (cos_incidence >= math.cos(math.radians(rules.max_incidence_deg)))
         ok &= (col >= margin) & (col <= cols - margin) & (row >= margin) & (row <= rows - margin)
         ok &= footprint <= rules.max_pixel_m
-        return np.flatnonzero(ok)
+        indices = np.flatnonzero(ok)
+        return indices, row[indices].astype(np.intp), col[indices].astype(np.intp)
+
+    def candidates(self, vista: Vista, inspected: BoolArray | None = None) -> NDArray[np.intp]:
+        """Indices of the samples that meet the image, incidence and resolution rules from `vista`, and
+        fall on its `inspected` pixels (a frame-sized mask; None: the whole frame less its margin)."""
+        indices, rows, cols = self.in_frame(vista)
+        if inspected is None:
+            return indices
+        if np.shape(inspected) != self.rules.size:
+            raise InputError(
+                f"inspected must be a boolean mask of the frame's {self.rules.size} pixels; "
+                f"got shape {np.shape(inspected)}. Try rsi.mission.views.point_region(...)."
+            )
+        kept: NDArray[np.intp] = indices[np.asarray(inspected, dtype=bool)[rows, cols]]
+        return kept
 
     def cast(self, vista: Vista, door_angle_rad: float, indices: NDArray[np.intp]) -> tuple[BoolArray, bool]:
         """Of the samples `indices`, those the CAD shows from `vista` at the door opening; and whether a
@@ -316,9 +333,12 @@ class Sight:
         seen = (geoms >= 0) & (np.abs(hits - distance) <= self.rules.depth_tolerance_m)
         return seen, bool(self.door_geoms & set(geoms.tolist()))
 
-    def seen(self, vista: Vista, door_angle_rad: float = 0.0) -> NDArray[np.intp]:
-        """Indices of the samples `vista` covers at the door opening (every rule of the module notes)."""
-        indices = self.candidates(vista)
+    def seen(
+        self, vista: Vista, door_angle_rad: float = 0.0, inspected: BoolArray | None = None
+    ) -> NDArray[np.intp]:
+        """Indices of the samples `vista` covers at the door opening (every rule of the module notes), on
+        its `inspected` pixels (None: the whole frame)."""
+        indices = self.candidates(vista, inspected)
         visible, _ = self.cast(vista, door_angle_rad, indices)
         return indices[visible]
 
@@ -401,7 +421,8 @@ def coverage(
     points : sequence of PlanPoint
         A plan, e.g. ``plan_vistas(world)`` (the hand plan) or a generated plan's points.
     world : World
-        Holds the points' vistas and the mock-up (its anomalies and arm are ignored: the CAD is measured).
+        Holds the points' vistas and the mock-up (its anomalies are ignored: the CAD is measured). With the
+        arm, each frame loses what the ISEE's jaws hide at the point's opening (seed §3.1).
     rules : CoverageRules, optional
         Default ``CoverageRules()``: 0.5 mm per pixel, 45 deg.
     sight : Sight, optional
@@ -425,7 +446,8 @@ def coverage(
     first = np.full(len(sight.samples), -1, dtype=np.int64)
     counts = []
     for number, point in enumerate(points):
-        seen = sight.seen(world.vista(point.vista), point.door_angle_rad)
+        inspected = point_region(world, point, rules.size, rules.margin_px)
+        seen = sight.seen(world.vista(point.vista), point.door_angle_rad, inspected)
         fresh = seen[first[seen] < 0]
         first[fresh] = number
         counts.append(int(seen.size))

@@ -11,16 +11,27 @@ mock-up's own vistas cover its components, the solar panel's dark cells need clo
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
 
 from rsi import _validate as v
 from rsi.errors import InputError
+from rsi.mission.coverage import CoverageRules
 from rsi.mission.records import PlanPoint
 from rsi.mission.settings import MissionSettings
+from rsi.mission.views import point_region
+from rsi.sim.arm import JAW_MAX_OPENING_M
 
 if TYPE_CHECKING:
     from rsi.sim.mockup import Vista
     from rsi.sim.world import World
+
+# The second frame's jaw openings: closed or wide open the jaws stand at the frame's bottom or top corner,
+# clear of the rows they hide half open (rsi.sim.World.own_body_footprint)
+JAWS_MOVED_M = (0.0, JAW_MAX_OPENING_M)
 
 # The hand plan on the truss layout only: the panel's four quarters (rows across the truss) and its centre,
 # offsets from its vista's target
@@ -83,8 +94,61 @@ def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[
     if settings.plan == "cad" or (settings.plan == "auto" and world.mockup.layout != "truss"):
         from rsi.mission.plan_cad import add_plan_vistas, generate_plan
 
-        return add_plan_vistas(world, generate_plan(world, settings))
-    return hand_plan_vistas(world, settings)
+        return with_jaws_moved(add_plan_vistas(world, generate_plan(world, settings)), world)
+    # the hand plan's frames stand 0.5 m off: 0.66 mm pixels at their centres, up to 1 mm at their corners
+    return with_jaws_moved(hand_plan_vistas(world, settings), world, CoverageRules(max_pixel_m=1e-3))
+
+
+def with_jaws_moved(
+    points: tuple[PlanPoint, ...], world: World, rules: CoverageRules | None = None
+) -> tuple[PlanPoint, ...]:
+    """`points`, each followed where needed by a second frame from its vista with the jaws moved.
+
+    The gripper's jaws lie in the ISEE cameras' view (seed §3.1; a twelfth of the frame, at its right-hand
+    middle rows when half open): what they hide at one point is lost unless another point sees it. Where a
+    point's jaws hide inspectable surface (:mod:`rsi.mission.coverage`, `rules`) that no point of the plan
+    covers, a second frame is taken from the same vista with the jaws closed or wide open (at the frame's
+    bottom or top corner, whichever shows more of it), and only what the first frame's jaws hid is
+    inspected there (``PlanPoint.behind_jaws_at_m``). A world without the arm has no jaws: `points` as they
+    are; nor has the free camera that takes a vista the arm cannot reach.
+    """
+    from rsi.mission.coverage import Sight
+    from rsi.sim.world import World
+
+    v.instance_of(world, "world", World, none_allowed=False)
+    if not isinstance(points, tuple) or not all(isinstance(point, PlanPoint) for point in points):
+        raise InputError(f"points must be a tuple of PlanPoint (a plan); got {points!r}.")
+    rules = v.instance_or_default(rules, "rules", CoverageRules)
+    if not world.has_arm:
+        return points
+    sight = Sight(world.mockup, rules)
+
+    def seen(point: PlanPoint, *, jaws: bool = True) -> NDArray[np.intp]:
+        region = point_region(world, point, rules.size, rules.margin_px) if jaws else None
+        return sight.seen(world.vista(point.vista), point.door_angle_rad, region)
+
+    covered = np.zeros(len(sight.samples), dtype=bool)
+    for point in points:
+        covered[seen(point)] = True
+    result: list[PlanPoint] = []
+    for point in points:
+        result.append(point)
+        lost = seen(point, jaws=False)
+        lost = lost[~covered[lost]]
+        if lost.size == 0 or point.behind_jaws_at_m is not None:
+            continue
+        twins = [_behind_jaws(point, opening) for opening in JAWS_MOVED_M if opening != point.jaw_opening_m]
+        gains = [np.isin(lost, seen(twin)).sum() for twin in twins]
+        if max(gains) > 0:
+            twin = twins[int(np.argmax(gains))]
+            result.append(twin)
+            covered[seen(twin)] = True
+    return tuple(result)
+
+
+def _behind_jaws(point: PlanPoint, opening_m: float) -> PlanPoint:
+    name = f"{point.name}_jaws_{round(opening_m * 1000)}mm"
+    return replace(point, name=name, jaw_opening_m=opening_m, behind_jaws_at_m=point.jaw_opening_m)
 
 
 def hand_plan_vistas(world: World, settings: MissionSettings) -> tuple[PlanPoint, ...]:
@@ -105,4 +169,12 @@ def hand_plan_vistas(world: World, settings: MissionSettings) -> tuple[PlanPoint
     return plan_points(settings)
 
 
-__all__ = ["PLAN", "hand_plan_vistas", "panel_vistas", "plan_points", "plan_vistas"]
+__all__ = [
+    "JAWS_MOVED_M",
+    "PLAN",
+    "hand_plan_vistas",
+    "panel_vistas",
+    "plan_points",
+    "plan_vistas",
+    "with_jaws_moved",
+]

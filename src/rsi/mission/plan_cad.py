@@ -43,6 +43,7 @@ from rsi.mission.coverage import Coverage, CoverageRules, Sight, coverage, inspe
 from rsi.mission.records import PlanPoint
 from rsi.mission.settings import MissionSettings
 from rsi.sim.anomalies import CylinderPatch, Patch, Site
+from rsi.sim.arm import DEFAULT_JAW_OPENING_M, JAW_MAX_OPENING_M
 from rsi.sim.mockup import Mockup, Vista
 
 if TYPE_CHECKING:
@@ -65,19 +66,23 @@ IK_GAIN_PER_S = 8.0
 IK_TOLERANCE_M = 2e-3
 IK_TOLERANCE_RAD = 5e-3
 MIN_CLEARANCE_M = 0.005  # the arm may not touch the mock-up at the pose
+# The jaws half open (the mission's default) and closed or wide open: at the frame's right-hand middle rows,
+# its bottom or its top corner (rsi.sim.World.own_body_footprint)
+JAW_OPENINGS_M = (DEFAULT_JAW_OPENING_M, 0.0, JAW_MAX_OPENING_M)
 SITE_KINDS = ("screw", "peltier", "leak")  # each sample of these a plan must see (greedy_cover's `must`)
 
 
 @dataclass(frozen=True)
 class Candidate:
     """A candidate view: where the camera is, the door's opening, what it covers, whether the arm gets
-    there (geometry of the chain)."""
+    there (geometry of the chain), and the opening of the ISEE's jaws, which hide part of its frame."""
 
     vista: Vista
     door_angle_rad: float
     seen: NDArray[np.intp]
     reachable: bool
     surface: str
+    jaw_opening_m: float = DEFAULT_JAW_OPENING_M
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,31 +207,68 @@ def weigh_candidates(
     mockup: Mockup, sight: Sight, door_open_rad: float, arm_world: World | None
 ) -> list[Candidate]:
     """Step 2: what every candidate covers, door closed and (where its rays met the door) open; whether
-    the arm on its rail gets there (geometry of the chain; every candidate reachable without `arm_world`)."""
+    the arm on its rail gets there (geometry of the chain; every candidate reachable without `arm_world`).
+
+    Where the arm reaches, its ISEE takes the frame and the jaws hide part of it (seed §3.1): the view is
+    weighed at each of :data:`JAW_OPENINGS_M`, which move the jaws from the frame's bottom to its top
+    right, and the cover picks the opening that leaves the most in sight. The free camera that takes a
+    view out of reach holds no jaws.
+    """
     from rsi.mission.viewing import reach_vistas
-    from rsi.sim.world import World
 
     v.instance_of(sight, "sight", Sight, none_allowed=False)
     door_open_rad = v.in_range(door_open_rad, "door_open_rad", low=-math.pi, high=math.pi)
-    if arm_world is not None:
-        v.instance_of(arm_world, "arm_world", World)
+    openings = _jaw_regions(sight, arm_world)
+    views = candidate_vistas(mockup, sight.rules)
+    reached = (
+        [where.reachable for where in reach_vistas(arm_world, [point for point, _ in views])]
+        if arm_world is not None
+        else [True] * len(views)
+    )
     result: list[Candidate] = []
-    for point, surface in candidate_vistas(mockup, sight.rules):
-        indices = sight.candidates(point)
+    for (point, surface), reachable in zip(views, reached, strict=True):
+        indices, rows, cols = sight.in_frame(point)
         if indices.size == 0:
             continue
+        kept: dict[float, BoolArray | None] = openings if reachable else {DEFAULT_JAW_OPENING_M: None}
         seen, met_door = sight.cast(point, 0.0, indices)
-        if seen.any():
-            result.append(Candidate(point, 0.0, indices[seen], True, surface))
+        result += _at_openings(Candidate(point, 0.0, indices, reachable, surface), seen, rows, cols, kept)
         if met_door:
             seen_open, _ = sight.cast(point, door_open_rad, indices)
-            if seen_open.any():
-                result.append(Candidate(point, door_open_rad, indices[seen_open], True, surface))
+            opened = Candidate(point, door_open_rad, indices, reachable, surface)
+            result += _at_openings(opened, seen_open, rows, cols, kept)
     sight.world.set_door(0.0)
+    return result
+
+
+def _jaw_regions(sight: Sight, arm_world: World | None) -> dict[float, BoolArray | None]:
+    """Each jaw opening a view is weighed at, with the pixels its frame keeps (None: the whole frame)."""
+    from rsi.mission.views import jaws_region
+    from rsi.sim.world import World
+
     if arm_world is None:
-        return result
-    reaches = reach_vistas(arm_world, [candidate.vista for candidate in result])
-    return [replace(c, reachable=where.reachable) for c, where in zip(result, reaches, strict=True)]
+        return {DEFAULT_JAW_OPENING_M: None}
+    v.instance_of(arm_world, "arm_world", World, none_allowed=False)
+    rules = sight.rules
+    return {
+        opening: ~jaws_region(arm_world, opening, rules.size, rules.margin_px) for opening in JAW_OPENINGS_M
+    }
+
+
+def _at_openings(
+    view: Candidate,
+    seen: BoolArray,
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    openings: dict[float, BoolArray | None],
+) -> list[Candidate]:
+    """`view` (its `seen` holding every in-frame sample) once per jaw opening, with what that leaves seen."""
+    result = []
+    for opening, kept in openings.items():
+        visible = seen if kept is None else seen & kept[rows, cols]
+        if visible.any():
+            result.append(replace(view, seen=view.seen[visible], jaw_opening_m=opening))
+    return result
 
 
 # ------------------------------------------------------------------------------------------- cover
@@ -320,6 +362,7 @@ def _pair_swaps(
 ) -> list[int]:
     """Replace any two points by one candidate while the goal is still met (greedy's first, widest pick
     often leaves two half views where one offset view would do), until no pair can be."""
+    by_sample = matrix.tocsc()  # a pair leaves few samples unseen: gains summed over those columns alone
     improved = True
     while improved and len(kept) > 1:
         improved = False
@@ -331,10 +374,11 @@ def _pair_swaps(
             left[candidates[kept[a]].seen] -= 1
             left[candidates[kept[b]].seen] -= 1
             have = float(area[left > 0].sum())
-            lost = goal.needed & (left == 0)
-            gain = matrix @ np.where(left > 0, 0.0, area)
+            unseen = np.flatnonzero(left == 0)
+            gain = by_sample[:, unseen] @ area[unseen]
+            lost = unseen[goal.needed[unseen]]
             # only a candidate that sees every needed sample the pair took with it may replace the pair
-            gain[(matrix @ lost.astype(np.float64)) < lost.sum()] = -1.0
+            gain[(by_sample[:, lost] @ np.ones(lost.size)) < lost.size] = -1.0
             best = int(np.argmax(gain))
             if gain[best] >= 0 and have + gain[best] >= goal.area_m2:
                 kept = [k for i, k in enumerate(kept) if i not in (a, b)] + [best]
@@ -588,7 +632,10 @@ def _assembled(
 ) -> CadPlan:
     """The plan record: points named in visiting order, the coverage of the chosen views, the tour."""
     vistas = tuple(replace(c.vista, name=f"cad_{k:02d}") for k, c in enumerate(picked))
-    points = tuple(PlanPoint(p.name, p.name, c.door_angle_rad) for p, c in zip(vistas, picked, strict=True))
+    points = tuple(
+        PlanPoint(p.name, p.name, c.door_angle_rad, c.jaw_opening_m)
+        for p, c in zip(vistas, picked, strict=True)
+    )
     length, seconds = tour_figures(list(vistas), start)
     first = np.full(len(sight.samples), -1, dtype=np.int64)
     for number, candidate in enumerate(picked):

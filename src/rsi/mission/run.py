@@ -210,6 +210,7 @@ def _reference_pass(
     stored: dict[str, StoredView] = {}
     for point in plan:
         settle(world, door_angle_rad=point.door_angle_rad)
+        tour.set_jaws(point.jaw_opening_m)
         pre_flash = sense(tour.visit(point.name, point.vista, state="reference", truth=False))
         view, shutter, energy = metered(tour, pre_flash, settings)
         # kept for this point's later visits, inspection pass included
@@ -263,6 +264,7 @@ def _inspection_pass(
     checked: frozenset[str] = frozenset()
     for point in plan:
         world.set_door(point.door_angle_rad)
+        tour.set_jaws(point.jaw_opening_m)
         world.set_strobe_energy(stored[point.name].strobe_energy)
         world.set_shutter(stored[point.name].shutter)
         first = len(tour.views)

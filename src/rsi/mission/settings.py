@@ -14,6 +14,9 @@ from dataclasses import dataclass, fields
 from rsi.errors import InputError
 
 MISSION_SIZE = (480, 640)  # the seed's video frame (seed §2.1)
+# A frame's border, and the border about the ISEE's jaws in it, where nothing counts as inspected: the
+# registration's shift (seed §2.3) plus the detector's 9-pixel nuisance window lose it.
+FRAME_MARGIN_PX = 16
 OVERVIEW_SIZE = (600, 800)
 REPEATABILITY = ("lab", "space")
 PLANS = ("auto", "hand", "cad")

@@ -30,6 +30,7 @@ FloatArray = NDArray[np.float64]
 
 FRAME_S = 1.0 / 30.0  # seed §2.2: one interlaced frame
 NOMINAL_TRANSIT_S = 5.0  # mission-clock time of a visit without the arm (measured arm transits: 2-7 s)
+JAW_SPEED_M_S = 0.04  # a parallel gripper's travel (no figure in the seed): the jaws' 4 cm in about a second
 STAGES = ("reference", "inspection")
 
 
@@ -83,6 +84,16 @@ class Tour:
         """Set the mission clock to a pass's start (seed §2.2: the passes may see different suns)."""
         self.stage = v.choice(stage, "stage", STAGES)
         self.clock_s = v.in_range(start_s, "start_s", low=0.0)
+
+    def set_jaws(self, opening_m: float) -> None:
+        """Move the gripper's jaws to `opening_m` for the next visits (seed §3.1: they lie in the cameras'
+        view); the clock advances by their travel. Without the arm there are no jaws: nothing happens."""
+        if not self.arm:
+            return
+        arm = self.world.arm
+        travel = abs(arm.jaw_opening_m - opening_m)
+        arm.set_jaw_opening(opening_m)
+        self.clock_s += travel / JAW_SPEED_M_S
 
     def visit(self, label: str, vista: str, *, state: str, truth: bool = True) -> Capture:
         """Go to `vista` (plan point `label`), light it, take the frames; the clock advances.
@@ -167,4 +178,4 @@ class Tour:
         self.suns.append(setting)
 
 
-__all__ = ["FRAME_S", "NOMINAL_TRANSIT_S", "STAGES", "Tour"]
+__all__ = ["FRAME_S", "JAW_SPEED_M_S", "NOMINAL_TRANSIT_S", "STAGES", "Tour"]

@@ -15,10 +15,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi.mission.settings import MissionSettings
+from rsi.mission.settings import FRAME_MARGIN_PX, MissionSettings
 
 if TYPE_CHECKING:
     from rsi.imaging.compensation import Compensated
+    from rsi.mission.records import PlanPoint
     from rsi.sim.anomalies import Site
     from rsi.sim.capture import Capture
     from rsi.sim.render import CameraPose
@@ -193,6 +194,41 @@ def own_body(cad: Any) -> NDArray[np.bool_]:
     from rsi.sim.arm import JAW_LENGTH_M
 
     return np.asarray(cad.expected_depth_m < JAW_LENGTH_M)
+
+
+def jaws_region(
+    world: World, opening_m: float, size: tuple[int, int], margin_px: int = FRAME_MARGIN_PX
+) -> NDArray[np.bool_]:
+    """Pixels of the arm's ISEE frame that its jaws hide at `opening_m`, grown by `margin_px`.
+
+    The jaws are rigid with the camera but for their opening (:meth:`rsi.sim.World.own_body_footprint`);
+    the band about them is lost to the comparison as a frame's border is (the registration's shift and the
+    detector's windows, seed §2.3-2.4).
+    """
+    import cv2
+
+    footprint = world.own_body_footprint(size, jaw_opening_m=opening_m).astype(np.uint8)
+    side = 2 * margin_px + 1
+    return np.asarray(cv2.dilate(footprint, np.ones((side, side), np.uint8)) > 0)
+
+
+def point_region(
+    world: World, point: PlanPoint, size: tuple[int, int], margin_px: int = FRAME_MARGIN_PX
+) -> NDArray[np.bool_] | None:
+    """The pixels a plan point's frame inspects, as far as the ISEE's jaws go; None: every pixel (a world
+    without the arm, or a vista the arm cannot reach: the free camera takes it and holds no jaws).
+
+    Not where its own jaws stand (:func:`jaws_region`); for a second frame behind another's jaws
+    (``point.behind_jaws_at_m``), only where those hid the mock-up.
+    """
+    from rsi.mission.viewing import reach
+
+    if not world.has_arm or not reach(world, point.vista).reachable:
+        return None
+    region = ~jaws_region(world, point.jaw_opening_m, size, margin_px)
+    if point.behind_jaws_at_m is not None:
+        region &= jaws_region(world, point.behind_jaws_at_m, size, margin_px)
+    return region
 
 
 def _viewpoint_offset(cad: Any, image: NDArray[np.float32]) -> tuple[tuple[float, float], float] | None:

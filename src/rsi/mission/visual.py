@@ -48,6 +48,7 @@ from rsi.mission.views import (
     FAR_M,
     Sensed,
     inspection_region,
+    jaws_region,
     near_model_edges,
     near_model_seams,
     own_body,
@@ -254,7 +255,7 @@ def inspect_visit(
         energy=stored.strobe_energy,
     )
     world.set_shutter(shutter)  # the second looks' frames too
-    inspection = _restricted(view.strobe, inspection_region(view, settings))
+    inspection = _restricted(view.strobe, _point_region(world, point, view, settings))
     p_first = settings.p_preliminary if active else settings.p_false_alarm
     comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
 
@@ -325,6 +326,17 @@ def inspect_visit(
         rejected=counts[2],
     )
     return Visit(tuple(findings), record, screws_checked | checked, comparison.pair)
+
+
+def _point_region(
+    world: World, point: PlanPoint, view: Sensed, settings: MissionSettings
+) -> NDArray[np.bool_]:
+    """The inspection region (:func:`rsi.mission.views.inspection_region`); behind another frame's jaws,
+    only what they hid (:func:`rsi.mission.plan.with_jaws_moved`)."""
+    region = inspection_region(view, settings)
+    if point.behind_jaws_at_m is None or not world.has_arm:
+        return region
+    return region & jaws_region(world, point.behind_jaws_at_m, region.shape)
 
 
 def _restricted(image: Compensated, region: NDArray[np.bool_]) -> Compensated:

@@ -50,6 +50,8 @@ FOREARM_M = 0.50
 WRIST_TO_FLANGE_M = 0.10
 HOUSING_M = 0.06
 JAW_LENGTH_M = 0.11  # seed §3.1: "a parallel jaw gripper which has a length of 11 cm"
+JAW_MAX_OPENING_M = 0.08  # each jaw slides 4 cm out from its rest 2 cm off the tool axis
+DEFAULT_JAW_OPENING_M = 0.04  # half open: the jaws' posture while the ISEE inspects
 RANGEFINDER_RECESS_M = JAW_LENGTH_M  # the sensors sit on the housing face, behind the jaw tips
 RANGEFINDER_CUTOFF_M = 0.75  # seed §3: the SA1D sees to about 0.75 m
 RANGEFINDER_BASELINE_M = 0.07
@@ -375,14 +377,16 @@ def arm_mjcf() -> str:
                         <light name="halogen_right" pos="0.06 0.045 0" dir="0 0 1" type="spot" cutoff="30"
                                diffuse="0.4 0.4 0.4" castshadow="false"/>
                         <body name="jaw_left" pos="0 -0.02 0">
-                          <joint name="jaw_left" type="slide" axis="0 -1 0" range="0 0.04" armature="0.01"/>
+                          <joint name="jaw_left" type="slide" axis="0 -1 0" range="0 {JAW_MAX_OPENING_M / 2}"
+                                 armature="0.01"/>
                           <geom name="jaw_left" type="box" pos="0 -0.005 {JAW_LENGTH_M / 2}"
                                 size="0.012 0.005 {JAW_LENGTH_M / 2}" rgba="0.6 0.6 0.62 1"/>
                           <light name="strobe_left" pos="0 -0.012 0.02" dir="0 0.2 1" type="spot" cutoff="35"
                                  diffuse="0 0 0" castshadow="false"/>
                         </body>
                         <body name="jaw_right" pos="0 0.02 0">
-                          <joint name="jaw_right" type="slide" axis="0 1 0" range="0 0.04" armature="0.01"/>
+                          <joint name="jaw_right" type="slide" axis="0 1 0" range="0 {JAW_MAX_OPENING_M / 2}"
+                                 armature="0.01"/>
                           <geom name="jaw_right" type="box" pos="0 0.005 {JAW_LENGTH_M / 2}"
                                 size="0.012 0.005 {JAW_LENGTH_M / 2}" rgba="0.6 0.6 0.62 1"/>
                           <light name="strobe_right" pos="0 0.012 0.02" dir="0 -0.2 1" type="spot" cutoff="35"
@@ -661,7 +665,7 @@ class Arm:
         """Position and rate limits of the 8 joints (rail first)."""
         return LIMITS
 
-    def reset(self, joint_positions: object = None, *, jaw_opening_m: float = 0.04) -> None:
+    def reset(self, joint_positions: object = None, *, jaw_opening_m: float = DEFAULT_JAW_OPENING_M) -> None:
         """Put the arm at ``joint_positions`` (8: rail m, then 7 joints rad; None: home), at rest.
 
         Also re-anchors the Cartesian, orientation and arm-angle references of :meth:`step_velocity`.
@@ -673,7 +677,7 @@ class Arm:
             raise InputError(
                 f"joint_positions={q} lie outside the limits lower={LIMITS.lower}, upper={LIMITS.upper}."
             )
-        opening = v.in_range(jaw_opening_m, "jaw_opening_m", low=0.0, high=0.08)
+        opening = v.in_range(jaw_opening_m, "jaw_opening_m", low=0.0, high=JAW_MAX_OPENING_M)
         if self._owns_data:
             self._mujoco.mj_resetData(self.model, self.data)
         else:  # in a shared world only the arm's own state is reset (not the door, lamp or time)
@@ -689,6 +693,23 @@ class Arm:
         self._ref_position = self.tool_pose()[0]
         self._ref_rotation = self.tool_pose()[1]
         self._ref_arm_angle = self.arm_angle_rad()
+
+    @property
+    def jaw_opening_m(self) -> float:
+        """The gap between the gripper's jaws, metres (0: closed)."""
+        return float(2.0 * self.data.qpos[self._jaw_qpos].mean())
+
+    def set_jaw_opening(self, opening_m: float) -> None:
+        """Open the gripper's jaws to `opening_m` in [0, 0.08] m and hold them there (the joints stay put).
+
+        The jaws lie in the ISEE cameras' view (seed §3.1: 11 cm jaws beside the cameras); moving them moves
+        what they hide.
+        """
+        opening = v.in_range(opening_m, "opening_m", low=0.0, high=JAW_MAX_OPENING_M)
+        self.data.qpos[self._jaw_qpos] = opening / 2
+        self.data.qvel[self._jaw_dof] = 0.0
+        self.data.ctrl[self._ctrl[8:]] = opening / 2
+        self._mujoco.mj_forward(self.model, self.data)
 
     @property
     def joint_positions(self) -> FloatArray:

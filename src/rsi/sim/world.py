@@ -290,6 +290,11 @@ class World:
         return int(self._mujoco.mj_name2id(self.model, obj, name))
 
     @property
+    def has_arm(self) -> bool:
+        """Whether this world holds the arm (``load(..., arm=True)``)."""
+        return self._arm is not None
+
+    @property
     def arm(self) -> Arm:
         """The K1207-style arm on its rail carrying the ISEE, in this world's model and data (issue 4).
 
@@ -693,6 +698,32 @@ class World:
         depth = np.where(own, own_depth, np.where(misdrawn, far, depth))
         segments = np.where(own, own_segments, np.where(misdrawn, -1, segments))
         return depth.astype(np.float32), segments.astype(np.int32)
+
+    def own_body_footprint(
+        self, size: object = (480, 640), *, jaw_opening_m: float | None = None
+    ) -> BoolArray:
+        """Pixels of the arm's ISEE camera frame that its own housing and jaws hide, at a jaw opening.
+
+        Rigid with the camera whatever the arm's pose (seed §3.1: the cameras and the 11 cm jaws share the
+        ISEE), so a calibration the robot knows; only the opening moves the jaws across the frame (0.04 m:
+        the right-hand middle rows, 0: the bottom right, 0.08 m: the top right). `jaw_opening_m` None: the
+        jaws as they are. The arm's jaws are put back after.
+        """
+        from rsi.sim.arm import JAW_MAX_OPENING_M
+
+        arm = self.arm
+        shape = frame_size(size)
+        kept = arm.jaw_opening_m
+        if jaw_opening_m is not None:
+            arm.set_jaw_opening(v.in_range(jaw_opening_m, "jaw_opening_m", low=0.0, high=JAW_MAX_OPENING_M))
+        try:
+            _, segments = self._renderer(shape).depth_and_segments(
+                self.data, arm.camera_name("left"), state="reference"
+            )
+        finally:
+            arm.set_jaw_opening(kept)
+        footprint: BoolArray = np.isin(segments, self._own_geoms())
+        return footprint
 
     def _own_geoms(self) -> list[int]:
         """Geoms of the arm's ISEE body and everything it carries (palm, jaws)."""
