@@ -92,9 +92,11 @@ def main() -> None:
     print("|" + "---|" * HEADER.count(" | ") + "---|")
     plans: dict[str, tuple[World, CadPlan]] = {}
     for layout in SCENES:
-        world = load(layout, seed=0, arm=True)  # the arm's ISEE takes the frames: its jaws hide part of them
-        home = world.arm.tool_pose()[0]
         for pixel_m in RESOLUTIONS_M:
+            # a world of its own (the plans' vista names repeat); the arm's ISEE takes the frames, its jaws
+            # hide part of them
+            world = load(layout, seed=0, arm=True)
+            home = world.arm.tool_pose()[0]
             line, plan = _generated(layout, world, pixel_m)
             print(line, flush=True)
             print(_hand(layout, world, pixel_m, home), flush=True)
