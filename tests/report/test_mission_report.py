@@ -413,3 +413,17 @@ def test_browser_check_skips_with_a_clear_message_without_chromium(monkeypatch: 
     monkeypatch.setattr(f"{__name__}.CHROMIUM", Path("/nonexistent/chromium"))
     with pytest.raises(pytest.skip.Exception, match="apt-get install chromium chromium-driver"):
         _browser()
+
+
+def test_plan_table_says_where_the_jaws_stood_and_which_frames_look_behind_them(report: Report) -> None:
+    from rsi.report.plan import plan_rows
+
+    rows = {row[0]: row for row in plan_rows(report.result)}
+    behind = [p for p in report.result.plan if p.behind_jaws_at_m is not None]
+    assert behind  # the arm's frames lose what the jaws hide; the plan looks behind them
+    for point in behind:
+        assert (
+            rows[point.name][3]
+            == f"{point.jaw_opening_m * 1e3:.0f} (behind {point.behind_jaws_at_m * 1e3:.0f})"
+        )
+    assert "<th>jaws mm</th>" in report.page

@@ -97,8 +97,8 @@ def _reached(result: MissionResult, name: str) -> str:
 
 
 def plan_rows(result: MissionResult) -> list[tuple[object, ...]]:
-    """Per plan point: name, vista, door opening (deg), samples it covers, new area it adds (cm^2), how it
-    was taken."""
+    """Per plan point: name, vista, door opening (deg), the jaws' opening (mm; a second frame behind another
+    opening's jaws says so), samples it covers, new area it adds (cm^2), how it was taken."""
     v.record_named(result, "result", "MissionResult")
     measured = result.plan_coverage
     if measured is None:
@@ -111,7 +111,11 @@ def plan_rows(result: MissionResult) -> list[tuple[object, ...]]:
         new_cm2 = float(area[measured.first_seen == number].sum()) * 1e4
         seen = measured.seen_counts[number] if number < len(measured.seen_counts) else 0
         door = f"{np.degrees(point.door_angle_rad):.0f}"
-        rows.append((point.name, point.vista, door, seen, f"{new_cm2:.1f}", _reached(result, point.name)))
+        jaws = f"{point.jaw_opening_m * 1e3:.0f}"
+        if point.behind_jaws_at_m is not None:
+            jaws += f" (behind {point.behind_jaws_at_m * 1e3:.0f})"
+        reached = _reached(result, point.name)
+        rows.append((point.name, point.vista, door, jaws, seen, f"{new_cm2:.1f}", reached))
     return rows
 
 
@@ -141,14 +145,16 @@ def plan_section(result: MissionResult) -> str:
         f"<p id='plan-coverage'>{len(result.plan)} plan points ({_e(result.settings.plan)} plan) cover "
         f"{100 * measured.fraction:.1f} % of the {measured.total_area_m2 * 1e4:.0f} cm<sup>2</sup> of "
         f"inspectable surface at &le; {rules.max_pixel_m * 1e3:.2f} mm per pixel and &le; "
-        f"{rules.max_incidence_deg:.0f} deg incidence, measured from the CAD by ray casting.</p>\n"
+        f"{rules.max_incidence_deg:.0f} deg incidence, measured from the CAD by ray casting (less what the "
+        "ISEE's jaws hide in the frames the arm takes).</p>\n"
     )
     kinds = _rows_html(
         ("surface kind", "covered %"),
         [(kind, f"{100 * share:.1f}") for kind, share in measured.by_kind().items()],
     )
     points = _rows_html(
-        ("plan point", "vista", "door deg", "samples covered", "new cm^2", "taken by"), plan_rows(result)
+        ("plan point", "vista", "door deg", "jaws mm", "samples covered", "new cm^2", "taken by"),
+        plan_rows(result),
     )
     parts = [f"<h2>The plan and its coverage</h2>\n{head}{points}\n{kinds}\n"]
     if result.overview_rgb is not None and result.overview_pose is not None:
