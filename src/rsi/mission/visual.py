@@ -573,8 +573,8 @@ def _without_discoloured(
         for image in (comparison.reference, comparison.second, comparison.inspection)
     )
     # registered again: the photometric fit leaves the discoloured pixels
-    again = _registered_again(reference, inspection, comparison.aligned[0])
-    pair = compare(reference, inspection, p_false_alarm, settings, comparison.scale, registration=again)
+    registered = _registered_again(reference, inspection, comparison.aligned[0])
+    pair = compare(reference, inspection, p_false_alarm, settings, comparison.scale, registration=registered)
     return replace(
         comparison, reference=reference, second=second, inspection=inspection, pair=pair, aligned=(None, None)
     )
@@ -812,9 +812,11 @@ def _second_looks(
         pairs = []
         for reference, aligned in zip((seen.reference, seen.second), seen.aligned, strict=True):
             without = _restricted(reference, ~changed)
-            again = _registered_again(without, kept, aligned)
+            registered = _registered_again(without, kept, aligned)
             pairs.append(
-                compare(without, kept, settings.p_preliminary, settings, stored.scale, registration=again)
+                compare(
+                    without, kept, settings.p_preliminary, settings, stored.scale, registration=registered
+                )
             )
     whole = _Comparison(
         seen.reference, seen.second, image, stored.scale, pairs[0], seen.range_m, seen.aligned
