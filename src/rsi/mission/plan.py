@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from rsi import _validate as v
 from rsi.errors import InputError
-from rsi.mission.coverage import CoverageRules
+from rsi.mission.coverage import CoverageRules, Sight
 from rsi.mission.records import PlanPoint
 from rsi.mission.settings import MissionSettings
 from rsi.mission.views import point_region
@@ -112,7 +112,6 @@ def with_jaws_moved(
     inspected there (``PlanPoint.behind_jaws_at_m``). A world without the arm has no jaws: `points` as they
     are; nor has the free camera that takes a vista the arm cannot reach.
     """
-    from rsi.mission.coverage import Sight
     from rsi.sim.world import World
 
     v.instance_of(world, "world", World, none_allowed=False)
@@ -138,11 +137,12 @@ def with_jaws_moved(
         if lost.size == 0 or point.behind_jaws_at_m is not None:
             continue
         twins = [_behind_jaws(point, opening) for opening in JAWS_MOVED_M if opening != point.jaw_opening_m]
-        gains = [np.isin(lost, seen(twin)).sum() for twin in twins]
+        seen_by = [seen(twin) for twin in twins]
+        gains = [np.isin(lost, indices).sum() for indices in seen_by]
         if max(gains) > 0:
-            twin = twins[int(np.argmax(gains))]
-            result.append(twin)
-            covered[seen(twin)] = True
+            best = int(np.argmax(gains))
+            result.append(twins[best])
+            covered[seen_by[best]] = True
     return tuple(result)
 
 

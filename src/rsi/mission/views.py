@@ -196,6 +196,14 @@ def own_body(cad: Any) -> NDArray[np.bool_]:
     return np.asarray(cad.expected_depth_m < JAW_LENGTH_M)
 
 
+def grown(mask: NDArray[np.bool_], reach_px: int) -> NDArray[np.bool_]:
+    """`mask` grown by `reach_px` pixels every way (a square's dilation)."""
+    import cv2
+
+    side = 2 * reach_px + 1
+    return np.asarray(cv2.dilate(mask.astype(np.uint8), np.ones((side, side), np.uint8)) > 0)
+
+
 def jaws_region(
     world: World, opening_m: float, size: tuple[int, int], margin_px: int = FRAME_MARGIN_PX
 ) -> NDArray[np.bool_]:
@@ -205,11 +213,7 @@ def jaws_region(
     the band about them is lost to the comparison as a frame's border is (the registration's shift and the
     detector's windows, seed §2.3-2.4).
     """
-    import cv2
-
-    footprint = world.own_body_footprint(size, jaw_opening_m=opening_m).astype(np.uint8)
-    side = 2 * margin_px + 1
-    return np.asarray(cv2.dilate(footprint, np.ones((side, side), np.uint8)) > 0)
+    return grown(world.own_body_footprint(size, jaw_opening_m=opening_m), margin_px)
 
 
 def point_region(
@@ -395,11 +399,7 @@ def near_model_edges(sensed: Sensed, reach_px: int) -> NDArray[np.bool_]:
     drawn from the model stays off by what placing it leaves (a pixel or two) and the stereo range smooths a
     step over its window: only there can an edge stay mis-registered by the viewpoint's repeatability.
     """
-    import cv2
-
-    side = 2 * reach_px + 1
-    edges = model_edges(sensed.capture.cad).astype(np.uint8)
-    return np.asarray(cv2.dilate(edges, np.ones((side, side), np.uint8)) > 0)
+    return grown(model_edges(sensed.capture.cad), reach_px)
 
 
 def model_seams(depth_m: NDArray[np.floating]) -> NDArray[np.bool_]:
@@ -418,11 +418,7 @@ def model_seams(depth_m: NDArray[np.floating]) -> NDArray[np.bool_]:
 
 def near_model_seams(sensed: Sensed, reach_px: int) -> NDArray[np.bool_]:
     """Pixels within `reach_px` of a seam of the view's placed model (:func:`model_seams`)."""
-    import cv2
-
-    side = 2 * reach_px + 1
-    seams = model_seams(sensed.capture.cad.expected_depth_m).astype(np.uint8)
-    return np.asarray(cv2.dilate(seams, np.ones((side, side), np.uint8)) > 0)
+    return grown(model_seams(sensed.capture.cad.expected_depth_m), reach_px)
 
 
 def inspection_region(sensed: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:

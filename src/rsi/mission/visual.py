@@ -47,6 +47,7 @@ from rsi.mission.settings import MissionSettings
 from rsi.mission.views import (
     FAR_M,
     Sensed,
+    grown,
     inspection_region,
     jaws_region,
     near_model_edges,
@@ -122,15 +123,7 @@ def stored_strobe(view: Sensed, settings: MissionSettings) -> Compensated:
     own = own_body(view.capture.cad)
     if not own.any():
         return view.strobe
-    return _restricted(view.strobe, ~_grown(own, settings.inspection_guard_px))
-
-
-def _grown(mask: NDArray[np.bool_], reach_px: int) -> NDArray[np.bool_]:
-    """`mask` grown by `reach_px` pixels every way (a square's dilation)."""
-    import cv2
-
-    side = 2 * reach_px + 1
-    return np.asarray(cv2.dilate(mask.astype(np.uint8), np.ones((side, side), np.uint8)) > 0)
+    return _restricted(view.strobe, ~grown(own, settings.inspection_guard_px))
 
 
 @dataclass(frozen=True)
@@ -554,7 +547,7 @@ def _past_own_body(reference: Compensated, shift_xy: tuple[float, float], lookin
     if not own.any():
         return reference
     reach = math.ceil(math.hypot(*shift_xy)) + looking["settings"].inspection_guard_px
-    return _restricted(reference, ~_grown(own, reach))
+    return _restricted(reference, ~grown(own, reach))
 
 
 def _without_discoloured(
