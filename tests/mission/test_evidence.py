@@ -223,11 +223,73 @@ def test_a_component_changed_one_way_is_a_swap_and_noise_of_either_sign_is_not()
     unsettled[centre] += rng.normal(0.0, 8.0, int(centre.sum())).astype(np.float32)  # noise the model misses
     swap = compare(_image(reference, 1.0), _image(repainted, 1.0), 1e-4, SETTINGS)
     noise = compare(_image(reference, 1.0), _image(unsettled, 1.0), 1e-4, SETTINGS)
-    assert component_change(swap, view, site, SETTINGS) > 0.5  # type: ignore[arg-type]
+    # signed: a darker replacement reads negative
+    assert component_change(swap, view, site, SETTINGS) < -0.5  # type: ignore[arg-type]
     # beyond 3 sigmas both ways over much of the disc, in equal measure: no repaint
     z = noise.detection.difference[centre] / noise.detection.sigma[centre]
     assert np.mean(z > 3.0) > 0.2 and np.mean(z < -3.0) > 0.2
-    assert component_change(noise, view, site, SETTINGS) < SETTINGS.component_change_min  # type: ignore[arg-type]
+    assert abs(component_change(noise, view, site, SETTINGS)) < SETTINGS.component_change_min  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("readings", "expected"),
+    [((0.3, 0.2), 0.2), ((-0.3, -0.5), -0.3), ((0.9, 0.0), 0.0), ((0.9, -0.2), 0.0), ((), 0.0)],
+)
+def test_a_change_counts_as_far_as_every_reference_agrees(
+    readings: tuple[float, ...], expected: float
+) -> None:
+    from rsi.mission.evidence import agreed
+
+    assert agreed(readings) == expected
+
+
+def test_a_repaint_seen_against_one_reference_only_is_no_swap_and_untrusted_pixels_read_nothing() -> None:
+    from rsi.mission.evidence import component_change, component_checks
+    from rsi.mission.views import disc, seen_components
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=0)
+    try:
+        view = _sensed(world, "B_tank")
+        site = next(site for site in seen_components(world, view) if site.name == "B_tank")
+        centre = disc((120, 160), view, site.position_m, SETTINGS.component_disc_m)
+        rng = np.random.default_rng(4)
+        reference = _textured(3)
+        first, second, now = (
+            reference + rng.normal(0.0, 1.0, reference.shape).astype(np.float32) for _ in "abc"
+        )
+        now[centre] *= np.float32(
+            0.6
+        )  # darker over the disc now; the second pristine visit was too (a glare)
+        glared = second.copy()
+        glared[centre] *= np.float32(0.6)
+        against_first = compare(_image(first, 1.0), _image(now, 1.0), 1e-4, SETTINGS)
+        against_glared = compare(_image(glared, 1.0), _image(now, 1.0), 1e-4, SETTINGS)
+        assert component_change(against_first, view, site, SETTINGS) < -0.5  # type: ignore[arg-type]
+        assert abs(component_change(against_glared, view, site, SETTINGS)) < SETTINGS.component_change_min  # type: ignore[arg-type]
+        # nothing of the disc trusted (past the strobe's beam, edge-on): no reading at all
+        nowhere = np.zeros((120, 160), bool)
+        assert component_change(against_first, view, site, SETTINGS, nowhere) == 0.0  # type: ignore[arg-type]
+
+        def swaps(pairs: tuple[Any, ...]) -> list[str]:
+            found = component_checks(
+                pairs,
+                view,
+                "B_tank",
+                reference_m=view.range_m,
+                world=world,
+                settings=SETTINGS,
+                only={"B_tank"},
+            )
+            return [explanation.component for _, explanation in found]
+
+        assert swaps((against_first,)) == ["B_tank"]
+        assert swaps((against_first, against_glared)) == []
+        # the surface itself changed: new against both pristine visits
+        both = (against_first, compare(_image(second, 1.0), _image(now, 1.0), 1e-4, SETTINGS))
+        assert swaps(both) == ["B_tank"]
+    finally:
+        world.close()
 
 
 def _cluttered(spot_dn: float, offset_dn: float, noise_dn: float) -> Any:

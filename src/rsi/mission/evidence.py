@@ -6,7 +6,7 @@ and what explains a blob that is no impact.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -565,9 +565,16 @@ def sinking(
     return Sinking(depth, field_to_world(view, float(row), float(col)))
 
 
-def component_change(pair: PairResult, view: Sensed, site: Site, settings: MissionSettings) -> float:
+def component_change(
+    pair: PairResult,
+    view: Sensed,
+    site: Site,
+    settings: MissionSettings,
+    trusted: NDArray[np.bool_] | None = None,
+) -> float:
     """Fraction of the component's central disc changed one way beyond 3 noise sigmas (seed §4 swaps):
-    the share brighter less the share darker, in absolute value.
+    the share brighter less the share darker (negative: a darker replacement), read only on the `trusted`
+    pixels where given.
 
     A discoloured replacement changes the whole component's reflectance one way (measured 0.16-0.63 over
     seeds 0-5 where one was, <= 0.012 on pristine ones); a 5 cm disc at the site's centre is the part every
@@ -578,14 +585,20 @@ def component_change(pair: PairResult, view: Sensed, site: Site, settings: Missi
     """
     detection = pair.detection
     centre = disc(detection.difference.shape, view, site.position_m, settings.component_disc_m)
-    centre &= detection.valid
+    centre &= detection.valid if trusted is None else detection.valid & trusted
     if centre.sum() < 50:
         return 0.0
     z = detection.difference[centre] / np.maximum(detection.sigma[centre], np.float32(1e-6))
-    return abs(float(np.mean(z > 3.0)) - float(np.mean(z < -3.0)))
+    return float(np.mean(z > 3.0)) - float(np.mean(z < -3.0))
 
 
-def component_dimming(pair: PairResult, view: Sensed, site: Site, settings: MissionSettings) -> float:
+def component_dimming(
+    pair: PairResult,
+    view: Sensed,
+    site: Site,
+    settings: MissionSettings,
+    trusted: NDArray[np.bool_] | None = None,
+) -> float:
     """Relative change of the component's brightness in its central disc, before photometric matching.
 
     Seed §2.3 registration fits a gain and a bias, and where one component fills the frame (the solar
@@ -595,7 +608,7 @@ def component_dimming(pair: PairResult, view: Sensed, site: Site, settings: Miss
     detection = pair.detection
     registration = detection.registration
     centre = disc(detection.difference.shape, view, site.position_m, settings.component_disc_m)
-    centre &= detection.valid
+    centre &= detection.valid if trusted is None else detection.valid & trusted
     if registration is None or centre.sum() < 50:
         return 0.0
     predicted = pair.inspection[centre] - detection.difference[centre]
@@ -679,15 +692,18 @@ def explained_by(look: Look, view: Sensed, explanation: Explanation, settings: M
 
 
 def component_checks(
-    pair: PairResult,
+    pairs: Sequence[PairResult],
     view: Sensed,
     source: str,
     *,
     reference_m: NDArray[np.float32],
     world: World,
     settings: MissionSettings,
+    trusted: NDArray[np.bool_] | None = None,
+    only: Collection[str] | None = None,
 ) -> list[tuple[MissionFinding, Explanation]]:
-    """Each component site the view sees, checked for a swap (seed §4): discoloured or dented.
+    """Each component site the view sees (those named in `only` where given), checked for a swap (seed
+    §4): discoloured or dented.
 
     A discoloured replacement changes the strobe image over the whole component, unless it fills the frame
     and the registration's gain absorbs it (then its raw brightness tells); a dent shows in the stereo range
@@ -695,22 +711,37 @@ def component_checks(
     finding comes with the radius around it within which the difference image shows the swap itself (blobs
     there are not impacts, those elsewhere are); a discolouring changed only the component's own surface,
     which the view's CAD projection tells.
+
+    `pairs` compare the view with each pristine visit, the first one's registration placing the range map.
+    A reflectance change is new against *both* (:func:`agreed`), as every blob must be: truss-b seeds
+    1969 and 1975 in space read a pristine panel's disc 11 % and 92 % brighter against one reference and
+    unchanged against the other (the cover glass's glare in one visit). It is read only on the `trusted`
+    pixels, as blobs are (well inside the strobe's beam, not at grazing incidence): a component at a
+    frame's bottom edge, seen edge-on, read 11-12 % darker in pristine truss-b views (seeds 1971, 1973).
     """
     found = []
-    registration = pair.detection.registration
+    registration = pairs[0].detection.registration
     shift = (0.0, 0.0) if registration is None else tuple(float(t) for t in registration.translation_xy)
     for site in seen_components(world, view):
-        change = component_change(pair, view, site, settings)
+        if only is not None and site.name not in only:
+            continue
+        change = agreed([component_change(pair, view, site, settings, trusted) for pair in pairs])
         sunk = sinking(view, reference_m, (shift[0], shift[1]), site)
         if sunk.sunk_m > settings.dent_relief_min_m and sunk.position_m is not None:
             # the dent may be anywhere on the component: its crater's shading is explained around it
             score, margin = sunk.sunk_m, (sunk.sunk_m - settings.dent_relief_min_m) / 2e-4
             size = min(site.size_m, 2 * settings.component_disc_m)
             explained = Explanation(sunk.position_m, settings.component_disc_m + 0.02)
-        elif change > settings.component_change_min:
-            score, margin, size = change, (change - settings.component_change_min) / 0.01, site.size_m
+        elif abs(change) > settings.component_change_min:
+            score, margin, size = (
+                abs(change),
+                (abs(change) - settings.component_change_min) / 0.01,
+                site.size_m,
+            )
             explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name)
-        elif abs(dimming := component_dimming(pair, view, site, settings)) > settings.component_dimming_min:
+        elif abs(dimming := agreed([component_dimming(p, view, site, settings, trusted) for p in pairs])) > (
+            settings.component_dimming_min
+        ):
             score, margin, size = dimming, (abs(dimming) - settings.component_dimming_min) / 0.01, site.size_m
             # the gain absorbed the component's change, but not its contrast with what was not repainted
             # (the panel's cell gaps and frame): those edges are the swap's, not impacts
@@ -727,6 +758,17 @@ def component_checks(
         )
         found.append((finding, explained))
     return found
+
+
+def agreed(readings: Sequence[float]) -> float:
+    """The change every comparison reads: the smallest in magnitude where all share a sign, else 0.
+
+    Both pristine visits stand for the surface before (seed §2.4's second opinion): a change against one of
+    them only is that visit's own (a glare, a compensation error), not the surface's.
+    """
+    if not readings or not (all(r > 0 for r in readings) or all(r < 0 for r in readings)):
+        return 0.0
+    return min(readings, key=abs)
 
 
 def discoloured_components(view: Sensed, explanations: list[Explanation]) -> list[str]:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
@@ -253,6 +254,17 @@ def inspect_visit(
     comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
 
     limits = thresholds(settings)
+    pairs = (
+        comparison.pair,
+        compare(
+            comparison.second,
+            inspection,
+            p_first,
+            settings,
+            comparison.scale,
+            registration=comparison.aligned[1],
+        ),
+    )
     screws, checked = screw_checks(
         world,
         view,
@@ -262,27 +274,22 @@ def inspect_visit(
         reliefs=stored.reliefs,
         glints=stored.glints,
         done=screws_checked,
-        pairs=(
-            comparison.pair,
-            compare(
-                comparison.second,
-                inspection,
-                p_first,
-                settings,
-                comparison.scale,
-                registration=comparison.aligned[1],
-            ),
-        ),
+        pairs=pairs,
         confirm=limits.confirm,
     )
     checks = component_checks(
-        comparison.pair,
+        pairs,
         view,
         point.name,
         reference_m=comparison.range_m,
         world=world,
         settings=settings,
+        trusted=_trusted(view, settings),
     )
+    again = _SecondVisit(stored, point, settings, tour)
+    doubted = (0, 0, 0)
+    if active:
+        checks, doubted = _found_again(again, checks, world, settings)
     explanations = [explanation for _, explanation in checks]
     whole = comparison
     comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
@@ -300,13 +307,12 @@ def inspect_visit(
             limits=limits,
             settings=settings,
         )
-    counts = (
-        _second_looks(
-            stored, looks, point, explanations, first=inspection, limits=limits, settings=settings, tour=tour
-        )
+    looked = (
+        _second_looks(again, looks, explanations, first=inspection, limits=limits, settings=settings)
         if active
         else (0, 0, 0)
     )
+    counts = (looked[0] + doubted[0], looked[1] + doubted[1], looked[2] + doubted[2])
     confirmed = apart_from_swaps([look for look in looks if look.score > limits.confirm], settings)
     findings = screws + [finding for finding, _ in checks]
     findings += [_visual_finding(look, point.name, limits, settings) for look in confirmed]
@@ -765,16 +771,101 @@ def _shift_bound_px(look: Look, near_edges: NDArray[np.bool_], settings: Mission
     return min(3.0 * settings.misregistration_std_px, settings.local_shift_px)
 
 
+@dataclass
+class _SecondVisit:
+    """Seed §2.5 active inspection: one more visit of the point's vista (a new viewpoint error, new noise),
+    taken the first time a doubt asks for it, with both pristine visits predicted for it in depth."""
+
+    stored: StoredView
+    point: PlanPoint
+    settings: MissionSettings
+    tour: Tour
+
+    @cached_property
+    def view(self) -> Sensed:
+        return sense(self.tour.visit(self.point.name, self.point.vista, state="inspection", truth=False))
+
+    @cached_property
+    def image(self) -> Compensated:
+        return _restricted(self.view.strobe, inspection_region(self.view, self.settings))
+
+    @cached_property
+    def seen(self) -> _Predicted:
+        # against both pristine visits again, each seen from this viewpoint: an artefact of one reference's
+        # sampling would confirm itself
+        return in_depth(self.stored, self.image, self.view, self.settings)
+
+    @cached_property
+    def pairs(self) -> tuple[PairResult, PairResult]:
+        """The whole frame compared with both pristine visits."""
+        settings, seen = self.settings, self.seen
+        first, second = (
+            compare(
+                reference,
+                self.image,
+                settings.p_preliminary,
+                settings,
+                self.stored.scale,
+                registration=aligned,
+            )
+            for reference, aligned in zip((seen.reference, seen.second), seen.aligned, strict=True)
+        )
+        return first, second
+
+
+def _trusted(view: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
+    """Where the comparison is trusted: well inside the strobe's beam, on a surface seen within the grazing
+    incidence (:func:`_mostly_within`)."""
+    return within_strobe_beam(view, settings) & seen_head_on(view, settings)
+
+
+def _found_again(
+    again: _SecondVisit,
+    checks: list[tuple[MissionFinding, Explanation]],
+    world: World,
+    settings: MissionSettings,
+) -> tuple[list[tuple[MissionFinding, Explanation]], tuple[int, int, int]]:
+    """The swaps that a changed reflectance showed, kept where the second look reads them again; the dents
+    (a stereo relief, :func:`rsi.mission.evidence.sinking`) as they are. Returns the checks and (second
+    looks, confirmed, rejected).
+
+    Seed §2.5: a doubtful finding gets a second look. A replacement reflects 0.4-0.8 or 1.2-1.5 times the
+    original (seed §4) from every viewpoint; what a viewpoint error alone made of a pristine component (the
+    strobe's glare moved on it, its beam's fall) does not come back with another: truss-b seeds 1970 and
+    1972 in space read a pristine ORU 14 % and 10 % changed, and 0 % on the second look, where every
+    discoloured replacement of seeds 1968-1975 read again within 0.04 of its first reading.
+    """
+    doubtful = [explanation.component for _, explanation in checks if explanation.component is not None]
+    if not doubtful:
+        return checks, (0, 0, 0)
+    view = again.view
+    trusted = _trusted(view, settings)
+    confirmed = {
+        name
+        for name in doubtful
+        if component_checks(
+            again.pairs,
+            view,
+            again.point.name,
+            reference_m=again.seen.range_m,
+            world=world,
+            settings=settings,
+            trusted=trusted,
+            only={name},
+        )
+    }
+    kept = [(f, e) for f, e in checks if e.component is None or e.component in confirmed]
+    return kept, (len(doubtful), len(confirmed), len(doubtful) - len(confirmed))
+
+
 def _second_looks(
-    stored: StoredView,
+    again: _SecondVisit,
     looks: list[Look],
-    point: PlanPoint,
     explanations: list[Explanation],
     *,
     first: Compensated,
     limits: Thresholds,
     settings: MissionSettings,
-    tour: Tour,
 ) -> tuple[int, int, int]:
     """Seed §2.5 active inspection: another visit (new viewpoint error, new noise) of the same vista for
     every new blob, whose score is fused in place; returns (second looks, confirmed, rejected).
@@ -786,17 +877,10 @@ def _second_looks(
     """
     if not looks:
         return (0, 0, 0)
-    second = sense(tour.visit(point.name, point.vista, state="inspection", truth=False))
-    image = _restricted(second.strobe, inspection_region(second, settings))
-    # against both pristine visits again, each seen from this viewpoint: an artefact of one reference's
-    # sampling would confirm itself
-    seen = in_depth(stored, image, second, settings)
+    second, image, seen = again.view, again.image, again.seen
     changed = discoloured_pixels(second, explanations, settings)
     if changed is None:
-        pairs = [
-            compare(reference, image, settings.p_preliminary, settings, stored.scale, registration=aligned)
-            for reference, aligned in zip((seen.reference, seen.second), seen.aligned, strict=True)
-        ]
+        pairs = list(again.pairs)
     else:
         # as in the first look (:func:`_without_discoloured`): a swap found there drags this look's
         # photometric fit too (seed 1307: a brighter B tank left the plate beside it at 11x the noise and
@@ -808,11 +892,16 @@ def _second_looks(
             registered = _registered_again(without, kept, aligned)
             pairs.append(
                 compare(
-                    without, kept, settings.p_preliminary, settings, stored.scale, registration=registered
+                    without,
+                    kept,
+                    settings.p_preliminary,
+                    settings,
+                    again.stored.scale,
+                    registration=registered,
                 )
             )
     whole = _Comparison(
-        seen.reference, seen.second, image, stored.scale, pairs[0], seen.range_m, seen.aligned
+        seen.reference, seen.second, image, again.stored.scale, pairs[0], seen.range_m, seen.aligned
     )
     on_component = {
         name: _component_pairs(whole, second, name, settings)
@@ -823,10 +912,10 @@ def _second_looks(
         kernel = settings.flaw_size_px if look.spot else None
         read = pairs if look.component is None else on_component[look.component]
         at = followed(first, image, look.at_px, _believed_px(second, look))
-        again = min((second_look_score(pair, at, kernel) for pair in read), default=0.0)
+        echo = min((second_look_score(pair, at, kernel) for pair in read), default=0.0)
         # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3; a fused score
         # carried by the first look alone is no echo: the second must see the blob itself
-        fused = (look.score + again) / math.sqrt(3.0) if again > limits.preliminary else 0.0
+        fused = (look.score + echo) / math.sqrt(3.0) if echo > limits.preliminary else 0.0
         look.score, look.second_look = fused, True
         confirmed += fused > limits.confirm
     return (len(looks), confirmed, len(looks) - confirmed)
