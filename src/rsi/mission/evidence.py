@@ -565,6 +565,21 @@ def sinking(
     return Sinking(depth, field_to_world(view, float(row), float(col)))
 
 
+def _central_disc(
+    pair: PairResult, view: Sensed, site: Site, settings: MissionSettings, trusted: NDArray[np.bool_] | None
+) -> NDArray[np.bool_]:
+    """The compared pixels of the component's central disc (``settings.component_disc_m``), the `trusted`
+    ones only where given."""
+    detection = pair.detection
+    centre: NDArray[np.bool_] = disc(
+        detection.difference.shape, view, site.position_m, settings.component_disc_m
+    )
+    centre &= detection.valid
+    if trusted is not None:
+        centre &= trusted
+    return centre
+
+
 def component_change(
     pair: PairResult,
     view: Sensed,
@@ -584,8 +599,7 @@ def component_change(
     darker beyond 3 sigmas, while its discoloured ORU changed 51 % brighter and 12 % darker.
     """
     detection = pair.detection
-    centre = disc(detection.difference.shape, view, site.position_m, settings.component_disc_m)
-    centre &= detection.valid if trusted is None else detection.valid & trusted
+    centre = _central_disc(pair, view, site, settings, trusted)
     if centre.sum() < 50:
         return 0.0
     z = detection.difference[centre] / np.maximum(detection.sigma[centre], np.float32(1e-6))
@@ -607,8 +621,7 @@ def component_dimming(
     """
     detection = pair.detection
     registration = detection.registration
-    centre = disc(detection.difference.shape, view, site.position_m, settings.component_disc_m)
-    centre &= detection.valid if trusted is None else detection.valid & trusted
+    centre = _central_disc(pair, view, site, settings, trusted)
     if registration is None or centre.sum() < 50:
         return 0.0
     predicted = pair.inspection[centre] - detection.difference[centre]
@@ -716,8 +729,9 @@ def component_checks(
     A reflectance change is new against *both* (:func:`agreed`), as every blob must be: truss-b seeds
     1969 and 1975 in space read a pristine panel's disc 11 % and 92 % brighter against one reference and
     unchanged against the other (the cover glass's glare in one visit). It is read only on the `trusted`
-    pixels, as blobs are (well inside the strobe's beam, not at grazing incidence): a component at a
-    frame's bottom edge, seen edge-on, read 11-12 % darker in pristine truss-b views (seeds 1971, 1973).
+    pixels, for the blobs' reasons (:func:`rsi.mission.visual._mostly_within`: a beam's fall or an edge-on
+    surface moves with the viewpoint); that did not take out the 12 % that a pristine ORU read at a frame's
+    bottom edge on truss-b seed 1973 in space, in both comparisons and on the second look.
     """
     found = []
     registration = pairs[0].detection.registration
@@ -733,11 +747,8 @@ def component_checks(
             size = min(site.size_m, 2 * settings.component_disc_m)
             explained = Explanation(sunk.position_m, settings.component_disc_m + 0.02)
         elif abs(change) > settings.component_change_min:
-            score, margin, size = (
-                abs(change),
-                (abs(change) - settings.component_change_min) / 0.01,
-                site.size_m,
-            )
+            score, size = abs(change), site.size_m
+            margin = (score - settings.component_change_min) / 0.01
             explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name)
         elif abs(dimming := agreed([component_dimming(p, view, site, settings, trusted) for p in pairs])) > (
             settings.component_dimming_min
