@@ -14,6 +14,7 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.detection.detect import Flaw
+from rsi.errors import InputError
 from rsi.imaging.compensation import Compensated
 from rsi.mission import MissionFinding, MissionSettings
 from rsi.mission.evidence import Explanation, Look, contrast, discoloured_pixels, explained_by, screw_relief_m
@@ -60,6 +61,42 @@ def test_one_impact_seen_from_two_vistas_is_one_finding() -> None:
     impacts = sorted((f.source, f.score) for f in merged if f.kind == "impact")
     assert impacts == [("A_door_open", 12.0), ("A_kapton", 7.0)]  # the stronger sighting stands
     assert [f.kind for f in merged].count("missing_screw") == 1
+
+
+def test_two_frames_sightings_of_one_impact_merge_within_both_frames_pose_errors() -> None:
+    # seed §2.3: each frame places its sighting from a pose off by its own viewpoint error; two frames'
+    # sightings of one impact lie within impact_merge_m plus both bounds, one frame's within impact_merge_m
+    apart = SETTINGS.impact_merge_m + 0.003
+    pair = [_finding("impact", 0.300, 9.0, "cad_22"), _finding("impact", 0.300 + apart, 7.0, "cad_24")]
+    bounds = {"cad_22": 0.002, "cad_24": 0.002}
+    assert [f.score for f in fuse_findings(pair, (), SETTINGS, bounds)] == [9.0]
+    assert len(fuse_findings(pair, (), SETTINGS)) == 2  # no pose error known: the frames' own reach only
+    assert len(fuse_findings(pair, (), SETTINGS, {"cad_22": 0.001, "cad_24": 0.001})) == 2
+    one_frame = [dataclasses.replace(finding, source="cad_22") for finding in pair]
+    assert len(fuse_findings(one_frame, (), SETTINGS, bounds)) == 2  # one pose: their offset is real
+
+
+def test_pose_error_is_the_arms_repeatability_at_the_vistas_standoff() -> None:
+    from rsi.mission.viewing import focal_px, pose_error_m
+    from rsi.sim import load
+    from rsi.sim.world import REPEATABILITY_PX
+
+    for repeatability in ("lab", "space"):
+        world = load("truss", seed=0, repeatability=repeatability, arm=False)
+        try:
+            vista = world.vista("A_door")
+            expected = REPEATABILITY_PX[repeatability][1] * vista.standoff_m / focal_px(480)
+            assert pose_error_m(world, "A_door", 480) == pytest.approx(expected)
+            # the bound is a shift in the frame's own pixels (as the tour draws it): twice the rows, half
+            assert pose_error_m(world, "A_door", 960) == pytest.approx(expected / 2)
+            with pytest.raises(InputError, match="vista"):
+                pose_error_m(world, "nowhere", 480)
+            with pytest.raises(InputError, match="rows"):
+                pose_error_m(world, "A_door", 0)
+        finally:
+            world.close()
+    with pytest.raises(InputError, match="world"):
+        pose_error_m("truss", "A_door", 480)  # type: ignore[arg-type]
 
 
 def _with_components(masks: dict[str, Any]) -> Any:

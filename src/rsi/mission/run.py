@@ -33,6 +33,7 @@ from rsi.mission.score import run_roc
 from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, MissionSettings
 from rsi.mission.surveys import gas_pass, pyrometer_pass
 from rsi.mission.truth import with_truth
+from rsi.mission.viewing import pose_error_m
 from rsi.mission.views import seen_screws, sense
 from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit, stored_strobe
 from rsi.sim.anomalies import AnomalySettings
@@ -163,7 +164,9 @@ def run_mission(
         report("pyrometer")
         gas, stations, gas_ppm = gas_pass(world, sensor_rng, settings)
         report("gas")
-        findings = (*fuse_findings(visual, world.mockup.candidates.component_sites, settings), *thermal, *gas)
+        pose_errors = {point.name: pose_error_m(world, point.vista, shape[0]) for point in plan}
+        sites = world.mockup.candidates.component_sites
+        findings = (*fuse_findings(visual, sites, settings, pose_errors), *thermal, *gas)
         overview_rgb, overview_pose = world.overview(size=OVERVIEW_SIZE)
         run_settings = {"repeatability": repeatability, "active": active}
         run_id = _archived(archive, world, plan, stored, findings, seed, run_settings, settings)

@@ -60,6 +60,20 @@ def focal_px(rows: int) -> float:
     return rows / 2 / math.tan(math.radians(CAMERA_FOVY_DEG) / 2)
 
 
+def pose_error_m(world: World, vista: str, rows: int) -> float:
+    """The most a visit's viewpoint error can move a point it places on the surface of `vista`, metres.
+
+    Seed §2.3: the arm misses a vista by its repeatability, which the believed pose does not hold; the
+    bound is the arm's (:data:`rsi.sim.world.REPEATABILITY_PX`, an image shift at the vista's standoff),
+    in metres at that standoff for a frame of `rows` rows.
+    """
+    from rsi.sim.world import REPEATABILITY_PX  # at call time: rsi.sim.world is the heaviest import
+
+    _checked_world(world)
+    worst_px = REPEATABILITY_PX[world.repeatability][1]
+    return worst_px * world.vista(vista).standoff_m / focal_px(rows)
+
+
 def _checked_world(world: object) -> None:
     from rsi.sim.world import World  # at call time: rsi.sim.world is the heaviest import of the simulator
 
