@@ -99,6 +99,30 @@ def test_pose_error_is_the_arms_repeatability_at_the_vistas_standoff() -> None:
         pose_error_m("truss", "A_door", 480)  # type: ignore[arg-type]
 
 
+def _blob(area_m2: float, metres_per_px: float) -> Look:
+    pixels = round(area_m2 / metres_per_px**2)
+    side = math.ceil(math.sqrt(pixels))
+    flaw = Flaw(10.0, 10.0, (0, 0, side, side), pixels, 9.0, "dark")
+    return Look(flaw, (0.0, 0.0, 0.0), pixels * metres_per_px**2, 9.0)
+
+
+def test_a_blob_larger_than_the_largest_impact_can_flag_is_no_impact() -> None:
+    from rsi.mission.evidence import impact_sized
+
+    largest = SETTINGS.impact_max_m
+    for pixel_m in (0.3e-3, 0.46e-3, 0.66e-3):
+        # the largest impact, its disc grown by the 3 x 3 window's pixel on each side
+        grown = math.pi / 4 * (largest + 2 * pixel_m) ** 2
+        assert impact_sized(_blob(grown, pixel_m), SETTINGS)
+        # truss seed 1992's 80 mm^2 blobs on the panel, and anything beyond the bound square
+        assert not impact_sized(_blob(80e-6, pixel_m), SETTINGS)
+        bound = (largest + SETTINGS.flaw_size_px * pixel_m) ** 2
+        assert not impact_sized(_blob(1.05 * bound, pixel_m), SETTINGS)
+    # a larger impact the mission is told to expect widens the bound
+    wider = dataclasses.replace(SETTINGS, impact_max_m=10e-3)
+    assert impact_sized(_blob(80e-6, 0.46e-3), wider)
+
+
 def _with_components(masks: dict[str, Any]) -> Any:
     """A sensed view whose CAD projection holds only these component masks."""
     return SimpleNamespace(capture=SimpleNamespace(cad=SimpleNamespace(components=masks)))

@@ -84,6 +84,10 @@ class MissionSettings:
         score 9-20). The CAD plan sees every surface from some vista within 45 deg (issue 15).
     component_area_m2 : float
         A dark blob bigger than 1 cm^2 is a changed component, not a ~1 mm impact (seed §4).
+    impact_max_m : float
+        The largest impact the mission looks for: seed §2's flaws are ~1 mm, the wide draw's largest 4 mm
+        (:class:`rsi.sim.AnomalySettings`). A smaller blob wider than its image can flag is not an impact
+        (:func:`rsi.mission.evidence.impact_sized`).
     screw_relief_lost_m : float
         Half the 2 mm head height: present heads and removed ones differ by ~20 sigma of the stereo relief.
     component_disc_m : float
@@ -151,6 +155,7 @@ class MissionSettings:
     strobe_beam_margin_deg: float = 5.0
     grazing_incidence_deg: float = 80.0
     component_area_m2: float = 1.0e-4
+    impact_max_m: float = 4.0e-3
     screw_relief_lost_m: float = 1.0e-3
     component_disc_m: float = 0.05
     component_change_min: float = 0.05

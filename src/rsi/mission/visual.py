@@ -35,6 +35,7 @@ from rsi.mission.evidence import (
     discoloured_components,
     discoloured_pixels,
     followed,
+    impact_sized,
     line_shaped,
     screw_checks,
     second_look_score,
@@ -657,6 +658,7 @@ def _new_blobs(
             (look.area_m2 > settings.component_area_m2 and broad(look, settings))
             or (
                 look.area_m2 <= settings.component_area_m2
+                and impact_sized(look, settings)
                 and look.contrast >= settings.impact_contrast_min
                 and not line_shaped(look, comparison.pair.detection.mask)
                 and not shift_explained(comparison.pair, look, floor, _shift_bound_px(look, edges, settings))
