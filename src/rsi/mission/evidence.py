@@ -845,8 +845,7 @@ def broad(look: Look, settings: MissionSettings) -> bool:
     whatever its area. The swaps found by their blobs on development seeds were 19-46 mm wide.
     """
     row0, col0, row1, col1 = look.bbox
-    metres_per_px = math.sqrt(look.area_m2 / max(look.flaw.area_px, 1))
-    width_m = look.flaw.area_px / max(row1 - row0, col1 - col0, 1) * metres_per_px
+    width_m = look.flaw.area_px / max(row1 - row0, col1 - col0, 1) * _metres_per_px(look)
     return width_m >= math.sqrt(settings.component_area_m2)
 
 
@@ -860,9 +859,13 @@ def impact_sized(look: Look, settings: MissionSettings) -> bool:
     bound (a 3.3 mm impact's 20 mm^2 blob); on truss seed 1992 two 80 mm^2 blobs on the solar panel, 13 mm
     apart in one close view, were confirmed as impacts.
     """
-    metres_per_px = math.sqrt(look.area_m2 / max(look.flaw.area_px, 1))
-    side_m = settings.impact_max_m + settings.flaw_size_px * metres_per_px
+    side_m = settings.impact_max_m + settings.flaw_size_px * _metres_per_px(look)
     return look.area_m2 <= side_m * side_m
+
+
+def _metres_per_px(look: Look) -> float:
+    """The side of one of the blob's pixels on the surface (its world area over its pixel count)."""
+    return math.sqrt(look.area_m2 / max(look.flaw.area_px, 1))
 
 
 def line_shaped(look: Look, mask: NDArray[np.bool_]) -> bool:
