@@ -509,11 +509,24 @@ def test_small_looks_inside_a_swaps_blob_are_the_swaps() -> None:
     assert apart_from_swaps([inside, beside], SETTINGS) == [inside, beside]
 
 
+def test_a_glint_judges_a_head_when_its_whole_loss_would_read_three_sigma() -> None:
+    """fraction * sqrt(pixels) >= 3: the binomial spread of the disc's pixels (truss-b's screw_B_3 glints
+    over 0.26-0.47 of a ~250-pixel disc, which the comparison cannot read)."""
+    from rsi.mission.evidence import GLINT_LOSS_MIN_SD, NO_GLINT, HeadGlint
+
+    assert GLINT_LOSS_MIN_SD == 3.0
+    assert HeadGlint(0.26, 3000.0, 245).telling  # 4.1 sd
+    assert HeadGlint(0.19, 3000.0, 250).telling  # 3.004 sd
+    assert not HeadGlint(0.18, 3000.0, 250).telling  # 2.85 sd
+    assert not HeadGlint(0.5, 3000.0, 25).telling  # half of a 25-pixel disc: 2.5 sd
+    assert not NO_GLINT.telling
+
+
 def test_a_removed_panel_screw_loses_its_glint_and_a_present_one_keeps_it() -> None:
     """Seen from above at 16 deg off the axis, a polished head returns the metered flash of the dark panel
     into saturation: the comparison cannot read the head's disc, the glint tells (both under a sun moved
     300 s between the passes)."""
-    from rsi.mission.evidence import GLINT_MIN, head_glint, head_likeness, screw_checks
+    from rsi.mission.evidence import head_glint, head_likeness, screw_checks
     from rsi.mission.exposure import metered
     from rsi.mission.run import ORBIT_START_S
     from rsi.mission.tour import Tour
@@ -540,7 +553,7 @@ def test_a_removed_panel_screw_loses_its_glint_and_a_present_one_keeps_it() -> N
             world.set_shutter(shutter)
             world.set_strobe_energy(energy)
             glint = head_glint(reference, site)
-            assert glint.fraction >= GLINT_MIN
+            assert glint.telling
             assert 0.0 < glint.floor_dn <= reference.capture.camera.max_dn
             tour.start_pass("inspection", ORBIT_START_S[1] + 300.0)
             seen = sense(tour.visit(name, name, state="inspection", truth=False))
