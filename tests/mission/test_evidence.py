@@ -645,3 +645,28 @@ def test_a_look_is_followed_into_the_second_visits_frame_by_its_texture() -> Non
     # a fit further than half the window from the believed place is no fit of this look
     far = (at[0], at[1] + FOLLOW_HALF_PX)
     assert followed(_image(first), _image(second), at, far) == far
+
+
+def test_a_large_blob_on_a_component_must_show_its_own_sign_again() -> None:
+    """A repaint reads darker in every comparison; the strobe's glare moved by another viewpoint error reads
+    darker or brighter by chance (seed §2.1, §2.3, §4): a second reading of the other sign is no echo."""
+    from rsi.mission.evidence import same_sign_again, second_look_score
+
+    rng = np.random.default_rng(5)
+    reference = _textured(5)
+    darker, brighter = (reference + rng.normal(0.0, 1.0, reference.shape).astype(np.float32) for _ in "ab")
+    patch = (slice(40, 80), slice(60, 100))  # a 40 x 40 px patch, the middle of a component's face
+    darker[patch] *= np.float32(0.6)  # seed §4: 0.4-0.8 of the reflectance
+    brighter[patch] *= np.float32(1.4)
+    repaint = compare(_image(reference, 1.0), _image(darker, 1.0), 1e-4, SETTINGS)
+    glare = compare(_image(reference, 1.0), _image(brighter, 1.0), 1e-4, SETTINGS)
+    confirm = thresholds(SETTINGS).confirm
+    assert second_look_score(repaint, (60.0, 80.0)) > confirm
+    assert second_look_score(repaint, (60.0, 80.0), polarity="dark") > confirm
+    assert second_look_score(glare, (60.0, 80.0)) > confirm  # sign-blind: any change echoes
+    assert second_look_score(glare, (60.0, 80.0), polarity="dark") == 0.0  # the other sign: none
+
+    large = _look((0.0, 0.0, 0.0), 4 * SETTINGS.component_area_m2, (40, 60, 80, 100))
+    assert same_sign_again(large) == "dark"  # _look's blobs are dark
+    large.spot = True  # a spot is read against its ring (spot_score), whatever the sign here
+    assert same_sign_again(large) is None

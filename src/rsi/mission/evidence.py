@@ -820,14 +820,24 @@ def discoloured_pixels(
     return np.asarray(changed, dtype=bool)
 
 
-def second_look_score(pair: PairResult, at_px: tuple[float, float], kernel_px: int | None = None) -> float:
+def second_look_score(
+    pair: PairResult,
+    at_px: tuple[float, float],
+    kernel_px: int | None = None,
+    *,
+    polarity: str | None = None,
+) -> float:
     """Peak score of the second look within 2 px of field pixel `at_px` (row, col), where the first look's
     blob lies in this look's frame (seed §2.5); 0 where none of those pixels is valid in it: a place the
     look cannot see is not seen again. With `kernel_px` (a small blob's look), judged against its ring in
-    this look (:func:`spot_score`)."""
+    this look (:func:`spot_score`). With `polarity` (``"dark"`` or ``"bright"``), only a change of that sign
+    counts (:func:`same_sign_again`)."""
     r, c = round(at_px[0]), round(at_px[1])
     rows, cols = slice(max(r - 2, 0), max(r + 3, 0)), slice(max(c - 2, 0), max(c + 3, 0))
     valid = pair.detection.valid[rows, cols]
+    if polarity is not None:
+        statistic = pair.detection.statistic[rows, cols]
+        valid = valid & (statistic > 0 if polarity == "bright" else statistic < 0)
     if not valid.any():
         return 0.0
     score = np.where(valid, pair.detection.score[rows, cols], -np.inf)
@@ -837,6 +847,23 @@ def second_look_score(pair: PairResult, at_px: tuple[float, float], kernel_px: i
         return peak
     polarity = "bright" if pair.detection.statistic[rows, cols][at] > 0 else "dark"
     return spot_score(pair, (r - 2, c - 2, r + 3, c + 3), peak, polarity, kernel_px)
+
+
+def same_sign_again(look: Look) -> str | None:
+    """The sign a large blob on a component must show again, against the other pristine visit and in the
+    second look: its own (None for a spot, read against its ring instead).
+
+    A swap's discolouring scales the surface's reflectance one way (seed §4: 0.4-0.8 or 1.2-1.5 times
+    the original), whatever the viewpoint. The strobe rides beside the lens (seed §2.1): its glare on a
+    glossy finish (Kapton, the cells' cover glass) stays where the camera puts it while registration
+    moves the scene by the viewpoint error (seed §2.3), so a view compared with a reference taken from
+    elsewhere reads that glare brighter or darker by the sign of the two viewpoints' offset along the
+    glare's slope. At space repeatability (8-12 px, 4-7 mm at the CAD plan's standoffs) that is tens of
+    per cent on Kapton's narrow specular lobe: truss-b development seed 1969 read one Kapton circle 52 %
+    darker and the next one brighter, both confirmed as swaps of the ORU; seed 1968 a gradient across the
+    solar panel. Another viewpoint error repeats its sign only by chance.
+    """
+    return None if look.spot else look.flaw.polarity
 
 
 # seed §2.4's flaw is a disc (a square at the flaw model's size): its blob is about as wide as it is long,

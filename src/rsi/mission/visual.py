@@ -37,6 +37,7 @@ from rsi.mission.evidence import (
     followed,
     impact_sized,
     line_shaped,
+    same_sign_again,
     screw_checks,
     second_look_score,
     shift_explained,
@@ -638,12 +639,12 @@ def _new_blobs(
     sites = world.mockup.candidates.component_sites
     kernel = settings.flaw_size_px
     for look in looks:
-        look.score = min(look.score, second_look_score(other, look.at_px))
         # seed §4: what is neither on a component nor broader than a component's least change can only be
         # an impact, a millimetre spot: it must stand out of its own surroundings (spot_score), a large
-        # blob off every component at its peak
+        # blob off every component at its peak; one on a component keeps its sign (same_sign_again)
         small = look.area_m2 <= settings.component_area_m2
         look.spot = small or _component_of(look.position_m, sites) is None
+        look.score = min(look.score, second_look_score(other, look.at_px, polarity=same_sign_again(look)))
         if small:
             look.score = spot_score(comparison.pair, look.bbox, look.score, look.flaw.polarity, kernel)
         elif look.spot:
@@ -914,7 +915,8 @@ def _second_looks(
         kernel = settings.flaw_size_px if look.spot else None
         read = pairs if look.component is None else on_component[look.component]
         at = followed(first, image, look.at_px, _believed_px(second, look))
-        echo = min((second_look_score(pair, at, kernel) for pair in read), default=0.0)
+        sign = same_sign_again(look)
+        echo = min((second_look_score(pair, at, kernel, polarity=sign) for pair in read), default=0.0)
         # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3; a fused score
         # carried by the first look alone is no echo: the second must see the blob itself
         fused = (look.score + echo) / math.sqrt(3.0) if echo > limits.preliminary else 0.0
