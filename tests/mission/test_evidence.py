@@ -670,3 +670,32 @@ def test_a_large_blob_on_a_component_must_show_its_own_sign_again() -> None:
     assert same_sign_again(large) == "dark"  # _look's blobs are dark
     large.spot = True  # a spot is read against its ring (spot_score), whatever the sign here
     assert same_sign_again(large) is None
+
+
+def test_a_smooth_change_over_a_part_is_the_strobes_light_and_a_patch_inside_it_is_not() -> None:
+    """Seed §2.1, §2.3: the strobe's glare moved by the viewpoint error changes a part's image by a smooth
+    field; seed §4: a repaint's patch has an edge of its own inside the part."""
+    from rsi.mission.evidence import glare_explained
+
+    rng = np.random.default_rng(7)
+    reference = _textured(7)
+    rows, cols = np.mgrid[0:120, 0:160].astype(np.float32)
+    parts = np.full((120, 160), 3, np.int32)  # one part, the whole frame
+    parts[:, :20] = -1  # and a margin of no model
+    view = SimpleNamespace(capture=SimpleNamespace(cad=SimpleNamespace(parts=parts)))
+    glare = reference * (1.0 + 0.5 * np.clip((cols - 80.0) / 60.0, 0.0, None) ** 2)  # a highlight's slope
+    patch = reference.copy()
+    patch[(rows - 60) ** 2 + (cols - 100) ** 2 <= 18**2] *= np.float32(0.6)  # seed §4: 0.6 the reflectance
+    confirm = thresholds(SETTINGS).confirm
+    explained = {}
+    for name, changed in (("glare", glare), ("patch", patch)):
+        noisy = changed + rng.normal(0.0, 1.0, changed.shape).astype(np.float32)
+        pair = compare(_image(reference, 1.0), _image(noisy, 1.0), 1e-4, SETTINGS)
+        flaw = pair.flaws[0]
+        area_m2 = flaw.area_px * 2.5e-7  # 0.5 mm pixels
+        assert area_m2 > SETTINGS.component_area_m2  # a large blob
+        look = Look(flaw, (0.0, 0.0, 0.0), area_m2, flaw.score)
+        explained[name] = glare_explained(pair, view, look, confirm, SETTINGS)  # type: ignore[arg-type]
+        no_model = SimpleNamespace(capture=SimpleNamespace(cad=SimpleNamespace(parts=None)))
+        assert not glare_explained(pair, no_model, look, confirm, SETTINGS)  # type: ignore[arg-type]
+    assert explained == {"glare": True, "patch": False}

@@ -218,6 +218,93 @@ def shift_explained(pair: PairResult, look: Look, threshold: float, max_shift_px
     return best * look.score / unshifted <= threshold
 
 
+# The strobe's light on one part of the model, as the camera sees it: a quadratic in the pixel's row and
+# column, plus the predicted image times a plane (the part's texture modulates the light it returns); a fit
+# needs this many of the part's pixels, and leaves those beyond this many robust sigmas out once
+_LIGHT_FIT_MIN_PX = 200
+_LIGHT_FIT_TRIM_SD = 3.0
+
+
+def glare_explained(
+    pair: PairResult, view: Sensed, look: Look, threshold: float, settings: MissionSettings
+) -> bool:
+    """Whether a large blob is the strobe's light changed smoothly over the model's parts it lies on, not
+    their surface (seed §2.1, §2.3, §4): what is left of it, once the difference on each part under it
+    loses a smooth field (:func:`_part_light`), is no larger than a component's least change.
+
+    The strobe rides beside the lens: its glare on a glossy finish (Kapton, the cells' cover glass,
+    polished tanks) and its beam's fall stay where the camera puts them while registration moves the scene
+    by the viewpoint error, so a view compared with a reference taken from elsewhere reads a part's
+    strobe return changed by a field as smooth as the light, with a part's outline (the model placed on
+    the frame, :func:`rsi.mission.views.placed`) its only edge. A repaint's patch (seed §4: a disc of
+    15-40 mm) has an edge of its own inside the part, which no smooth field over the part takes out. At
+    space repeatability (8-12 px) truss-b development seeds 1968, 1969 and 2008 reported seven such
+    swaps: a Kapton circle 52 % darker and the next one brighter, a gradient across the solar panel and
+    across the B tank. A whole component repainted one way is the component checks'
+    (:func:`component_change`).
+    """
+    parts = view.capture.cad.parts
+    if parts is None:
+        return False
+    import cv2
+
+    detection = pair.detection
+    row0, col0, row1, col1 = look.bbox
+    blob = detection.mask[row0:row1, col0:col1]
+    ids = np.unique(parts[row0:row1, col0:col1][blob])
+    difference = detection.difference.astype(np.float64)
+    residual = difference.copy()
+    predicted = pair.inspection.astype(np.float64) - difference
+    for part in ids[ids >= 0]:
+        on = (parts == part) & detection.valid
+        light = _part_light(difference, predicted, detection.sigma, on)
+        if light is not None:
+            residual[on] -= light
+    variance = np.where(detection.valid, detection.sigma.astype(np.float64) ** 2, 0.0)
+    spread = np.sqrt(np.maximum(cv2.boxFilter(variance, -1, (3, 3), normalize=False), 1e-12))
+
+    def statistic(values: NDArray[np.float64]) -> NDArray[np.float64]:
+        summed = cv2.boxFilter(np.where(detection.valid, values, 0.0), -1, (3, 3), normalize=False)
+        return np.abs(summed[row0:row1, col0:col1]) / spread[row0:row1, col0:col1]
+
+    before = statistic(difference)
+    # the detector's own score, scaled by how much of its window's statistic the light's field explains
+    left = detection.score[row0:row1, col0:col1] * statistic(residual) / np.maximum(before, 1e-12)
+    kept_px = int((blob & (left > threshold)).sum())
+    return kept_px * look.area_m2 / max(look.flaw.area_px, 1) <= settings.component_area_m2
+
+
+def _part_light(
+    difference: NDArray[np.float64],
+    predicted: NDArray[np.float64],
+    sigma: NDArray[np.floating],
+    on: NDArray[np.bool_],
+) -> NDArray[np.float64] | None:
+    """The smooth field the strobe's light changed by over one part's pixels `on` (:func:`glare_explained`),
+    fitted by weighted least squares, trimmed once; None for a part of too few pixels."""
+    rows, cols = np.nonzero(on)
+    if rows.size < _LIGHT_FIT_MIN_PX:
+        return None
+    r = (rows - rows.mean()) / max(float(np.ptp(rows)), 1.0)
+    c = (cols - cols.mean()) / max(float(np.ptp(cols)), 1.0)
+    level = predicted[on] / max(float(np.mean(np.abs(predicted[on]))), 1e-9)
+    design = np.stack([np.ones_like(r), r, c, r * r, r * c, c * c, level, level * r, level * c], axis=1)
+    weight = 1.0 / np.maximum(sigma[on].astype(np.float64), 1e-6)
+    values = difference[on]
+    kept = np.ones(values.size, dtype=bool)
+    for _ in range(2):
+        coefficients, *_ = np.linalg.lstsq(
+            design[kept] * weight[kept, None], values[kept] * weight[kept], rcond=None
+        )
+        z = (values - design @ coefficients) * weight
+        spread = 1.4826 * float(np.median(np.abs(z[kept] - np.median(z[kept])))) + 1e-12
+        kept = np.abs(z - np.median(z[kept])) <= _LIGHT_FIT_TRIM_SD * spread
+        if kept.sum() < _LIGHT_FIT_MIN_PX:
+            break
+    fitted: NDArray[np.float64] = design @ coefficients
+    return fitted
+
+
 def screw_relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:
     """Height of the screw head above the plate around it in the stereo range map (seed §3, §4 screws).
 

@@ -181,6 +181,7 @@ def _shifted_model(cad: Any, shift: tuple[int, int]) -> Any:
             name: (_shifted(mask.astype(np.float32), shift, 0.0) > 0.5) & ~ahead & ~own
             for name, mask in cad.components.items()
         },
+        parts=None if cad.parts is None else _shifted(cad.parts, shift, -1.0).astype(np.int32),
     )
 
 

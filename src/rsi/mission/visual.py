@@ -35,6 +35,7 @@ from rsi.mission.evidence import (
     discoloured_components,
     discoloured_pixels,
     followed,
+    glare_explained,
     impact_sized,
     line_shaped,
     same_sign_again,
@@ -656,7 +657,11 @@ def _new_blobs(
         for look in looks
         if look.score > floor
         and (
-            (look.area_m2 > settings.component_area_m2 and broad(look, settings))
+            (
+                look.area_m2 > settings.component_area_m2
+                and broad(look, settings)
+                and not glare_explained(comparison.pair, view, look, floor, settings)
+            )
             or (
                 look.area_m2 <= settings.component_area_m2
                 and impact_sized(look, settings)

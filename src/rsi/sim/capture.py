@@ -43,11 +43,15 @@ class CadView:
         Pixels of the truss frame and the robot's own arm: not inspected surface.
     components : dict of str to ndarray of shape (M, N), bool
         Pixels of each swappable component the model puts in view.
+    parts : ndarray of shape (M, N), int32, or None
+        The model's part (one surface of one finish) in each pixel, as an id; -1 where none. None: not
+        drawn.
     """
 
     expected_depth_m: F32
     truss: BoolArray
     components: dict[str, BoolArray] = field(default_factory=dict)
+    parts: NDArray[np.int32] | None = None
 
 
 @dataclass(frozen=True)

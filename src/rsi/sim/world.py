@@ -676,7 +676,7 @@ class World:
             for site, ids in self._component_geoms.items()
             if (mask := np.isin(segments, ids)).any()
         }
-        return CadView(depth, np.isin(segments, self._truss_geoms), components)
+        return CadView(depth, np.isin(segments, self._truss_geoms), components, segments)
 
     def _with_own_body(
         self, depth: F32, segments: NDArray[np.int32], shape: tuple[int, int]
