@@ -240,7 +240,7 @@ def glare_explained(
     15-40 mm) has an edge of its own inside the part, which no smooth field over the part takes out. At
     space repeatability (8-12 px) truss-b development seeds 1968, 1969 and 2008 reported seven such
     swaps: a Kapton circle 52 % darker and the next one brighter, a gradient across the solar panel and
-    across the B tank. A whole component repainted one way is the component checks'
+    across the B plate. A whole component repainted one way is the component checks'
     (:func:`component_change`).
     """
     parts = view.capture.cad.parts
