@@ -190,8 +190,6 @@ def shift_explained(pair: PairResult, look: Look, threshold: float, max_shift_px
     quarter pixels; the best shift's peak, scaled by the look's score over the unshifted peak (the
     detector's own noise calibration), is compared with `threshold`.
     """
-    import cv2
-
     detection = pair.detection
     pad = math.ceil(max_shift_px) + 2
     row0, col0, row1, col1 = look.bbox
@@ -200,15 +198,13 @@ def shift_explained(pair: PairResult, look: Look, threshold: float, max_shift_px
     inspection = pair.inspection[r0:r1, c0:c1].astype(np.float32)
     predicted = inspection - detection.difference[r0:r1, c0:c1]
     valid = detection.valid[r0:r1, c0:c1]
-    variance = np.where(valid, detection.sigma[r0:r1, c0:c1] ** 2, np.float32(0.0)).astype(np.float32)
-    spread = np.sqrt(np.maximum(cv2.boxFilter(variance, -1, (3, 3), normalize=False), np.float32(1e-6)))
+    spread = _window_spread(detection.sigma[r0:r1, c0:c1].astype(np.float32), valid)
     inner = np.zeros_like(valid)
     inner[max(row0 - r0 - 1, 0) : row1 - r0 + 1, max(col0 - c0 - 1, 0) : col1 - c0 + 1] = True
     inner &= valid
 
     def peak(shift: tuple[float, float]) -> float:
-        residual = np.where(valid, inspection - _moved(predicted, shift), np.float32(0.0))
-        score = np.abs(cv2.boxFilter(residual, -1, (3, 3), normalize=False)) / spread
+        score = _window_score(inspection - _moved(predicted, shift), valid, spread)
         return float(score[inner].max()) if inner.any() else 0.0
 
     unshifted = peak((0.0, 0.0))
@@ -246,8 +242,6 @@ def glare_explained(
     parts = view.capture.cad.parts
     if parts is None:
         return False
-    import cv2
-
     detection = pair.detection
     row0, col0, row1, col1 = look.bbox
     blob = detection.mask[row0:row1, col0:col1]
@@ -260,18 +254,40 @@ def glare_explained(
         light = _part_light(difference, predicted, detection.sigma, on)
         if light is not None:
             residual[on] -= light
-    variance = np.where(detection.valid, detection.sigma.astype(np.float64) ** 2, 0.0)
-    spread = np.sqrt(np.maximum(cv2.boxFilter(variance, -1, (3, 3), normalize=False), 1e-12))
-
-    def statistic(values: NDArray[np.float64]) -> NDArray[np.float64]:
-        summed = cv2.boxFilter(np.where(detection.valid, values, 0.0), -1, (3, 3), normalize=False)
-        return np.abs(summed[row0:row1, col0:col1]) / spread[row0:row1, col0:col1]
-
-    before = statistic(difference)
+    # the blob's box and the window's reach around it: the 3 x 3 sums over its pixels, as over the frame
+    rows, cols = difference.shape
+    r0, c0, r1, c1 = max(row0 - 1, 0), max(col0 - 1, 0), min(row1 + 1, rows), min(col1 + 1, cols)
+    box = (slice(row0 - r0, row1 - r0), slice(col0 - c0, col1 - c0))
+    valid = detection.valid[r0:r1, c0:c1]
+    spread = _window_spread(detection.sigma[r0:r1, c0:c1].astype(np.float64), valid)
+    before = _window_score(difference[r0:r1, c0:c1], valid, spread)[box]
+    after = _window_score(residual[r0:r1, c0:c1], valid, spread)[box]
     # the detector's own score, scaled by how much of its window's statistic the light's field explains
-    left = detection.score[row0:row1, col0:col1] * statistic(residual) / np.maximum(before, 1e-12)
+    left = detection.score[row0:row1, col0:col1] * after / np.maximum(before, 1e-12)
     kept_px = int((blob & (left > threshold)).sum())
     return kept_px * look.area_m2 / max(look.flaw.area_px, 1) <= settings.component_area_m2
+
+
+def _window_spread(sigma: NDArray[np.floating], valid: NDArray[np.bool_]) -> NDArray[np.floating]:
+    """The noise of the 3 x 3 uniform flaw model's sum (seed §2.4) at every pixel, from its valid pixels."""
+    import cv2
+
+    variance = np.where(valid, sigma * sigma, 0.0).astype(sigma.dtype)
+    spread: NDArray[np.floating] = np.sqrt(
+        np.maximum(cv2.boxFilter(variance, -1, (3, 3), normalize=False), 1e-6)
+    )
+    return spread
+
+
+def _window_score(
+    residual: NDArray[np.floating], valid: NDArray[np.bool_], spread: NDArray[np.floating]
+) -> NDArray[np.floating]:
+    """The 3 x 3 uniform flaw model's statistic (seed §2.4) of `residual` on its valid pixels."""
+    import cv2
+
+    summed = cv2.boxFilter(np.where(valid, residual, 0.0).astype(residual.dtype), -1, (3, 3), normalize=False)
+    score: NDArray[np.floating] = np.abs(summed) / spread
+    return score
 
 
 def _part_light(
@@ -399,9 +415,9 @@ def screw_checks(
 # disc in the reference, every pixel in the strobe's field, none in the ambient's), and the comparison loses
 # the head's pattern there. The glint judges the head when its whole loss would stand this many standard
 # deviations of the binomial spread above chance (:func:`_glint_margin` at no glint left): a fraction of
-# the disc, not a fixed half. Truss-b's screw_B_3, seen 16 deg off its normal, keeps 0.40-0.47 of its disc
-# in glint, too much for the comparison to read and once under a fixed half of it: left unjudged, its
-# removal was missed (held-out seeds 1997, 2000, 2003).
+# the disc, not a fixed half. Truss-b's screw_B_3, seen 16 deg off its normal, keeps 0.26-0.47 of its disc
+# in glint, too much for the comparison to read and under a fixed half of it: left unjudged, its removal was
+# missed (held-out seeds 1997, 2000, 2003).
 GLINT_LOSS_MIN_SD = 3.0
 # A pixel's strobe return reaches the reference glint's floor within this many standard deviations of its
 # noise (a present head's pixel falls short of it once in ~700)
