@@ -115,6 +115,19 @@ def test_pixels_the_two_viewpoints_see_past_different_edges_leave_the_comparison
     assert not occluded[:60].any() and not occluded[180:].any()
 
 
+def test_a_false_match_of_the_reference_range_away_from_every_edge_is_no_occlusion() -> None:
+    reference, inspection, depth = _scene()
+    fit = fit_parallax(reference, inspection, depth, start_xy=(5.0, -3.0))
+    reference_depth = np.full(SHAPE, 0.5, np.float32)
+    reference_depth[80 + 4 - 2 : 160 + 4 - 2, 100 - 6 - 3 : 220 - 6 - 3] = 0.35
+    # the matcher's false match on a glinting screw head in the plate, 40 cm off, far from the box
+    reference_depth[20:30, 30:40] = 0.9
+    predicted = predict_reference(_compensated(reference), fit, depth, reference_range_m=reference_depth)
+    assert not predicted.occluded[10:40, 20:50].any()
+    assert predicted.reference.valid[25:30, 35:40].all()
+    assert predicted.occluded[75:165, 90:230].any()  # the box's outline still is one
+
+
 @pytest.mark.parametrize(
     ("call", "message"),
     [

@@ -25,6 +25,7 @@ CAD model's depth where the matcher had no answer).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import cv2
@@ -348,7 +349,9 @@ def predict_reference(
         The inspection's range map (metres; NaN where unknown: those pixels move with ``a`` alone).
     reference_range_m : ndarray of shape (M, N), optional
         The reference's own range map: where it differs from the inspection's by more than `occlusion_m`
-        at a pixel's preimage, the two viewpoints see different surfaces there (an occluding edge).
+        at a pixel's preimage, within the parallax of a step of more than `occlusion_m` in `range_m`, the
+        two viewpoints see different surfaces there (an occluding edge); farther from every step the
+        disagreement is a false match of the reference's range, and the pixel stays.
     range_std_m : float or ndarray
         One-sigma noise of `range_m`, metres (into the warp's uncertainty).
     occlusion_m : float
@@ -402,7 +405,7 @@ def predict_reference(
     if reference_range_m is not None:
         before = warp(np.asarray(reference_range_m, dtype=np.float32), cv2.INTER_NEAREST)
         with np.errstate(invalid="ignore"):
-            occluded = np.abs(before - seen_m) > occlusion_m
+            occluded = (np.abs(before - seen_m) > occlusion_m) & _near_steps(known, fit, occlusion_m)
         valid &= ~occluded
     std = fit.std_px(known, range_std_m)
     grad_x, grad_y = _gradients(image)
@@ -415,6 +418,26 @@ def predict_reference(
         interpolation_variance=warp(reference.interpolation_variance),
     )
     return Predicted(predicted, before, std, occluded)
+
+
+# Pixels beyond the parallax from a depth step: the model's step drawn a pixel or two off, and the range's
+# nearest-neighbour sampling across it
+_STEP_MARGIN_PX = 2
+
+
+def _near_steps(depth_m: F32, fit: ParallaxFit, step_m: float) -> NDArray[np.bool_]:
+    """Pixels within the parallax about the fit's shift of a step of more than `step_m` in `depth_m`.
+
+    Two viewpoints see different surfaces only next to an occluding edge, no farther from it than the
+    edge's parallax between them (seed §2.3): ``|b| |1/Z - 1/Z0|`` at the scene's nearest or farthest
+    surface. A range that disagrees anywhere else is the matcher's false match (a glint, a dark texture:
+    docs/mission.md), not an occlusion, and its pixel stays in the comparison.
+    """
+    offset = float(np.abs(_inverse_depth(depth_m) - np.float32(fit.inverse_depth_m)).max())
+    reach = math.ceil(float(np.hypot(*fit.parallax_px_m)) * offset) + _STEP_MARGIN_PX
+    window = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
+    spread = cv2.dilate(depth_m, window) - cv2.erode(depth_m, window)
+    return np.asarray(spread > step_m, dtype=bool)
 
 
 def _translated(values: F32, shift_xy: tuple[float, float]) -> F32:
