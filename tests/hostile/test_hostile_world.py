@@ -183,6 +183,7 @@ def _world_values(world: World) -> dict[str, st.SearchStrategy[Any]]:
         "unsensed_offset_m": st.just((0.0, 0.0)),
         "strobe_energy": st.floats(0.5, 2.0),
         "shutter": st.floats(0.2, 1.0),
+        "key": st.sampled_from(["reference/A_door/0", "inspection/B_tank/1"]),
     }
 
 
@@ -223,6 +224,7 @@ WORLD_METHODS = (
     "reflash",
     "overview",
     "overview_picture",
+    "begin_visit",
 )
 # Without arguments: one call each is the whole input space.
 WORLD_READOUTS = ("readouts", "close")

@@ -106,7 +106,17 @@ def _stored(reference: Any, second: Any, range_m: Any, second_range_m: Any) -> S
 
 
 def _comparison(tour: Any) -> tuple[Any, Any, Any]:
-    """(view, pair, shift) of a flaw-free inspection of the D tubing against two pristine visits."""
+    """(view, pair, shift) of a flaw-free inspection of the D tubing against two pristine visits, the
+    first of up to four draws whose registration moves the scene past the guard band (2 px): two visits'
+    space errors (8-12 px each) can lie close together."""
+    for _ in range(4):
+        view, pair, shift = _one_comparison(tour)
+        if math.hypot(*shift) > 3.0:
+            break
+    return view, pair, shift
+
+
+def _one_comparison(tour: Any) -> tuple[Any, Any, Any]:
     settings = MissionSettings()
     reference = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
     second = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))

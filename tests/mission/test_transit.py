@@ -164,6 +164,25 @@ def test_same_seed_same_visits_frames_and_suns() -> None:
         assert np.array_equal(one.phase, two.phase)
 
 
+def test_a_second_look_leaves_every_later_visit_as_it_was() -> None:
+    """Each visit draws from its own stream (pass, plan point, its how-many-th visit there): a second look
+    at one point takes nothing from the next point's viewpoint error or noise (free camera, no orbit: the
+    same light at every visit)."""
+    frames = []
+    for looks in (1, 2):
+        built = load("truss", seed=SEED)
+        tour = Tour(built, seed=SEED, size=TINY, arm=False, orbit=False)
+        tour.start_pass("inspection", 500.0)
+        for _ in range(looks):
+            tour.visit("A_kapton", "A_kapton", state="inspection", truth=False)
+        taken = tour.visit("B_tank", "B_tank", state="inspection", truth=False)
+        frames.append((taken.frames[0].raw, tour.views[-1][1].pose_error_px, tour.views[1][1].pose_error_px))
+        built.close()
+    (one, error_one, _), (two, error_two, second_look) = frames
+    assert np.array_equal(one, two) and error_one == error_two
+    assert second_look != tour.views[0][1].pose_error_px  # the second look is a visit of its own
+
+
 # -------------------------------------------------------------------------------------------- tour
 
 

@@ -93,6 +93,37 @@ def test_reference_and_inspection_visits_are_misregistered_by_the_drawn_error(wo
     assert abs(2 * dy_field - expected[1]) < 0.5
 
 
+def test_a_visit_begun_by_name_draws_the_same_whatever_was_rendered_before() -> None:
+    """`World.begin_visit`: one visit's viewpoint error and camera noise come from its own stream, so an
+    extra frame before it (a second look) changes nothing of it; another name draws another visit."""
+    runs = []
+    for before in ((), ("A_kapton",), ("A_kapton", "B_tank")):
+        twin = load("truss", seed=SEED, settings=SETTINGS)
+        try:
+            for name in before:
+                twin.render(name, size=SMALL, state="reference", truth=False)
+            twin.begin_visit("inspection/D_tubing/0")
+            runs.append(twin.render("D_tubing", size=SMALL, state="inspection", truth=False))
+            twin.begin_visit("inspection/D_tubing/1")
+            runs.append(twin.render("D_tubing", size=SMALL, state="inspection", truth=False))
+        finally:
+            twin.close()
+    first, again = runs[0], runs[1]
+    for same, other in zip(runs[0::2], runs[1::2], strict=True):
+        assert same.pose_error_px == first.pose_error_px
+        assert np.array_equal(same.frame.raw, first.frame.raw)
+        assert np.array_equal(same.believed_pose.position_m, first.believed_pose.position_m)
+        assert other.pose_error_px == again.pose_error_px
+    assert first.pose_error_px != again.pose_error_px
+    assert not np.array_equal(first.frame.raw, again.frame.raw)
+
+
+@pytest.mark.parametrize("key", ["", 3, None])
+def test_a_visit_needs_a_name(world: World, key: object) -> None:
+    with pytest.raises(InputError, match="key must be a non-empty string"):
+        world.begin_visit(key)  # type: ignore[arg-type]
+
+
 def test_stereo_depth_and_readouts(world: World) -> None:
     view = world.render("B_tank", size=SMALL, stereo=True)
     assert view.stereo is not None

@@ -8,6 +8,7 @@ sun at the visit's mission-clock time, and the frame from where the arm holds th
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -15,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
-from rsi._seeds import SeedLike, seed_sequence
+from rsi._seeds import SeedLike, keyed, seed_sequence
 from rsi.errors import InputError
 from rsi.mission.sun import SunSetting, lamp_move_s, light_by_sun, sun_setting
 from rsi.mission.transit import Transit, transit
@@ -69,9 +70,8 @@ class Tour:
         self.size = size
         self.arm = arm
         self.orbit = orbit
-        draws, noise = seed_sequence(seed).spawn(2)
-        self._draws = np.random.default_rng(draws)
-        self._noise = np.random.default_rng(noise)
+        self._streams = seed_sequence(seed)
+        self._visits: Counter[tuple[str, str]] = Counter()
         self.clock_s = 0.0
         self.stage = ""
         self.transits: list[Transit] = []
@@ -124,13 +124,20 @@ class Tour:
         from rsi.sim.world import REPEATABILITY_PX
 
         world_vista(self.world, vista)
+        # each visit draws from its own stream (the pass, the plan point, its how-many-th visit there): a
+        # second look taken or not leaves every other visit's viewpoint error and noise as they were
+        key = f"{self.stage}/{label}/{self._visits[self.stage, label]}"
+        self._visits[self.stage, label] += 1
+        self.world.begin_visit(key)
+        draws, noise = keyed(self._streams, key).spawn(2)
         if not self.arm:
             self.clock_s += NOMINAL_TRANSIT_S if self.orbit else 0.0
             self._light(label, vista)
             self.clock_s += FRAME_S
             return self.world.render(vista, size=self.size, state=state, truth=truth, stereo=True)
         low, high = REPEATABILITY_PX[self.world.repeatability]
-        magnitude, angle = self._draws.uniform(low, high), self._draws.uniform(0.0, 2 * math.pi)
+        draw = np.random.default_rng(draws)
+        magnitude, angle = draw.uniform(low, high), draw.uniform(0.0, 2 * math.pi)
         # seed §2.3: the arm misses the vista by its repeatability (flexure, thermal growth: not in the
         # encoders); World.render's draw, as a goal offset
         offset_px = magnitude * np.array([math.cos(angle), math.sin(angle)])
@@ -139,7 +146,7 @@ class Tour:
             self.world,
             vista,
             offset_m=(float(offset_m[0]), float(offset_m[1])),
-            rng=self._noise.spawn(1)[0],
+            rng=np.random.default_rng(noise),
             label=label,
             stage=self.stage,
             clock_s=self.clock_s,

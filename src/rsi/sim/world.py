@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi import _validate as v
-from rsi._seeds import SeedLike, seed_number, seed_sequence
+from rsi._seeds import SeedLike, keyed, seed_number, seed_sequence
 from rsi.errors import InputError
 from rsi.imaging.camera import DEFAULT_CAMERA, CameraModel, Frame, expose
 from rsi.sim import fields
@@ -218,10 +218,8 @@ class World:
         self.camera = camera
         self.seed = seed_number(seed)
         # the world's own streams, spawned once from its seed: viewpoint errors and camera noise
-        poses, noise, encoders = seed_sequence(seed).spawn(3)
-        self._pose_rng = np.random.default_rng(poses)
-        self._noise_rng = np.random.default_rng(noise)
-        self._encoder_rng = np.random.default_rng(encoders)
+        self._streams = seed_sequence(seed)
+        self._start_streams(self._streams)
         model, index = build_model(
             mockup, anomalies, arm_home_tool_tip_m=arm_home_tool_tip_m(mockup) if arm else None
         )
@@ -518,6 +516,18 @@ class World:
             group: renderer.luminance(self.data, camera, state=state, lights=tuple(ids))
             for group, ids in self._lights.items()
         }
+
+    def begin_visit(self, key: str) -> None:
+        """Draw the next frames' viewpoint error, encoder noise and camera noise from the stream of the
+        visit named `key` (:func:`rsi._seeds.keyed` under the world's seed): the same visit gets the same
+        draws whatever was rendered before it. Without it, every frame draws on from the one before."""
+        self._start_streams(keyed(self._streams, key))
+
+    def _start_streams(self, root: np.random.SeedSequence) -> None:
+        poses, noise, encoders = root.spawn(3)
+        self._pose_rng = np.random.default_rng(poses)
+        self._noise_rng = np.random.default_rng(noise)
+        self._encoder_rng = np.random.default_rng(encoders)
 
     def render_all_lights(self, camera: str = "isee", *, size: tuple[int, int] = DEFAULT_SIZE) -> F32:
         """Luminance with every light group on at once (to check that the basis images add up)."""
