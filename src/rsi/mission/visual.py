@@ -833,17 +833,21 @@ def _found_again(
     world: World,
     settings: MissionSettings,
 ) -> tuple[list[tuple[MissionFinding, Explanation]], tuple[int, int, int]]:
-    """The swaps that a changed reflectance showed, kept where the second look reads them again; the dents
-    (a stereo relief, :func:`rsi.mission.evidence.sinking`) as they are. Returns the checks and (second
-    looks, confirmed, rejected).
+    """The swaps that a changed reflectance or a dent (a stereo relief, :func:`rsi.mission.evidence.sinking`)
+    showed, kept where the second look reads them again. Returns the checks and (second looks, confirmed,
+    rejected).
 
     Seed §2.5: a doubtful finding gets a second look. A replacement reflects 0.4-0.8 or 1.2-1.5 times the
     original (seed §4) from every viewpoint; what a viewpoint error alone made of a pristine component (the
     strobe's glare moved on it, its beam's fall) does not come back with another: truss-b seeds 1970 and
     1972 in space read a pristine ORU 14 % and 10 % changed, and 0 % on the second look, where every
-    discoloured replacement of seeds 1968-1975 read again within 0.04 of its first reading.
+    discoloured replacement of seeds 1968-1975 read again within 0.04 of its first reading. A dent is the
+    surface's shape, there from every viewpoint; the stereo matcher's false matches on the panel's dark
+    cells are not (truss seed 2021 in space, the CAD plan's view of the panel from above: a pristine panel
+    read 4 mm sunk).
     """
-    doubtful = [explanation.component for _, explanation in checks if explanation.component is not None]
+    names = {site.position_m: site.name for site in world.mockup.candidates.component_sites}
+    doubtful = [names[finding.position_m] for finding, _ in checks]
     if not doubtful:
         return checks, (0, 0, 0)
     view = again.view
@@ -862,7 +866,7 @@ def _found_again(
             only={name},
         )
     }
-    kept = [(f, e) for f, e in checks if e.component is None or e.component in confirmed]
+    kept = [(f, e) for f, e in checks if names[f.position_m] in confirmed]
     return kept, (len(doubtful), len(confirmed), len(doubtful) - len(confirmed))
 
 
