@@ -129,13 +129,13 @@ class Tour:
         key = f"{self.stage}/{label}/{self._visits[self.stage, label]}"
         self._visits[self.stage, label] += 1
         self.world.begin_visit(key)
-        draws, noise = keyed(self._streams, key).spawn(2)
         if not self.arm:
             self.clock_s += NOMINAL_TRANSIT_S if self.orbit else 0.0
             self._light(label, vista)
             self.clock_s += FRAME_S
             return self.world.render(vista, size=self.size, state=state, truth=truth, stereo=True)
         low, high = REPEATABILITY_PX[self.world.repeatability]
+        draws, noise = keyed(self._streams, key).spawn(2)
         draw = np.random.default_rng(draws)
         magnitude, angle = draw.uniform(low, high), draw.uniform(0.0, 2 * math.pi)
         # seed §2.3: the arm misses the vista by its repeatability (flexure, thermal growth: not in the
