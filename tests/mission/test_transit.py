@@ -248,6 +248,8 @@ def test_bad_input_names_the_argument(world: World) -> None:
         (lambda: Tour(world, seed=0, size=TINY, orbit=1), "orbit"),  # type: ignore[arg-type]
         (lambda: Tour(world, seed=0, size=TINY).start_pass("rehearsal", 0.0), "stage"),
         (lambda: Tour(world, seed=0, size=TINY).start_pass("reference", -1.0), "start_s"),
+        (lambda: Tour(world, seed=0, size=TINY).visit("", "A_door", state="reference"), "label"),
+        (lambda: Tour(world, seed=0, size=TINY).visit(["A"], "A_door", state="reference"), "label"),  # type: ignore[arg-type]
         (lambda: Tour(world, seed=0, size=TINY).visit("X", "nowhere", state="reference"), "vista"),
         (lambda: run_mission(0, arm="yes"), "arm"),  # type: ignore[arg-type]
         (lambda: run_mission(0, orbit=None), "orbit"),  # type: ignore[arg-type]

@@ -102,6 +102,8 @@ class Tour:
         CAD expectation). The simulator's record of the visit, its truth, goes to :attr:`views` for scoring
         (`truth` False: the frames only, no rendered truth).
         """
+        if not isinstance(label, str) or not label:
+            raise InputError(f"label must be a non-empty string naming the plan point; got {label!r}.")
         view = self._view(label, vista, state=state, truth=truth)
         self.views.append((label, view))
         self._pre_flash = view
