@@ -699,3 +699,95 @@ def test_a_smooth_change_over_a_part_is_the_strobes_light_and_a_patch_inside_it_
         no_model = SimpleNamespace(capture=SimpleNamespace(cad=SimpleNamespace(parts=None)))
         assert not glare_explained(pair, no_model, look, confirm, SETTINGS)  # type: ignore[arg-type]
     assert explained == {"glare": True, "patch": False}
+
+
+@pytest.fixture(scope="module")
+def tank_view() -> Any:
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=0)
+    try:
+        view = _sensed_at(world, "B_tank", (480, 640))
+        site = next(s for s in world.mockup.candidates.component_sites if s.name == "B_tank")
+    finally:
+        world.close()
+    return view, site
+
+
+def _sensed_at(world: Any, vista: str, size: tuple[int, int]) -> Any:
+    from rsi.mission.views import sense
+    from rsi.sim.capture import capture
+
+    return sense(capture(world, world.render(vista, size=size, state="reference", stereo=True)))
+
+
+def _ranged(model: np.ndarray, mask: np.ndarray, seed: int) -> np.ndarray:
+    """A range map of the model's surface over `mask`: 0.5 mm of matching noise a pixel, holes elsewhere."""
+    noise = np.random.default_rng(seed).normal(0.0, 5e-4, model.shape)
+    return np.where(mask, model + noise, np.nan).astype(np.float32)
+
+
+@pytest.mark.parametrize("case", ["pristine", "dented", "reference off on a strip", "model off on a strip"])
+def test_a_dent_sinks_against_the_reference_and_the_model_at_one_place(tank_view: Any, case: str) -> None:
+    from rsi.mission.evidence import sinking
+    from rsi.mission.views import field_to_world
+
+    view, site = tank_view
+    mask = view.capture.cad.components["B_tank"]
+    model = view.capture.cad.expected_depth_m.astype(np.float64)
+    rows, cols = np.nonzero(mask)
+    centre = (int(np.median(rows)), int(np.median(cols)))
+    now, before, believed = _ranged(model, mask, 1), _ranged(model, mask, 2), model.copy()
+    strip = mask & (np.abs(np.arange(mask.shape[1]) - cols.min() - 20) < 12)[None, :]
+    if case == "dented":
+        grid_r, grid_c = np.mgrid[0 : mask.shape[0], 0 : mask.shape[1]]
+        crater = 4e-3 * np.exp(-((grid_r - centre[0]) ** 2 + (grid_c - centre[1]) ** 2) / (2 * 20.0**2))
+        now = (now + crater).astype(np.float32)
+    elif case == "reference off on a strip":  # a prediction that failed there: 12 mm nearer
+        before[strip] -= np.float32(0.012)
+    elif case == "model off on a strip":  # a model the believed pose placed badly there
+        believed[strip] -= 0.012
+    cad = dataclasses.replace(view.capture.cad, expected_depth_m=believed.astype(np.float32))
+    seen = dataclasses.replace(view, range_m=now, capture=dataclasses.replace(view.capture, cad=cad))
+    sunk = sinking(seen, before, (0.0, 0.0), site)
+    if case != "dented":
+        assert sunk.sunk_m < SETTINGS.dent_relief_min_m
+        return
+    assert 0.6 * 4e-3 < sunk.sunk_m < 4e-3  # the 2 cm patch's mean less the others' spread
+    assert sunk.position_m is not None
+    at = field_to_world(seen, *map(float, centre))
+    assert at is not None and math.dist(sunk.position_m, at) < 0.02
+
+
+def test_a_screws_relief_is_known_as_well_as_the_range_maps_own_scatter_allows(tank_view: Any) -> None:
+    from rsi.mission.evidence import screw_relief_sigma_m
+
+    view, _ = tank_view
+    screw = _screw_in_view(view)
+    model = view.capture.cad.expected_depth_m.astype(np.float64)
+    rows, cols = np.indices(model.shape)
+    plane = 0.4 + 2e-4 * rows + 1e-4 * cols  # a plate seen obliquely: centimetres across the frame
+    noise = np.random.default_rng(3).normal(0.0, 1.0, model.shape)
+    quiet = screw_relief_sigma_m(plane.astype(np.float32), view, screw)
+    one = screw_relief_sigma_m((plane + 1e-3 * noise).astype(np.float32), view, screw)
+    two = screw_relief_sigma_m((plane + 2e-3 * noise).astype(np.float32), view, screw)
+    assert quiet < 1e-6  # the plane is taken out: only the scatter about it counts
+    assert two == pytest.approx(2.0 * one, rel=0.1)
+    # 1 mm a pixel over the head's and the ring's pixels, 25 to a matching block, through a median
+    assert 2e-4 < one < 2e-3
+    holes = np.full(model.shape, np.nan, np.float32)
+    assert math.isnan(screw_relief_sigma_m(holes, view, screw))
+
+
+def _screw_in_view(view: Any) -> Any:
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=0)
+    try:
+        from rsi.mission.views import visible
+
+        screws = world.mockup.candidates.screw_sites
+        seen = visible(view, np.asarray([s.position_m for s in screws]))
+        return next(site for site, in_view in zip(screws, seen, strict=True) if in_view)
+    finally:
+        world.close()

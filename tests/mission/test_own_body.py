@@ -40,6 +40,17 @@ def test_the_jaws_are_the_only_model_nearer_than_their_length(tour: Any) -> None
     assert surface.min() > 3 * JAW_LENGTH_M  # the mock-up lies at the standoff, far beyond the jaws
 
 
+def test_the_jaws_in_view_leave_the_range_map_whole(tour: Any) -> None:
+    # the stereo search spans the model's depths but the jaws': at 5 cm they asked for disparities past the
+    # frame's width, and the matcher left every column of the frame unranged
+    sensed = sense(tour.visit("D_tubing", "D_tubing", state="reference", truth=False))
+    own = own_body(sensed.capture.cad)
+    surface = ~own & (sensed.capture.cad.expected_depth_m < 5.0)
+    assert own.any() and surface.sum() > 50_000
+    assert np.isfinite(sensed.range_m[surface]).mean() > 0.5
+    assert not np.isfinite(sensed.range_m[own]).any()
+
+
 def test_placing_the_model_moves_the_scene_and_leaves_the_jaws(tour: Any) -> None:
     from rsi.imaging.compensation import compensate_field_pair
 

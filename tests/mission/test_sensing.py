@@ -169,6 +169,38 @@ def test_the_range_map_is_matched_within_the_rigs_physics(world: World) -> None:
     assert np.isfinite(sensed.surface_m[surface]).all()
 
 
+@pytest.mark.parametrize("near_m", [0.4, 0.1])
+def test_every_column_searches_the_disparities_its_position_allows(world: World, near_m: float) -> None:
+    # OpenCV's matcher leaves its first minDisparity + numDisparities columns empty: a near limit of 0.1 m
+    # (a close surface, the ISEE's jaws) asks for ~460 px of disparity and left 460 of 640 columns unranged
+    view = world.render("B_tank", size=(480, 640), stereo=True)
+    assert view.stereo is not None and view.depth_m is not None
+    rig = StereoRig(view.pose.focal_px, (480, 640), 0.06)
+    ranges = range_map(*view.stereo, rig, depth_limits_m=(near_m, 2.0))
+    truth = view.depth_m
+    columns = np.arange(640)[None, :]
+    with np.errstate(divide="ignore"):
+        disparity = rig.focal_px * rig.baseline_m / truth
+    seen_by_both = (truth < 10.0) & (columns >= disparity + 3)  # the right camera sees the point
+    left, right = seen_by_both & (columns < 320), seen_by_both & (columns >= 320)
+    matched = np.isfinite(ranges)
+    assert left.sum() > 10_000 and right.sum() > 10_000
+    assert matched[left].mean() > 0.6
+    assert matched[left].mean() > 0.8 * matched[right].mean()
+
+
+def test_no_range_is_given_where_the_right_camera_cannot_see(world: World) -> None:
+    # a point whose disparity exceeds its column is outside the right frame: any match there is the padding's
+    view = world.render("B_tank", size=(480, 640), stereo=True)
+    assert view.stereo is not None
+    rig = StereoRig(view.pose.focal_px, (480, 640), 0.06)
+    ranges = range_map(*view.stereo, rig, depth_limits_m=(0.2, 2.0))
+    rows, columns = np.nonzero(np.isfinite(ranges))
+    assert columns.size > 0
+    disparity = rig.focal_px * rig.baseline_m / ranges[rows, columns]
+    assert np.all(columns >= disparity - 1e-3)
+
+
 def test_sigma_z_is_the_derivative_of_triangulation() -> None:
     rig = StereoRig(focal_px=800.0, shape=(480, 640), baseline_m=0.06)
     z, d = 0.5, 800.0 * 0.06 / 0.5

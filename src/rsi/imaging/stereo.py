@@ -25,7 +25,7 @@ F32 = NDArray[np.float32]
 
 # SGBM's block and penalties: a 5 px block keeps a ~1 mm screw head's edge within a few pixels, and
 # P1 = 8 b^2, P2 = 32 b^2 are OpenCV's documented choice for one-channel images (StereoSGBM docs).
-_BLOCK_PX = 5
+BLOCK_PX = 5
 # a match must beat the second best by 10 % (OpenCV's suggested 5-15) or the pixel is a hole
 _UNIQUENESS_PERCENT = 10
 # islands of disparity smaller than this many pixels, varying by more than 2 px, are speckle: holes
@@ -132,19 +132,32 @@ def range_map(
     matcher = cv2.StereoSGBM_create(  # type: ignore[attr-defined]
         minDisparity=low,
         numDisparities=count,
-        blockSize=_BLOCK_PX,
-        P1=8 * _BLOCK_PX**2,
-        P2=32 * _BLOCK_PX**2,
+        blockSize=BLOCK_PX,
+        P1=8 * BLOCK_PX**2,
+        P2=32 * BLOCK_PX**2,
         uniquenessRatio=_UNIQUENESS_PERCENT,
         speckleWindowSize=_SPECKLE_PX,
         speckleRange=_SPECKLE_RANGE_PX,
         mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
     )
-    first8, second8 = (np.clip(image, 0, 255).astype(np.uint8) for image in (first, second))
-    disparity = matcher.compute(first8, second8).astype(np.float32) / 16.0  # fixed point, 4 fraction bits
+    # OpenCV's matcher answers only in the columns that have the whole search to their left (it leaves the
+    # first minDisparity + numDisparities columns empty): a frame whose model reaches near asked for half
+    # its width and lost the left half of its ranges, all of them when the ISEE's jaws set the near limit.
+    # Both fields are padded on the left by that many columns (their edge column repeated, no gradient to
+    # match on) and cut back after, so every column searches the disparities its own position allows.
+    pad = low + count
+    first8, second8 = (
+        cv2.copyMakeBorder(np.clip(image, 0, 255).astype(np.uint8), 0, 0, pad, 0, cv2.BORDER_REPLICATE)
+        for image in (first, second)
+    )
+    disparity = matcher.compute(first8, second8)[:, pad:].astype(np.float32) / 16.0  # 4 fraction bits
+    # a match in the padding is no match: the right camera does not see that point
+    seen_by_both = np.arange(disparity.shape[1], dtype=np.float32)[None, :] >= disparity
     with np.errstate(divide="ignore"):
         depth = np.where(
-            (disparity > low - 0.5) & (disparity > 0), np.float32(focal_baseline) / disparity, np.nan
+            (disparity > low - 0.5) & (disparity > 0) & seen_by_both,
+            np.float32(focal_baseline) / disparity,
+            np.nan,
         )
     # each field row stands for the two frame rows it was read between
     full = np.repeat(depth.astype(np.float32), 2, axis=0)
@@ -153,4 +166,4 @@ def range_map(
     return np.ascontiguousarray(full[: rig.shape[0]])
 
 
-__all__ = ["StereoRig", "range_map"]
+__all__ = ["BLOCK_PX", "StereoRig", "range_map"]

@@ -337,6 +337,39 @@ def screw_relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> fl
     return float(np.median(range_m[plate]) - np.median(range_m[head]))
 
 
+# A relief loss counts when it stands this many of its standard deviations clear (the relief's noise is
+# Gaussian-like once taken over blocks; 3 sigma: one false loss in ~700 screws read).
+_RELIEF_SIGMAS = 3.0
+
+
+def screw_relief_sigma_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> float:
+    """Standard deviation of :func:`screw_relief_m` from the range map's own scatter around the screw.
+
+    The plate ring's ranges, less the plane through them (a plate seen at 45 deg falls by centimetres across
+    it), scatter by the matcher's per-pixel error, which depends on the texture (0.1-0.5 px of disparity on
+    the mock-up's surfaces, against the rendered depth). A match is a 5 px block, so the pixels of one
+    block share an error: a median over n pixels is good to ``1.25 sigma / sqrt(n / 25)``. NaN where
+    :func:`screw_relief_m` is.
+    """
+    from rsi.imaging.stereo import BLOCK_PX
+
+    distance = surface_distance_m(range_m.shape, view, site.position_m)
+    radius = 0.5 * site.size_m
+    usable = np.isfinite(range_m) & (range_m < 10.0)
+    head = (distance <= 0.6 * radius) & usable
+    plate = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & usable
+    if head.sum() < 5 or plate.sum() < 10:
+        return math.nan
+    rows, cols = np.nonzero(plate)
+    design = np.column_stack([np.ones(rows.size), rows, cols]).astype(np.float64)
+    ranges = range_m[plate].astype(np.float64)
+    residual = ranges - design @ np.linalg.lstsq(design, ranges, rcond=None)[0]
+    per_pixel = 1.4826 * float(np.median(np.abs(residual - np.median(residual))))
+    blocks = float(BLOCK_PX**2)
+    spread = per_pixel * MEDIAN_SE * math.sqrt(blocks / head.sum() + blocks / plate.sum())
+    return spread
+
+
 def screw_checks(
     world: World,
     view: Sensed,
@@ -389,7 +422,9 @@ def screw_checks(
         if kept:
             continue  # the reference's head is still there, whatever the range or a few edges say
         lost = before - screw_relief_m(range_m, view, site)
-        if resolved and math.isfinite(lost) and lost > settings.screw_relief_lost_m:
+        # the reference's relief was read from the same vista, with the same scatter as this one's
+        surely = _RELIEF_SIGMAS * math.sqrt(2.0) * screw_relief_sigma_m(range_m, view, site)
+        if resolved and math.isfinite(lost) and lost > max(settings.screw_relief_lost_m, surely):
             margin, score = (lost - settings.screw_relief_lost_m) / 2e-4, lost
         elif (now := _glint_left(glint, view, site)) is not None:
             margin, score = _glint_margin(glint, now, view, site), glint.fraction - now
@@ -636,8 +671,9 @@ _DENT_CLIP_M = 0.015
 
 @dataclass(frozen=True)
 class Sinking:
-    """The most sunk ~2 cm patch of a component since the reference: how far beyond the rest of the
-    component it sank (metres; above the patches' median by more than their spread says), and where."""
+    """The most sunk ~2 cm patch of a component, since the reference and against the CAD model: how far
+    beyond the rest of the component it sank (metres; above the patches' median by more than their spread
+    says), and where."""
 
     sunk_m: float
     position_m: tuple[float, float, float] | None = None
@@ -646,14 +682,21 @@ class Sinking:
 def sinking(
     view: Sensed, reference_m: NDArray[np.float32], shift_xy: tuple[float, float], site: Site
 ) -> Sinking:
-    """How far the component's surface sank since the reference at its most sunk ~2 cm patch (seed §4).
+    """How far the component's surface sank at its most sunk ~2 cm patch (seed §4), against both the
+    reference's range map and the pristine CAD model.
 
-    The reference's range map is moved by the registered shift `shift_xy` (reference to inspection) and
-    subtracted from this visit's over the component's pixels in the CAD projection, where both ranges were
-    matched; a dent anywhere on the component (not only at its site) shows as a patch that moved away.
-    A dent is local: the patch must stand out from the component's other patches, so it is measured above
-    their median, less four robust sigmas of them (1.4826 MAD), which a component whose dark, plain skin the
-    matcher reads poorly (solar cells) raises instead of reporting its noise as a dent.
+    The reference's range map is moved by the registered shift `shift_xy` (reference to inspection); the
+    CAD model's depth is the one placed on this visit's frame. Each is subtracted from this visit's range
+    over the component's pixels in the CAD projection, and a dent anywhere on the component (not only at its
+    site) shows as a patch that moved away from both, at the same place. Each stands for the surface before
+    and each fails its own way: the reference's range, moved into this view, where the prediction does (at
+    the CAD plan's point that sees the ORU face as a strip past the door, a pristine face read 12-17 mm sunk
+    against it, development seeds 2017 and 2023 in space), the model where the believed pose tilts it
+    (a pristine panel 3.2 mm, seed 2017); a dent sank against both (seed §4: the replacement is a change of
+    the pristine structure, seen since the reference). A dent is local: the patch must stand out from the
+    component's other patches, so it is measured above their median, less four robust sigmas of them
+    (1.4826 MAD), which a component whose dark, plain skin the matcher reads poorly (solar cells) raises
+    instead of reporting its noise as a dent.
     """
     import cv2
 
@@ -663,21 +706,36 @@ def sinking(
     rows, cols = reference_m.shape
     move = np.array([[1.0, 0.0, shift_xy[0]], [0.0, 1.0, shift_xy[1]]], dtype=np.float32)
     before = cv2.warpAffine(reference_m, move, (cols, rows), flags=cv2.INTER_NEAREST, borderValue=math.nan)
-    change = view.range_m - before
+    since_reference, inside = _sunk_patches(view.range_m - before, mask)
+    against_model, modelled = _sunk_patches(view.range_m - view.capture.cad.expected_depth_m, mask)
+    inside &= modelled
+    if not inside.any():
+        return Sinking(0.0)
+    both = np.where(inside, np.minimum(since_reference, against_model), -np.inf)
+    row, col = np.unravel_index(int(np.argmax(both)), both.shape)
+    return Sinking(float(both[row, col]), field_to_world(view, float(row), float(col)))
+
+
+def _sunk_patches(
+    change: NDArray[np.float32], mask: NDArray[np.bool_]
+) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+    """How far each ~2 cm patch of the component sank beyond its other patches (metres: the patch's mean
+    `change` above their median, less four robust sigmas of them), and the patches read: inside the
+    component and ranged over half their pixels."""
+    import cv2
+
     usable = mask & np.isfinite(change)
     clipped = np.where(usable, np.clip(change, -_DENT_CLIP_M, _DENT_CLIP_M), 0.0).astype(np.float32)
     window = (_DENT_WINDOW_PX, _DENT_WINDOW_PX)
     share = cv2.blur(usable.astype(np.float32), window)
-    mean = cv2.blur(clipped, window) / np.maximum(share, np.float32(1e-6))
+    mean = np.asarray(cv2.blur(clipped, window) / np.maximum(share, np.float32(1e-6)), dtype=np.float32)
     inside = cv2.erode(mask.astype(np.uint8), np.ones(window, np.uint8)).astype(bool) & (share > 0.5)
     if inside.sum() < 2:
-        return Sinking(0.0)
+        return mean, np.zeros_like(inside)
     patches = mean[inside]
     centre = float(np.median(patches))
     spread = 1.4826 * float(np.median(np.abs(patches - centre)))
-    row, col = np.unravel_index(int(np.argmax(np.where(inside, mean, -np.inf))), mean.shape)
-    depth = float(patches.max()) - centre - 4.0 * spread
-    return Sinking(depth, field_to_world(view, float(row), float(col)))
+    return np.asarray(mean - np.float32(centre + 4.0 * spread), dtype=np.float32), inside
 
 
 def _central_disc(

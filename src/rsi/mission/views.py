@@ -77,7 +77,8 @@ def sense(capture: Capture) -> Sensed:
     strobe = compensate_field_pair(*capture.frames)
     capture = placed(capture, strobe.image)
     expected = capture.cad.expected_depth_m
-    surface = expected < FAR_M
+    # the ISEE's own jaws (seed §3.1) are never ranged: at 5 cm they asked for disparities past the frame
+    surface = (expected < FAR_M) & ~own_body(capture.cad)
     near, far = (
         (float(expected[surface].min()), float(expected[surface].max())) if surface.any() else (0.2, 2.0)
     )
