@@ -494,6 +494,26 @@ def test_a_removed_screw_loses_its_head_pattern_and_a_present_one_keeps_it() -> 
     assert min(change["screw_B_1"], change["screw_B_3"]) > confirm
     assert max(change["screw_B_0"], change["screw_B_2"]) < confirm
     assert screw_change(pair, seen, sites["screw_D_0"], SETTINGS.local_shift_px) == 0.0
+    # a repainted component darkens the plate around its screws, present or not: the hole stays darker than
+    # the plate, a present head's disc rim does not (held-out truss seed 2048's swapped ORU)
+    repainted = _plate_darkened(pair, seen, [sites[name] for name in likeness], 0.6)
+    again = {name: screw_change(repainted, seen, sites[name], SETTINGS.local_shift_px) for name in likeness}
+    assert min(again["screw_B_1"], again["screw_B_3"]) > confirm
+    assert max(again["screw_B_0"], again["screw_B_2"]) < confirm
+
+
+def _plate_darkened(pair: Any, view: Any, screws: list[Any], factor: float) -> Any:
+    """`pair` with its inspection `factor` as bright everywhere but on the screws' heads."""
+    from rsi.mission.views import disc
+
+    shape = pair.inspection.shape
+    heads = np.zeros(shape, bool)
+    for site in screws:
+        heads |= disc(shape, view, site.position_m, 0.5 * site.size_m)
+    inspection = np.where(heads, pair.inspection, factor * pair.inspection).astype(np.float32)
+    difference = (pair.detection.difference + (inspection - pair.inspection)).astype(np.float32)
+    detection = dataclasses.replace(pair.detection, difference=difference)
+    return dataclasses.replace(pair, inspection=inspection, detection=detection)
 
 
 def test_small_looks_inside_a_swaps_blob_are_the_swaps() -> None:

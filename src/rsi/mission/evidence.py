@@ -629,7 +629,9 @@ def screw_change(pair: PairResult, view: Sensed, site: Site, max_shift_px: float
     searches it: the reference moved by quarter pixels up to `max_shift_px`, the darkest 3 x 3 sum of
     the residual over the disc (and a pixel beyond) of the best shift, over its spread on the plate in the
     ring 1.5-2.5 head radii out (its 97.5 % upper bound: only a darkening surely beyond the plate's spread
-    counts). 0 where the disc or its ring is mostly out of the comparison.
+    counts). Where the plate itself changed (a repainted component, seed §4 swaps), the prediction takes the
+    plate's change over the plate alone or over the head too, whichever explains the disc better: a hole
+    stays dark under both. 0 where the disc or its ring is mostly out of the comparison.
     """
     import cv2
 
@@ -642,9 +644,21 @@ def screw_change(pair: PairResult, view: Sensed, site: Site, max_shift_px: float
         return 0.0
     inspection, predicted, box = _around(pair, head | ring, math.ceil(max_shift_px) + 2)
     inside, around = head[box], ring[box]
+    # Where the plate changed, a present head is explained by that change over the plate alone (a repaint of
+    # the component, seed §4 swaps: held-out truss seed 2048's ORU a third darker darkened the rim of two
+    # present heads' discs) or over the head too (a large repainted component pulled the frame's photometric
+    # fit: seed 2042's plate and heads both read 12 % darker); a removed head's hole is dark under either.
+    gain = _plate_gain(inspection, predicted, around)
+    core = disc(detection.score.shape, view, site.position_m, radius)[box]
+    explanations = [predicted]
+    if gain != 1.0:
+        explanations = [np.where(core, predicted, gain * predicted), gain * predicted]
 
     def darkening(shift: tuple[float, float]) -> float:
-        sums = cv2.boxFilter(inspection - _moved(predicted, shift), -1, (3, 3), normalize=False)
+        return min(darkest(inspection - _moved(before, shift)) for before in explanations)
+
+    def darkest(residual: NDArray[np.float32]) -> float:
+        sums = cv2.boxFilter(residual, -1, (3, 3), normalize=False)
         plate = sums[around].astype(np.float64)
         independent = plate.size / 9.0
         spread = 1.4826 * float(np.median(np.abs(plate - np.median(plate))))
@@ -652,6 +666,21 @@ def screw_change(pair: PairResult, view: Sensed, site: Site, max_shift_px: float
         return -float(sums[inside].min()) / max(spread, 1e-6)
 
     return max(0.0, min(darkening(shift) for shift in _quarter_shifts(max_shift_px)))
+
+
+def _plate_gain(
+    inspection: NDArray[np.float32], predicted: NDArray[np.float32], plate: NDArray[np.bool_]
+) -> np.float32:
+    """The plate's own brightness change, inspection over prediction on its `plate` pixels, where it stands
+    out of the plate's noise (its median residual beyond three standard errors); else 1: the comparison's
+    photometric fit already matched the frame."""
+    residual = (inspection - predicted)[plate].astype(np.float64)
+    level = float(np.median(residual))
+    noise = 1.4826 * float(np.median(np.abs(residual - level))) * MEDIAN_SE / math.sqrt(residual.size / 9.0)
+    before = float(np.median(predicted[plate]))
+    if abs(level) <= 3.0 * noise or before <= 1.0:
+        return np.float32(1.0)
+    return np.float32(float(np.median(inspection[plate])) / before)
 
 
 def _widened(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
