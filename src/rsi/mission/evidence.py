@@ -327,14 +327,26 @@ def screw_relief_m(range_m: NDArray[np.float32], view: Sensed, site: Site) -> fl
     A head stands 2 mm proud (the mock-up's screws); a removed one leaves the plate and a flat hole. NaN
     when the map holds too few matched pixels on the head or the plate around it.
     """
+    ranged = _ranged_head_and_plate(range_m, view, site)
+    if ranged is None:
+        return math.nan
+    head, plate = ranged
+    return float(np.median(range_m[plate]) - np.median(range_m[head]))
+
+
+def _ranged_head_and_plate(
+    range_m: NDArray[np.float32], view: Sensed, site: Site
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]] | None:
+    """The matched pixels of the screw's head (its central 0.6 radius) and of the plate ring 1.5-2.5 radii
+    out; None when either holds too few to read a median."""
     distance = surface_distance_m(range_m.shape, view, site.position_m)
     radius = 0.5 * site.size_m
     usable = np.isfinite(range_m) & (range_m < 10.0)
     head = (distance <= 0.6 * radius) & usable
     plate = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & usable
     if head.sum() < 5 or plate.sum() < 10:
-        return math.nan
-    return float(np.median(range_m[plate]) - np.median(range_m[head]))
+        return None
+    return head, plate
 
 
 # A relief loss counts when it stands this many of its standard deviations clear (the relief's noise is
@@ -353,21 +365,17 @@ def screw_relief_sigma_m(range_m: NDArray[np.float32], view: Sensed, site: Site)
     """
     from rsi.imaging.stereo import BLOCK_PX
 
-    distance = surface_distance_m(range_m.shape, view, site.position_m)
-    radius = 0.5 * site.size_m
-    usable = np.isfinite(range_m) & (range_m < 10.0)
-    head = (distance <= 0.6 * radius) & usable
-    plate = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & usable
-    if head.sum() < 5 or plate.sum() < 10:
+    ranged = _ranged_head_and_plate(range_m, view, site)
+    if ranged is None:
         return math.nan
+    head, plate = ranged
     rows, cols = np.nonzero(plate)
     design = np.column_stack([np.ones(rows.size), rows, cols]).astype(np.float64)
     ranges = range_m[plate].astype(np.float64)
     residual = ranges - design @ np.linalg.lstsq(design, ranges, rcond=None)[0]
     per_pixel = 1.4826 * float(np.median(np.abs(residual - np.median(residual))))
     blocks = float(BLOCK_PX**2)
-    spread = per_pixel * MEDIAN_SE * math.sqrt(blocks / head.sum() + blocks / plate.sum())
-    return spread
+    return per_pixel * MEDIAN_SE * math.sqrt(blocks / head.sum() + blocks / plate.sum())
 
 
 def screw_checks(
@@ -422,9 +430,13 @@ def screw_checks(
         if kept:
             continue  # the reference's head is still there, whatever the range or a few edges say
         lost = before - screw_relief_m(range_m, view, site)
-        # the reference's relief was read from the same vista, with the same scatter as this one's
-        surely = _RELIEF_SIGMAS * math.sqrt(2.0) * screw_relief_sigma_m(range_m, view, site)
-        if resolved and math.isfinite(lost) and lost > max(settings.screw_relief_lost_m, surely):
+        # the reference's relief was read from the same vista, with the same scatter as this one's (the
+        # scatter is read only when the relief could count)
+        if (
+            resolved
+            and lost > settings.screw_relief_lost_m
+            and lost > _RELIEF_SIGMAS * math.sqrt(2.0) * screw_relief_sigma_m(range_m, view, site)
+        ):
             margin, score = (lost - settings.screw_relief_lost_m) / 2e-4, lost
         elif (now := _glint_left(glint, view, site)) is not None:
             margin, score = _glint_margin(glint, now, view, site), glint.fraction - now
