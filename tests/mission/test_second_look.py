@@ -70,3 +70,29 @@ def test_a_dented_tank_is_read_again_before_it_is_reported() -> None:
     # a second look per blob at most; one more is the dent's, and it read the dent again
     assert record.second_looks > record.detections
     assert record.confirmed >= 1
+
+
+def test_a_missing_screw_is_read_again_before_it_is_reported() -> None:
+    # the wide draw of seed 0 removed screw_B_0, on the plate the B tank's vista sees
+    world = load("truss", seed=0)
+    try:
+        removed = next(a for a in world.anomalies.anomalies if a.KIND == "missing_screw")
+        assert removed.site == "screw_B_0"
+        point = next(p for p in plan_vistas(world) if p.name == "B_tank")
+        tour = Tour(world, seed=0, size=MISSION_SIZE, arm=False, orbit=False)
+        tour.start_pass("reference", ORBIT_START_S[0])
+        stored = _stored(tour, point)
+        tour.start_pass("inspection", ORBIT_START_S[1])
+        visit = inspect_visit(
+            world, point, stored, screws_checked=frozenset(), active=True, settings=SETTINGS, tour=tour
+        )
+    finally:
+        world.close()
+    screws = [f for f in visit.findings if f.kind == "missing_screw"]
+    assert [s.position_m for s in screws] == [removed.position_m]
+    record = visit.record
+    swaps = [f for f in visit.findings if f.kind == "swapped_component"]
+    assert not swaps
+    # every blob had its second look, and the screw one more, which found it missing again
+    assert record.second_looks == record.detections + 1
+    assert record.confirmed >= 1

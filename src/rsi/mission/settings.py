@@ -102,9 +102,6 @@ class MissionSettings:
         Discoloured replacements reflect 0.4-0.8 of the original (seed §4 defective components).
     dent_relief_min_m : float
         Dents are 2-10 mm deep (seed §4 defects); the stereo relief's noise is ~0.2 mm.
-    stereo_disparity_noise_px : float
-        Disparity noise of the ISEE stereo pair's matching (seed §3 D), sub-pixel matching of textured
-        surfaces.
     impact_merge_m, screw_match_m : float
         Two views' sightings of one impact, or a blob and a screw site, closer than this are one thing:
         their localisation errors are a few mm.
@@ -164,7 +161,6 @@ class MissionSettings:
     component_change_min: float = 0.05
     component_dimming_min: float = 0.1
     dent_relief_min_m: float = 1.5e-3
-    stereo_disparity_noise_px: float = 0.1
     impact_merge_m: float = 0.008
     screw_match_m: float = 0.008
     strobe_target_dn: float = 180.0

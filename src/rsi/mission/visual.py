@@ -293,6 +293,12 @@ def inspect_visit(
     doubted = (0, 0, 0)
     if active:
         checks, doubted = _found_again(again, checks, world, settings)
+        screws, screws_doubted = _screws_found_again(again, screws, world, settings, limits.confirm)
+        doubted = (
+            doubted[0] + screws_doubted[0],
+            doubted[1] + screws_doubted[1],
+            doubted[2] + screws_doubted[2],
+        )
     explanations = [explanation for _, explanation in checks]
     whole = comparison
     comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
@@ -868,6 +874,46 @@ def _found_again(
     }
     kept = [(f, e) for f, e in checks if names[f.position_m] in confirmed]
     return kept, (len(doubtful), len(confirmed), len(doubtful) - len(confirmed))
+
+
+def _screws_found_again(
+    again: _SecondVisit,
+    screws: list[MissionFinding],
+    world: World,
+    settings: MissionSettings,
+    confirm: float,
+) -> tuple[list[MissionFinding], tuple[int, int, int]]:
+    """The missing screws kept where the second look finds them missing again (:func:`screw_checks` on
+    its view and both pristine visits seen from it). Returns the screws and (second looks, confirmed,
+    rejected).
+
+    Seed §2.5: a doubtful finding gets a second look. A removed head is gone from every viewpoint: its
+    relief, its glint and its disc's darkening come back with another viewpoint error. What one viewpoint
+    made of a present head does not: truss-b seed 2019 in space read screw_B_1's disc 7.3 sigma darker
+    from one CAD vista (over the confirming 6.1), truss seed 2042 with the CAD plan two present heads gone
+    where the frame's registration had locked 40 px off on a brushed plate; the second looks read all
+    three present. What every viewpoint repeats, it cannot tell (truss 2046, screw_B_2: 11.5 and 12.5).
+    """
+    if not screws:
+        return screws, (0, 0, 0)
+    sites = world.mockup.candidates.screw_sites
+    doubtful = {site.name for site in sites if site.position_m in {f.position_m for f in screws}}
+    view = again.view
+    found, _ = screw_checks(
+        world,
+        view,
+        again.point.name,
+        settings=settings,
+        range_m=view.range_m,
+        reliefs=again.stored.reliefs,
+        glints=again.stored.glints,
+        done=frozenset(site.name for site in sites if site.name not in doubtful),
+        pairs=again.pairs,
+        confirm=confirm,
+    )
+    missing = {finding.position_m for finding in found}
+    kept = [finding for finding in screws if finding.position_m in missing]
+    return kept, (len(screws), len(kept), len(screws) - len(kept))
 
 
 def _second_looks(
