@@ -410,9 +410,12 @@ def screw_checks(
     Either way the head's pattern must be gone from the image (:func:`head_likeness`): a removed screw takes
     its whole slotted disc away, a present one keeps it however its slot's edges are sampled.
 
-    Returns the missing screws' findings and the names of the screws this view checked: a screw none of the
-    three could judge here (its disc mostly outside the comparison, no relief, no glint) is left to a later
-    view.
+    Returns the missing screws' findings and the names of the screws they found missing, which no later view
+    checks again. A screw read present here is left to later views too: a removed head can read present from
+    one viewpoint (truss seed 2049, CAD plan in space: screw_D_2's hole matched its head's pattern at 0.98
+    from cad_13, while cad_14 and cad_17 also see it), and every missing screw is read again on the visit's
+    second look before it is reported (:mod:`rsi.mission.visual`), so another view's chance to judge it
+    brings no unchecked false finding.
     """
     findings = []
     screws = [s for s in world.mockup.candidates.screw_sites if s.name not in done]
@@ -426,7 +429,6 @@ def screw_checks(
         resolved = abs(before - SCREW_HEIGHT_M) < 0.5 * SCREW_HEIGHT_M
         if kept is None and not resolved and not glint.telling:
             continue  # nothing here can judge it
-        checked.append(site)
         if kept:
             continue  # the reference's head is still there, whatever the range or a few edges say
         lost = before - screw_relief_m(range_m, view, site)
@@ -444,6 +446,7 @@ def screw_checks(
             margin, score = change - confirm, change
         else:
             continue
+        checked.append(site)
         findings.append(
             MissionFinding(
                 kind="missing_screw",
