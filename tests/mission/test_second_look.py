@@ -45,24 +45,29 @@ def _stored(tour: Any, point: Any) -> StoredView:
     )
 
 
-def test_a_dented_tank_is_read_again_before_it_is_reported() -> None:
-    # the wide draw of seed 10 replaced the B tank by one dented 5.3 mm deep, 4 cm across
-    world = load("truss", seed=10)
+def _active_visit(seed: int, point_name: str) -> tuple[tuple[Any, ...], Any]:
+    """Seed `seed`'s wide-draw anomalies and its active inspection visit of plan point `point_name` (both
+    passes at the same sun, no arm, no orbit)."""
+    world = load("truss", seed=seed)
     try:
-        dent = next(
-            a for a in world.anomalies.anomalies if a.KIND == "swapped_component" and a.site == "B_tank"
-        )
-        assert dent.defect == "dented"  # type: ignore[attr-defined]
-        point = next(p for p in plan_vistas(world) if p.name == "B_tank")
-        tour = Tour(world, seed=10, size=MISSION_SIZE, arm=False, orbit=False)
+        point = next(p for p in plan_vistas(world) if p.name == point_name)
+        tour = Tour(world, seed=seed, size=MISSION_SIZE, arm=False, orbit=False)
         tour.start_pass("reference", ORBIT_START_S[0])
         stored = _stored(tour, point)
         tour.start_pass("inspection", ORBIT_START_S[1])
         visit = inspect_visit(
             world, point, stored, screws_checked=frozenset(), active=True, settings=SETTINGS, tour=tour
         )
+        return tuple(world.anomalies.anomalies), visit
     finally:
         world.close()
+
+
+def test_a_dented_tank_is_read_again_before_it_is_reported() -> None:
+    # the wide draw of seed 10 replaced the B tank by one dented 5.3 mm deep, 4 cm across
+    anomalies, visit = _active_visit(10, "B_tank")
+    dent = next(a for a in anomalies if a.KIND == "swapped_component" and a.site == "B_tank")
+    assert dent.defect == "dented"
     swaps = [f for f in visit.findings if f.kind == "swapped_component"]
     assert len(swaps) == 1
     assert np.allclose(swaps[0].position_m, dent.position_m)
@@ -74,20 +79,9 @@ def test_a_dented_tank_is_read_again_before_it_is_reported() -> None:
 
 def test_a_missing_screw_is_read_again_before_it_is_reported() -> None:
     # the wide draw of seed 0 removed screw_B_0, on the plate the B tank's vista sees
-    world = load("truss", seed=0)
-    try:
-        removed = next(a for a in world.anomalies.anomalies if a.KIND == "missing_screw")
-        assert removed.site == "screw_B_0"
-        point = next(p for p in plan_vistas(world) if p.name == "B_tank")
-        tour = Tour(world, seed=0, size=MISSION_SIZE, arm=False, orbit=False)
-        tour.start_pass("reference", ORBIT_START_S[0])
-        stored = _stored(tour, point)
-        tour.start_pass("inspection", ORBIT_START_S[1])
-        visit = inspect_visit(
-            world, point, stored, screws_checked=frozenset(), active=True, settings=SETTINGS, tour=tour
-        )
-    finally:
-        world.close()
+    anomalies, visit = _active_visit(0, "B_tank")
+    removed = next(a for a in anomalies if a.KIND == "missing_screw")
+    assert removed.site == "screw_B_0"
     screws = [f for f in visit.findings if f.kind == "missing_screw"]
     assert [s.position_m for s in screws] == [removed.position_m]
     record = visit.record
