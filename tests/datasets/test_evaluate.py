@@ -29,6 +29,7 @@ from rsi.datasets.evaluate import (
     predicted_template,
     register_pair,
 )
+from rsi.datasets.pcb_learn import FEATURES
 from rsi.errors import InputError
 
 REAL_ROOT = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "deeppcb"
@@ -341,7 +342,7 @@ def test_grow_to_changes_boxes_the_whole_thin_scratch() -> None:
     # per-pixel extent reaches the line's end at x = 66.
     np.testing.assert_array_equal(seeds.boxes_xyxy, [[20, 40, 47, 66]])
     np.testing.assert_array_equal(grown.boxes_xyxy, [[20, 40, 76, 66]])
-    assert grown.features is not None and grown.features.shape == (1, 45)
+    assert grown.features is not None and grown.features.shape == (1, FEATURES)
 
 
 def test_register_pair_keeps_a_plausible_fit_and_refuses_a_wild_one() -> None:

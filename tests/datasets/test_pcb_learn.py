@@ -55,6 +55,23 @@ def test_the_features_hold_the_rules_naming_of_each_box(drawn_defect: Drawn) -> 
         rule_classes(np.zeros((1, 3)))
 
 
+def test_a_crack_touching_at_pixel_corners_splits_the_trace_in_the_tight_counts() -> None:
+    # A trace (copper dark) cut by a one-pixel diagonal crack of board: its two sides still touch at pixel
+    # corners, so the 8-connected rules see one piece and a mousebite; 4-connected copper sees the open.
+    template = np.full((40, 40), 255.0)
+    template[15:25] = 0.0
+    test = template.copy()
+    for row in range(15, 25):
+        test[row, row + 5] = 255.0
+    box = np.array([[10, 10, 29, 29]])
+    features = defect_features(template, test, box, np.array([6.0]), np.array([10.0]))
+    classes, _ = rule_classes(features)
+    assert DEFECT_TYPES[int(classes[0])] == "mousebite"
+    # The last 18 columns: per window (shrunk, box, grown) tight pieces before, after, change, holes ...
+    box_window = features[0, FEATURES - 12 : FEATURES - 6]
+    np.testing.assert_array_equal(box_window, [1.0, 2.0, 1.0, 0.0, 0.0, 0.0])
+
+
 def test_a_classifier_learns_the_six_hand_drawn_classes(drawn_defect: Drawn) -> None:
     rng = np.random.default_rng(0)
     kinds = list(DEFECT_TYPES.items())

@@ -44,15 +44,29 @@ FloatArray = NDArray[np.float64]
 def _copper_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
     """(copper pieces, holes): 8-connected copper components and 4-connected board components off the
     window's border, each of at least _MIN_PIECE_PX (a sliver cut off at the window's edge is no piece)."""
+    return _pieces_and_holes(copper, 8)
+
+
+def _tight_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
+    """(copper pieces, holes) with the connectivities swapped: 4-connected copper, 8-connected board.
+
+    A crack that leaves copper touching only at pixel corners splits a trace here, not in
+    :func:`_copper_pieces`; a hole whose wall is broken only at a corner is still a hole. Binarisation
+    leaves such corner contacts on many opens and pin-holes (:mod:`rsi.datasets.pcb_learn` reads both)."""
+    return _pieces_and_holes(copper, 4)
+
+
+def _pieces_and_holes(copper: NDArray[np.uint8], connectivity: int) -> tuple[int, int]:
+    """Copper pieces at `connectivity` (4 or 8) and enclosed board pieces at the other one."""
     # Areas from the labels (OpenCV's statistics cost more than the labelling on these small windows); a
     # window with one piece (most) has it counted directly.
-    count, labels = labelled(copper, 8)
+    count, labels = labelled(copper, connectivity)
     if count <= 2:
         pieces = int(count == 2 and np.count_nonzero(copper) >= _MIN_PIECE_PX)
     else:
         pieces = int(np.count_nonzero(np.bincount(labels.ravel(), minlength=count)[1:] >= _MIN_PIECE_PX))
     board = 1 - copper  # uint8: the scalar takes the array's type
-    count, labels = labelled(board, 4)
+    count, labels = labelled(board, 12 - connectivity)
     edges = np.concatenate((labels[0], labels[-1], labels[:, 0], labels[:, -1]))
     if count <= 2:
         # No board, or one piece of it: a hole only if it never reaches the window's edge.

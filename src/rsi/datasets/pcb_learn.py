@@ -28,6 +28,7 @@ from rsi.datasets.pcb_classes import (
     _class_of_change,
     _copper_pieces,
     _core_px,
+    _tight_pieces,
 )
 from rsi.errors import InputError
 from rsi.imaging._components import labelled
@@ -39,9 +40,10 @@ _SQUARE = np.ones((3, 3), np.uint8)
 # Windows around each box: shrunk by 7 px (the defect alone, DeepPCB pads by 10), the box, grown by 10 px.
 _WINDOW_GROWTH_PX = (-7, 0, 10)
 _MIN_WINDOW_PX = 2
-FEATURES = 45  # columns of defect_features
+FEATURES = 63  # columns of defect_features
 # Columns 32 and 33: the topology rules' class and confidence on the box itself (classify_window), after the
-# box size, strength and area (4), the shrunk window's 11 and the box window's 11 and 6 surroundings.
+# box size, strength and area (4), the shrunk window's 11 and the box window's 11 and 6 surroundings. The
+# last 18 columns: each window's pieces and holes with the connectivities swapped (_tight_features).
 _RULE_COLUMN = 32
 
 
@@ -93,6 +95,26 @@ def opened_count(change: NDArray[np.uint8], count: int) -> float:
     return float(np.count_nonzero(cv2.morphologyEx(change, cv2.MORPH_OPEN, _SQUARE)))
 
 
+def _tight_features(before: NDArray[np.uint8], after: NDArray[np.uint8]) -> list[float]:
+    """Copper pieces and holes before and after with 4-connected copper and 8-connected board, and their
+    changes: a crack that leaves the two sides of an open touching at a pixel corner, or a pin-hole whose
+    wall binarisation broke at a corner, shows here and not in :func:`_window_features`' counts.
+
+    Leave-one-group-out over trainval's seven board groups (each fold's classifier fitted on the other
+    six, one cached detector pass): pin-holes named mousebites 11 -> 0, opens named mousebites 16 -> 14,
+    official F 0.984 -> 0.988, mAP 0.983 -> 0.986 (docs/deeppcb.md).
+    """
+    (pieces_before, holes_before), (pieces_after, holes_after) = _tight_pieces(before), _tight_pieces(after)
+    return [
+        float(pieces_before),
+        float(pieces_after),
+        float(pieces_after - pieces_before),
+        float(holes_before),
+        float(holes_after),
+        float(holes_after - holes_before),
+    ]
+
+
 def _surroundings(
     before: NDArray[np.uint8], changes: tuple[NDArray[np.uint8], NDArray[np.uint8]]
 ) -> list[float]:
@@ -139,6 +161,7 @@ def _box_features(
     )
     copper_before = (template[outer] < COPPER_BELOW_DN).astype(np.uint8)
     copper_after = (test[outer] < COPPER_BELOW_DN).astype(np.uint8)
+    tight: list[float] = []
     for growth in _WINDOW_GROWTH_PX:
         top, bottom = max(0, y1 - growth), min(rows, y2 + 1 + growth)
         left, right = max(0, x1 - growth), min(cols, x2 + 1 + growth)
@@ -153,12 +176,13 @@ def _box_features(
         changes = (after & (1 - before), before & (1 - after))
         counted = _window_features(before, after, changes, pieces)
         features += counted
+        tight += _tight_features(before, after)
         if growth == 0:
             features += _surroundings(before, changes)
             # The rules' class on the same window, pieces and changes (classify_window, counted once).
             rule = _class_of_change((counted[0], counted[1], counted[2], counted[3]), *pieces)
             features += [float(rule), _core_px(before, after)]
-    return features
+    return features + tight
 
 
 def defect_features(
