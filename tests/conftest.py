@@ -79,6 +79,34 @@ def defect_tree(tmp_path: Path) -> Path:
     return write_deeppcb_tree(tmp_path / "deeppcb", pairs)
 
 
+def board_pairs(group: str, count: int) -> dict[str, tuple[np.ndarray, np.ndarray, str]]:
+    """`count` pairs of board group `group` (five digits), each with copper added on bare board (annotated
+    spurious copper, 5) and a hole punched in a round pad (pin-hole, 6), boxes padded as DeepPCB's."""
+    pairs = {}
+    for index in range(count):
+        reference = np.full((192, 192), 255, np.uint8)
+        cv2.line(reference, (20, 60), (170, 60), (0,), 7)
+        pad, blob = (30 + 35 * (index % 4), 130), (165, 100 + 8 * (index % 6))
+        cv2.circle(reference, pad, 14, (0,), -1)
+        inspection = reference.copy()
+        cv2.circle(inspection, blob, 5, (0,), -1)
+        cv2.circle(inspection, pad, 4, (255,), -1)
+        boxes = [(*blob, 5), (*pad, 6)]
+        annotation = "\n".join(f"{x - 14} {y - 14} {x + 13} {y + 13} {kind}" for x, y, kind in boxes)
+        pairs[f"{group}{index:03d}"] = (reference, inspection, annotation)
+    return pairs
+
+
+@pytest.fixture
+def two_group_tree(tmp_path: Path) -> Path:
+    """Trainval of two board groups and a test split of two more pairs; each group's 20 pairs (40
+    detections) are the least that let the classifier (leaves of 20 detections) learn the other group's two
+    classes."""
+    root = tmp_path / "deeppcb-two-groups"
+    write_deeppcb_tree(root, board_pairs("00041", 20) | board_pairs("13000", 20))
+    return write_deeppcb_tree(root, board_pairs("92000", 2), split="test")
+
+
 @pytest.fixture(scope="session")
 def proximity_progress() -> list[tuple[str, int, int]]:
     """The progress calls of the shared proximity-demo run (filled by :func:`proximity_demo`)."""

@@ -218,7 +218,7 @@ def test_roc_writes_theoretical_curves(tmp_path: Path, extra: tuple[str, ...], c
 
 
 def test_eval_deeppcb_json_is_the_last_stdout_line(defect_tree: Path) -> None:
-    result = invoke("eval", "deeppcb", defect_tree, "--split", "trainval", "--json")
+    result = invoke("eval", "deeppcb", defect_tree, "--split", "trainval", "--classes", "rules", "--json")
     assert result.exit_code == 0, result.output
     figures = last_json_line(result)
     assert list(figures) == [
@@ -237,12 +237,21 @@ def test_eval_deeppcb_json_is_the_last_stdout_line(defect_tree: Path) -> None:
         "map",
         "per_class",
         "confusion",
+        "classes",
     ]
     assert (figures["pairs"], figures["defects"], figures["recall"]) == (3, 6, 1.0)
     assert sorted(figures["per_class"]) == sorted(DEFECT_TYPES.values())
-    table = invoke("eval", "deeppcb", defect_tree, "--split", "trainval")
+    table = invoke("eval", "deeppcb", defect_tree, "--split", "trainval", "--classes", "rules")
     assert table.exit_code == 0 and "recall" in table.stdout
     assert "pin-hole" in table.stdout and "Confusion" in table.stdout
+
+
+def test_eval_deeppcb_names_the_test_split_with_a_classifier_fitted_on_trainval(two_group_tree: Path) -> None:
+    result = invoke("eval", "deeppcb", two_group_tree, "--json")  # the defaults: the test split, learned
+    assert result.exit_code == 0, result.output
+    figures = last_json_line(result)
+    assert figures["classes"] == "learned (fitted on trainval)"
+    assert (figures["pairs"], figures["official_f"]) == (2, 1.0)
 
 
 @pytest.fixture

@@ -113,6 +113,13 @@ class Split(str, Enum):
     test = "test"
 
 
+class ClassSource(str, Enum):
+    """Who names DeepPCB defects (rsi.datasets.evaluate.CLASS_SOURCES)."""
+
+    learned = "learned"
+    rules = "rules"
+
+
 # Detector options shared by `rsi inspect` and `rsi batch` (seed §2.3-2.4).
 FlawModelOption = Annotated[FlawModel, typer.Option(help="Seed §2.4 flaw model.")]
 SizeOption = Annotated[int, typer.Option(help="Flaw window side in pixels (odd).")]
@@ -658,6 +665,13 @@ def eval_deeppcb(
     *,
     root: Annotated[Path, typer.Argument(help="DeepPCB checkout (the folder holding PCBData/).")],
     split: Annotated[Split, typer.Option(help="Which list of pairs to score.")] = Split.test,
+    classes: Annotated[
+        ClassSource,
+        typer.Option(
+            help="Who names the defects: a classifier never fitted on the pairs it names (test: fitted on "
+            "trainval first; trainval: each board group by one fitted on the others), or the topology rules."
+        ),
+    ] = ClassSource.learned,
     as_json: Annotated[
         bool, typer.Option("--json", help="End with one JSON object on the last stdout line.")
     ] = False,
@@ -667,7 +681,7 @@ def eval_deeppcb(
         from rsi.datasets.evaluate import evaluate_deeppcb
 
         with _progress_bar(f"DeepPCB {split.value}") as update:
-            evaluation = evaluate_deeppcb(root, split=split.value, progress=update)
+            evaluation = evaluate_deeppcb(root, split=split.value, progress=update, classes=classes.value)
         record = evaluation.to_dict()
         if as_json:
             _print_json(record)

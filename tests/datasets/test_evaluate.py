@@ -50,6 +50,7 @@ KEYS = [
     "map",
     "per_class",
     "confusion",
+    "classes",
 ]
 
 
@@ -202,7 +203,7 @@ def test_evaluate_pairs_rejects_no_pairs() -> None:
 
 def test_evaluate_deeppcb_end_to_end_on_a_fake_tree(defect_tree: Path) -> None:
     root = defect_tree
-    result = evaluate_deeppcb(root, "trainval", settings=DeepPcbSettings())
+    result = evaluate_deeppcb(root, "trainval", settings=DeepPcbSettings(), classes="rules")
     assert isinstance(result, EvaluationResult)
     assert (result.pairs, result.defects) == (3, 6)
     assert result.recall == 1.0 and result.false_alarms_per_image == 0.0

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rsi.datasets.deeppcb import DEFECT_TYPES, DeepPcbPair
-from rsi.datasets.evaluate import PcbDetections
+from rsi.datasets.evaluate import PcbDetections, evaluate_deeppcb
 from rsi.datasets.pcb_classes import classify_defects
 from rsi.datasets.pcb_learn import (
     FEATURES,
@@ -151,3 +151,29 @@ def test_the_opened_count_skips_only_openings_that_are_empty() -> None:
 def test_the_opened_count_refuses_what_is_no_window_or_no_count(change: Any, count: Any, named: str) -> None:
     with pytest.raises(InputError, match=named):
         opened_count(change, count)
+
+
+def test_learned_classes_name_every_split_with_a_classifier_that_never_saw_it(two_group_tree: Path) -> None:
+    rules = evaluate_deeppcb(two_group_tree, "trainval", classes="rules")
+    cross_fitted = evaluate_deeppcb(two_group_tree, "trainval")
+    assert cross_fitted.classes == "learned (fitted on the other board groups)" and rules.classes == "rules"
+    # The classifier names the detector's detections: the class-agnostic figures cannot move.
+    assert (cross_fitted.recall, cross_fitted.iou_recall) == (rules.recall, rules.iou_recall) == (1.0, 1.0)
+    assert cross_fitted.official_f == 1.0
+    stages: list[str] = []
+    test = evaluate_deeppcb(two_group_tree, "test", progress=lambda stage, done, total: stages.append(stage))
+    assert test.classes == "learned (fitted on trainval)" and (test.pairs, test.official_f) == (2, 1.0)
+    assert [stage.split()[0] for stage in stages] == ["training"] * 40 + ["scoring"] * 2
+
+
+def test_learned_classes_need_two_groups_two_classes_and_a_callable_progress(
+    defect_tree: Path, two_group_tree: Path
+) -> None:
+    with pytest.raises(InputError, match="holds only"):
+        evaluate_deeppcb(defect_tree, "trainval")  # one board group: nothing to cross-fit on
+    with pytest.raises(InputError, match="one class only"):
+        fit_classifier(np.zeros((2, FEATURES)), [5, 5])
+    with pytest.raises(InputError, match="progress must be a function"):
+        evaluate_deeppcb(two_group_tree, "trainval", progress="bar")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"classes='deep' is not known"):
+        evaluate_deeppcb(two_group_tree, "trainval", classes="deep")

@@ -12,6 +12,9 @@ average precision.
 
 from __future__ import annotations
 
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -20,8 +23,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi._validate import as_float_array, as_image, instance_of, instance_or_default, same_shape
-from rsi.datasets.deeppcb import DeepPcbPair, read_pair
-from rsi.datasets.evaluate import OFFICIAL_IOU, DeepPcbSettings, PcbDetections, box_iou, detect_defects
+from rsi.datasets.deeppcb import DeepPcbPair, PathLike, load_split, read_pair
+from rsi.datasets.evaluate import (
+    OFFICIAL_IOU,
+    DeepPcbSettings,
+    EvaluationResult,
+    MatchCounts,
+    PcbDetections,
+    Progress,
+    box_iou,
+    detect_defects,
+    group_of,
+    match_counts,
+)
 from rsi.datasets.pcb_classes import (
     COPPER_BELOW_DN,
     _boxes_inside,
@@ -296,6 +310,11 @@ def fit_classifier(features: object, labels: object) -> DefectClassifier:
         )
     if not np.any(classes > 0):
         raise InputError("labels name no defect (all 0); pass detections paired with ground-truth boxes.")
+    if np.unique(classes).size < 2:
+        raise InputError(
+            f"labels hold one class only ({int(classes[0])}): nothing to tell apart. Train on detections of "
+            "several defect classes, or name defects by the topology rules (classes='rules')."
+        )
     model = HistGradientBoostingClassifier(random_state=0).fit(table, classes.astype(np.int64))
     return DefectClassifier(model)
 
@@ -316,18 +335,98 @@ def training_labels(pair: DeepPcbPair, found: PcbDetections) -> IntArray:
     return labels
 
 
-def train_classifier(pairs: list[DeepPcbPair], settings: DeepPcbSettings | None = None) -> DefectClassifier:
-    """Run the detector on training pairs and fit the classifier to their detections (see the module)."""
+def train_classifier(
+    pairs: list[DeepPcbPair], settings: DeepPcbSettings | None = None, *, progress: Progress | None = None
+) -> DefectClassifier:
+    """Run the detector on training pairs and fit the classifier to their detections (see the module).
+
+    `progress` is called as ``progress(stage, done, total)`` after each pair.
+    """
+    _check_pair_list(pairs)
+    found = _detected(pairs, instance_or_default(settings, "settings", DeepPcbSettings), progress, "training")
+    return _fitted(found)
+
+
+def evaluate_learned(
+    root: PathLike, split: str, *, settings: DeepPcbSettings | None = None, progress: Progress | None = None
+) -> EvaluationResult:
+    """A split's figures with the defects named by the classifier, never one fitted on the pairs it names.
+
+    The test split is named by a classifier fitted on the trainval pairs of the same `root` (the dataset's
+    own protocol); trainval is cross-fitted by board group: each group is named by a classifier fitted on
+    the detections of the other groups only. The class-agnostic figures are the detector's, as with the
+    rules (:func:`rsi.datasets.evaluate.evaluate_deeppcb`).
+
+    Raises
+    ------
+    InputError
+        If trainval holds a single board group (nothing to cross-fit on); pass ``classes="rules"``.
+    DatasetError
+        If a split file, an image or an annotation is missing (the test split needs trainval's too).
+    """
+    chosen = instance_or_default(settings, "settings", DeepPcbSettings)
+    if progress is not None and not callable(progress):
+        raise InputError(
+            f"progress must be a function called as progress(stage, done, total); got {progress!r:.60}."
+        )
+    scored = load_split(root, split)
+    if split == "test":
+        classifier = train_classifier(list(load_split(root, "trainval")), chosen, progress=progress)
+        return _figures(_detected(scored, chosen, progress, "scoring", classifier), lambda _: classifier)
+    found = _detected(scored, chosen, progress, "scoring")
+    groups = sorted({group_of(pair) for pair, _, _ in found})
+    if len(groups) < 2:
+        raise InputError(
+            f"classes='learned' on trainval fits each board group's classifier on the other groups; "
+            f"{root!s:.80} holds only {groups}. Pass classes='rules' (CLI: --classes rules)."
+        )
+    folds = {group: _fitted([item for item in found if group_of(item[0]) != group]) for group in groups}
+    return _figures(found, lambda pair: folds[group_of(pair)])
+
+
+Found = list[tuple[DeepPcbPair, PcbDetections, float]]
+
+
+def _check_pair_list(pairs: object) -> None:
     is_list = isinstance(pairs, (list, tuple)) and len(pairs) > 0
-    if not is_list or not all(isinstance(pair, DeepPcbPair) for pair in pairs):
+    if not is_list or not all(isinstance(pair, DeepPcbPair) for pair in cast(list[object], pairs)):
         raise InputError(
             "pairs must be a non-empty list of DeepPcbPair (rsi.datasets.deeppcb.load_split); "
             f"got {pairs!r:.60}."
         )
-    chosen = instance_or_default(settings, "settings", DeepPcbSettings)
-    features, labels = [], []
-    for pair in pairs:
-        found = detect_defects(*read_pair(pair), settings=chosen)
-        features.append(cast(FloatArray, found.features))
-        labels.append(training_labels(pair, found))
-    return fit_classifier(np.concatenate(features), np.concatenate(labels))
+
+
+def _detected(
+    pairs: Sequence[DeepPcbPair],
+    settings: DeepPcbSettings,
+    progress: Progress | None,
+    stage: str,
+    classifier: DefectClassifier | None = None,
+) -> Found:
+    """Each pair's detections with the wall seconds they took, reading both JPEGs included."""
+    found = []
+    for done, pair in enumerate(pairs, start=1):
+        start = time.perf_counter()
+        detections = detect_defects(*read_pair(pair), settings=settings, classifier=classifier)
+        found.append((pair, detections, time.perf_counter() - start))
+        if progress is not None:
+            progress(f"{stage} {pair.pair_id}", done, len(pairs))
+    return found
+
+
+def _fitted(found: Found) -> DefectClassifier:
+    features = np.concatenate([cast(FloatArray, detections.features) for _, detections, _ in found])
+    labels = np.concatenate([training_labels(pair, detections) for pair, detections, _ in found])
+    return fit_classifier(features, labels)
+
+
+def _figures(found: Found, classifier_of: Callable[[DeepPcbPair], DefectClassifier]) -> EvaluationResult:
+    """Both matching rules' figures, each pair's defects named by its classifier."""
+    from rsi.datasets.official import OfficialTally  # it builds on evaluate's IoU, as this module
+
+    tally, counts = OfficialTally(), MatchCounts()
+    for pair, detections, seconds in found:
+        classes, confidences = classifier_of(pair).predict(detections.features)
+        tally.add(pair.boxes_xyxy, pair.defect_types, detections.boxes_xyxy, classes, confidences)
+        counts += match_counts(pair, detections, seconds)
+    return dataclasses.replace(counts.result(), **tally.figures())
