@@ -303,27 +303,27 @@ def _speed_table(stages: dict[str, list[float]], settings: DeepPcbSettings, pair
 
 
 def _chosen_settings(args: argparse.Namespace) -> DeepPcbSettings:
-    """DeepPcbSettings() with the registration and sparse options of the command line."""
-    default = DeepPcbSettings()
+    """DeepPcbSettings() with the registration and sparse options of the command line, replaced at once (the
+    finest and coarsest levels are checked against each other)."""
+    changes: dict[str, object] = {}
     if args.model is not None:
-        default = dataclasses.replace(default, registration_model=args.model)
+        changes["registration_model"] = args.model
     if args.finest_level is not None:
-        default = dataclasses.replace(default, registration_finest_level=args.finest_level)
+        changes["registration_finest_level"] = args.finest_level
     if args.coarsest_level is not None:
         coarsest = None if args.coarsest_level == "all" else int(args.coarsest_level)
-        default = dataclasses.replace(default, registration_coarsest_level=coarsest)
+        changes["registration_coarsest_level"] = coarsest
     if args.row_step is not None:
-        row_step = None if args.row_step == "auto" else int(args.row_step)
-        default = dataclasses.replace(default, registration_row_step=row_step)
+        changes["registration_row_step"] = None if args.row_step == "auto" else int(args.row_step)
     if args.photometric:
-        default = dataclasses.replace(default, registration_photometric=True)
+        changes["registration_photometric"] = True
     if args.presmooth:
-        default = dataclasses.replace(default, registration_presmooth=True)
+        changes["registration_presmooth"] = True
     if args.whole_frame:
-        default = dataclasses.replace(default, sparse=False)
+        changes["sparse"] = False
     if args.field_tolerance_px is not None:
-        default = dataclasses.replace(default, registration_field_tolerance_px=args.field_tolerance_px)
-    return default
+        changes["registration_field_tolerance_px"] = args.field_tolerance_px
+    return dataclasses.replace(DeepPcbSettings(), **changes)
 
 
 def main(argv: list[str] | None = None) -> int:
