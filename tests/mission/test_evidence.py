@@ -601,14 +601,19 @@ def test_a_removed_panel_screw_loses_its_glint_and_a_present_one_keeps_it() -> N
 def test_a_long_thin_blob_is_a_line_and_a_round_one_a_spot() -> None:
     from rsi.mission.evidence import LINE_MIN_PX, line_shaped
 
-    def shaped(pixels: np.ndarray) -> bool:
-        """Whether the blob of `pixels` (a mask placed at row 10, column 10 of a frame) is a line."""
+    def shaped(pixels: np.ndarray, strength: np.ndarray | None = None) -> bool:
+        """Whether the blob of `pixels` (a mask placed at row 10, column 10 of a frame, of uniform statistic
+        -9 unless `strength` gives each pixel's) is a line."""
         mask = np.zeros((120, 120), bool)
         mask[10 : 10 + pixels.shape[0], 10 : 10 + pixels.shape[1]] = pixels
+        statistic = np.zeros((120, 120))
+        statistic[10 : 10 + pixels.shape[0], 10 : 10 + pixels.shape[1]] = -9.0 if strength is None else strength
         rows, cols = np.nonzero(mask)
         box = (int(rows.min()), int(cols.min()), int(rows.max()) + 1, int(cols.max()) + 1)
         flaw = Flaw(float(rows.mean()), float(cols.mean()), box, int(rows.size), 9.0, "dark")
-        return line_shaped(Look(flaw, (0.0, 0.0, 0.0), 1e-6, 9.0, peak_px=(int(rows[0]), int(cols[0]))), mask)
+        peak = np.unravel_index(np.argmax(np.abs(statistic) * mask), mask.shape)
+        look = Look(flaw, (0.0, 0.0, 0.0), 1e-6, 9.0, peak_px=(int(peak[0]), int(peak[1])))
+        return line_shaped(look, mask, statistic)
 
     def bar(rows: int, cols: int) -> np.ndarray:
         return np.ones((rows, cols), bool)
@@ -625,6 +630,18 @@ def test_a_long_thin_blob_is_a_line_and_a_round_one_a_spot() -> None:
     ellipse = ((rows - 4) / 4.5) ** 2 + ((cols - 7) / 7.5) ** 2
     rim = (ellipse <= 1.0) & (ellipse >= 0.55)
     assert not shaped(rim)
+    # truss seed 2064 in space: a 2.4 mm impact (4 x 5 px, 16-34 sigma) with a compensation row of 4-6 sigma
+    # along its top, 32 px long: the blob is the spot; the row alone, however strong, is still a line
+    spot_and_row = np.zeros((5, 32), bool)
+    spot_and_row[0], spot_and_row[1:5, :5] = True, True
+    strength = np.where(spot_and_row, -5.0, 0.0)
+    strength[1:5, 1:4] = -30.0
+    assert shaped(spot_and_row) and not shaped(spot_and_row, strength)
+    assert shaped(bar(1, 32), np.full((1, 32), -30.0))
+    # truss-b seed 2049 in space: a band 60 px long whose half-peak pixels come in pieces all along it
+    band = np.full((4, 60), -8.0)
+    band[1:3, ::12] = -19.0
+    assert shaped(bar(4, 60), band)
 
 
 def test_a_large_blob_is_a_components_change_only_as_wide_as_the_least_one() -> None:

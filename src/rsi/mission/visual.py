@@ -672,7 +672,7 @@ def _new_blobs(
                 look.area_m2 <= settings.component_area_m2
                 and impact_sized(look, settings)
                 and look.contrast >= settings.impact_contrast_min
-                and not line_shaped(look, comparison.pair.detection.mask)
+                and not line_shaped(look, comparison.pair.detection.mask, comparison.pair.detection.statistic)
                 and not shift_explained(comparison.pair, look, floor, _shift_bound_px(look, edges, settings))
             )
         )
