@@ -605,9 +605,10 @@ def test_a_long_thin_blob_is_a_line_and_a_round_one_a_spot() -> None:
         """Whether the blob of `pixels` (a mask placed at row 10, column 10 of a frame, of uniform statistic
         -9 unless `strength` gives each pixel's) is a line."""
         mask = np.zeros((120, 120), bool)
-        mask[10 : 10 + pixels.shape[0], 10 : 10 + pixels.shape[1]] = pixels
+        placed = (slice(10, 10 + pixels.shape[0]), slice(10, 10 + pixels.shape[1]))
+        mask[placed] = pixels
         statistic = np.zeros((120, 120))
-        statistic[10 : 10 + pixels.shape[0], 10 : 10 + pixels.shape[1]] = -9.0 if strength is None else strength
+        statistic[placed] = -9.0 if strength is None else strength
         rows, cols = np.nonzero(mask)
         box = (int(rows.min()), int(cols.min()), int(rows.max()) + 1, int(cols.max()) + 1)
         flaw = Flaw(float(rows.mean()), float(cols.mean()), box, int(rows.size), 9.0, "dark")
