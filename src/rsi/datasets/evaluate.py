@@ -1042,9 +1042,7 @@ def evaluate_deeppcb(
     if choice(classes, "classes", CLASS_SOURCES) == "learned":
         from rsi.datasets.pcb_learn import evaluate_learned
 
-        learned = evaluate_learned(root, split, settings=chosen, progress=progress)
-        fitted_on = "trainval" if split == "test" else "the other board groups"
-        return dataclasses.replace(learned, classes=f"learned (fitted on {fitted_on})")
+        return evaluate_learned(root, split, settings=chosen, progress=progress)
 
     def detector(reference: NDArray[np.float32], inspection: NDArray[np.float32]) -> PcbDetections:
         return detect_defects(reference, inspection, settings=chosen)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -355,7 +355,8 @@ def evaluate_learned(
     The test split is named by a classifier fitted on the trainval pairs of the same `root` (the dataset's
     own protocol); trainval is cross-fitted by board group: each group is named by a classifier fitted on
     the detections of the other groups only. The class-agnostic figures are the detector's, as with the
-    rules (:func:`rsi.datasets.evaluate.evaluate_deeppcb`).
+    rules (:func:`rsi.datasets.evaluate.evaluate_deeppcb`). The result's ``classes`` says which classifier
+    named them: "learned (fitted on trainval)" or "learned (fitted on the other board groups)".
 
     Raises
     ------
@@ -372,7 +373,8 @@ def evaluate_learned(
     scored = load_split(root, split)
     if split == "test":
         classifier = train_classifier(list(load_split(root, "trainval")), chosen, progress=progress)
-        return _figures(_detected(scored, chosen, progress, "scoring", classifier), lambda _: classifier)
+        named = _detected(scored, chosen, progress, "scoring", classifier)
+        return dataclasses.replace(_figures(named), classes="learned (fitted on trainval)")
     found = _detected(scored, chosen, progress, "scoring")
     groups = sorted({group_of(pair) for pair, _, _ in found})
     if len(groups) < 2:
@@ -381,7 +383,10 @@ def evaluate_learned(
             f"{root!s:.80} holds only {groups}. Pass classes='rules' (CLI: --classes rules)."
         )
     folds = {group: _fitted([item for item in found if group_of(item[0]) != group]) for group in groups}
-    return _figures(found, lambda pair: folds[group_of(pair)])
+    named = [
+        (pair, _renamed(detections, folds[group_of(pair)]), seconds) for pair, detections, seconds in found
+    ]
+    return dataclasses.replace(_figures(named), classes="learned (fitted on the other board groups)")
 
 
 Found = list[tuple[DeepPcbPair, PcbDetections, float]]
@@ -420,13 +425,23 @@ def _fitted(found: Found) -> DefectClassifier:
     return fit_classifier(features, labels)
 
 
-def _figures(found: Found, classifier_of: Callable[[DeepPcbPair], DefectClassifier]) -> EvaluationResult:
-    """Both matching rules' figures, each pair's defects named by its classifier."""
+def _renamed(detections: PcbDetections, classifier: DefectClassifier) -> PcbDetections:
+    classes, confidences = classifier.predict(detections.features)
+    return dataclasses.replace(detections, classes=classes, confidences=confidences)
+
+
+def _figures(found: Found) -> EvaluationResult:
+    """Both matching rules' figures of detections already named."""
     from rsi.datasets.official import OfficialTally  # it builds on evaluate's IoU, as this module
 
     tally, counts = OfficialTally(), MatchCounts()
     for pair, detections, seconds in found:
-        classes, confidences = classifier_of(pair).predict(detections.features)
-        tally.add(pair.boxes_xyxy, pair.defect_types, detections.boxes_xyxy, classes, confidences)
+        tally.add(
+            pair.boxes_xyxy,
+            pair.defect_types,
+            detections.boxes_xyxy,
+            detections.classes,
+            detections.confidences,
+        )
         counts += match_counts(pair, detections, seconds)
     return dataclasses.replace(counts.result(), **tally.figures())
