@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rsi.errors import InputError
-from rsi.mission import PlanPoint
+from rsi.mission import MissionSettings, PlanPoint
 from rsi.mission.coverage import CoverageRules, Sight, coverage
 from rsi.mission.plan import JAWS_MOVED_M, plan_vistas, with_jaws_moved
 from rsi.mission.plan_cad import JAW_OPENINGS_M
@@ -21,6 +21,7 @@ from rsi.sim.world import World, load
 # the hand plan's own resolution: its frames stand 0.5 m off (0.66 mm pixels, 1 mm at the corners)
 HAND = CoverageRules(max_pixel_m=1e-3)
 SIZE = HAND.size
+HAND_PLAN = MissionSettings(plan="hand")
 
 
 @pytest.fixture(scope="module")
@@ -47,10 +48,10 @@ def test_what_the_jaws_hide_is_not_covered(arm_world: World, plain_world: World)
     """The hand plan's frames that the arm takes (not the solar panel's, out of its reach: the free camera
     has no jaws) lose 1.6 % of the surface to the half-open jaws, and the screw at the right end of the
     tubing ORU's plate with it (held-out seed 1964's missed screw, docs/mission.md)."""
-    plain = plan_vistas(plain_world)
+    plain = plan_vistas(plain_world, HAND_PLAN)
     bare = [
         PlanPoint(p.name, p.vista, p.door_angle_rad)
-        for p in plan_vistas(arm_world)
+        for p in plan_vistas(arm_world, HAND_PLAN)
         if p.behind_jaws_at_m is None
     ]
     assert [p.name for p in bare] == [p.name for p in plain]
@@ -62,7 +63,7 @@ def test_what_the_jaws_hide_is_not_covered(arm_world: World, plain_world: World)
 
 
 def test_the_plan_looks_behind_the_jaws_where_nothing_else_sees(arm_world: World, plain_world: World) -> None:
-    plan = plan_vistas(arm_world)
+    plan = plan_vistas(arm_world, HAND_PLAN)
     twins = [p for p in plan if p.behind_jaws_at_m is not None]
     assert twins and all(p.jaw_opening_m in JAWS_MOVED_M for p in twins)
     assert all(p.behind_jaws_at_m == DEFAULT_JAW_OPENING_M for p in twins)
@@ -72,12 +73,12 @@ def test_the_plan_looks_behind_the_jaws_where_nothing_else_sees(arm_world: World
         assert first.vista == twin.vista and first.jaw_opening_m == twin.behind_jaws_at_m
     assert "D_tubing_jaws_0mm" in names
     assert _screws_uncovered(plan, arm_world) == set()
-    free = coverage(plan_vistas(plain_world), plain_world, HAND).fraction
+    free = coverage(plan_vistas(plain_world, HAND_PLAN), plain_world, HAND).fraction
     assert coverage(plan, arm_world, HAND).fraction == pytest.approx(free, abs=0.005)
 
 
 def test_a_frame_behind_the_jaws_inspects_only_what_they_hid(arm_world: World) -> None:
-    twin = next(p for p in plan_vistas(arm_world) if p.behind_jaws_at_m is not None)
+    twin = next(p for p in plan_vistas(arm_world, HAND_PLAN) if p.behind_jaws_at_m is not None)
     region = point_region(arm_world, twin, SIZE)
     assert region is not None and region.any()
     hidden = jaws_region(arm_world, DEFAULT_JAW_OPENING_M, SIZE)
@@ -93,7 +94,7 @@ def test_a_frame_behind_the_jaws_inspects_only_what_they_hid(arm_world: World) -
 
 
 def test_without_the_arm_there_are_no_jaws(plain_world: World) -> None:
-    plan = plan_vistas(plain_world)
+    plan = plan_vistas(plain_world, HAND_PLAN)
     assert with_jaws_moved(plan, plain_world) == plan
     assert all(p.behind_jaws_at_m is None for p in plan)
     assert point_region(plain_world, plan[0], SIZE) is None
@@ -139,8 +140,8 @@ def test_bad_jaw_input_names_the_argument(arm_world: World) -> None:
     with pytest.raises(InputError, match="inspected must be a boolean mask"):
         sight.candidates(arm_world.vista("A_door"), np.ones((4, 4), dtype=bool))
     with pytest.raises(InputError, match="points must be a tuple of PlanPoint"):
-        with_jaws_moved(list(plan_vistas(arm_world)), arm_world)  # type: ignore[arg-type]
+        with_jaws_moved(list(plan_vistas(arm_world, HAND_PLAN)), arm_world)  # type: ignore[arg-type]
     with pytest.raises(InputError, match="world"):
-        with_jaws_moved(plan_vistas(arm_world), None)  # type: ignore[arg-type]
+        with_jaws_moved(plan_vistas(arm_world, HAND_PLAN), None)  # type: ignore[arg-type]
     with pytest.raises(InputError, match="rules"):
-        with_jaws_moved(plan_vistas(arm_world), arm_world, "fine")  # type: ignore[arg-type]
+        with_jaws_moved(plan_vistas(arm_world, HAND_PLAN), arm_world, "fine")  # type: ignore[arg-type]

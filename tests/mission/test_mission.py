@@ -48,7 +48,8 @@ def archived(tmp_path_factory: pytest.TempPathFactory) -> tuple[MissionResult, P
             on_visit=lambda vista, found: VISITS.append((vista, found)),
             **STILL,
         )
-    assert [done for _, done, _ in stages] == list(range(1, 2 * len(PLAN) + 3))
+    assert [done for _, done, _ in stages] == list(range(1, 2 * len(result.plan) + 3))
+    assert result.plan[: len(PLAN)] == PLAN  # the hand plan, then the points that complete it
     return result, path
 
 

@@ -165,7 +165,7 @@ def truss_world() -> Iterator[World]:
 def test_the_hand_plan_covers_half_the_truss_at_half_a_millimetre(truss_world: World) -> None:
     """Its A, B and D views stand 0.5 m off (0.66 mm pixels): only the 0.35 m panel views count at 0.5 mm;
     at 1 mm per pixel it covers 93 %, the tank skins' flanks (over 45 deg) missing (docs/mission.md)."""
-    points = plan_vistas(truss_world)
+    points = plan_vistas(truss_world, MissionSettings(plan="hand"))
     fine = coverage(points, truss_world)
     assert 0.45 < fine.fraction < 0.55
     assert fine.by_kind()["screw"] == 0.0
@@ -212,6 +212,44 @@ def test_a_needed_sample_is_not_traded_for_area() -> None:
     assert sorted(with_sites) == [2, 3]
 
 
+def test_a_plan_completes_what_another_leaves() -> None:
+    """The 40 cm plate needs two views; with its left half covered already, one view completes it (named
+    by the prefix), and with all of it covered none is added."""
+    part, patch = _plate((0.2, 0.06))
+    mockup = _mockup([part], [patch])
+    samples = inspectable_samples(mockup, RULES.sample_spacing_m)
+    left = samples.points_m[:, 0] < 0.9
+    fill = generate_plan(mockup, arm=False, covered=left, prefix="fill")
+    assert [point.name for point in fill.points] == ["fill_00"]
+    assert fill.coverage.covered[~left].mean() >= 0.995
+    assert fill.coverage.covered[left].mean() < 0.5
+    done = generate_plan(mockup, arm=False, covered=np.ones(len(samples), dtype=bool))
+    assert done.points == () and done.coverage.fraction == 0.0
+
+
+def test_the_hand_plan_completed_from_the_cad_covers_the_truss_at_its_own_resolution() -> None:
+    """At its own 1 mm pixels and 45 deg the hand plan covers 93 % (the tanks' flanks only beyond 45 deg);
+    `plan="hand+cad"`, the truss's default, flies it whole, then the generated points for the rest, and
+    covers 99 %."""
+    world = load("truss", seed=0, arm=True)
+    try:
+        hand = plan_vistas(world, MissionSettings(plan="hand"))
+        completed = plan_vistas(world, MissionSettings(plan="hand+cad"))
+        assert plan_vistas(world) == completed  # the truss's default
+        rules = CoverageRules(max_pixel_m=1e-3)
+        before, after = (coverage(points, world, rules).fraction for points in (hand, completed))
+    finally:
+        world.close()
+
+    def first_frames(points: tuple[PlanPoint, ...]) -> list[PlanPoint]:
+        return [point for point in points if point.behind_jaws_at_m is None]
+
+    fills = [point for point in first_frames(completed) if point.name.startswith("fill_")]
+    assert first_frames(completed) == first_frames(hand) + fills
+    assert 1 <= len(fills) <= 8
+    assert before < 0.95 and after >= 0.99
+
+
 def test_missionsettings_plan_chooses_the_generator() -> None:
     world = _world(_mockup(*map(list, zip(_plate(), strict=True))))
     points = plan_vistas(world, MissionSettings(plan="cad"))
@@ -241,6 +279,8 @@ def test_missionsettings_plan_chooses_the_generator() -> None:
         (lambda: inspectable_samples(truss_mockup(), 0.0), "spacing_m"),
         (lambda: inspectable_samples(_mockup([], [])), "no inspectable surface"),
         (lambda: MissionSettings(plan="manual"), "plan must be one of"),
+        (lambda: generate_plan(truss_mockup(), covered=np.ones(3, dtype=bool)), "covered must be"),
+        (lambda: generate_plan(truss_mockup(), prefix="1 st"), "prefix must be"),
     ],
 )
 def test_bad_input_is_refused_by_name(call: object, message: str) -> None:
@@ -269,8 +309,9 @@ def test_a_surface_no_view_can_see_is_refused() -> None:
 
 def test_the_hand_plan_is_refused_on_another_layout() -> None:
     world = _world(_mockup(*map(list, zip(_plate(), strict=True))))
-    with pytest.raises(InputError, match="hand plan is the truss layout's"):
-        plan_vistas(world, MissionSettings(plan="hand"))
+    for plan in ("hand", "hand+cad"):
+        with pytest.raises(InputError, match="hand plan is the truss layout's"):
+            plan_vistas(world, MissionSettings(plan=plan))
 
 
 @pytest.mark.parametrize(

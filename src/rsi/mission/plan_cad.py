@@ -308,7 +308,8 @@ def greedy_cover(
         chosen.append(best)
         covered[candidates[best].seen] = True
     kept = _pair_swaps(_pruned(chosen, candidates, area, goal), matrix, candidates, area, goal)
-    return kept, float(area[coverable].sum() / area.sum())
+    total = float(area.sum())
+    return kept, float(area[coverable].sum()) / total if total > 0.0 else 1.0
 
 
 @dataclass(frozen=True)
@@ -322,14 +323,14 @@ class _Goal:
         return float(area[seen].sum()) >= self.area_m2 and not (self.needed & ~seen).any()
 
 
-def _must_inputs(must: object, size: int) -> BoolArray:
+def _must_inputs(must: object, size: int, name: str = "must") -> BoolArray:
     if must is None:
         return np.zeros(size, dtype=bool)
     flags = np.asarray(must)
     if flags.dtype != np.bool_ or flags.shape != (size,):
         raise InputError(
-            f"must must be a boolean array of one flag per sample ({size}); got {must!r}. "
-            "Leave it None to cover by area alone."
+            f"{name} must be a boolean array of one flag per sample ({size}); got {must!r}. "
+            "Leave it None to cover the whole surface by area."
         )
     return flags
 
@@ -558,6 +559,8 @@ def generate_plan(
     *,
     target: float = 0.995,
     arm: bool = True,
+    covered: BoolArray | None = None,
+    prefix: str = "cad",
 ) -> CadPlan:
     """Vista points that cover the inspectable surface of `source`'s mock-up, ordered for a short tour.
 
@@ -573,12 +576,19 @@ def generate_plan(
         Fraction of the coverable area, in (0, 1], at which the greedy cover stops.
     arm : bool
         Check reach by the arm on its rail (prefer reachable views, flag the others); False: any view.
+    covered : ndarray of bool, optional
+        Per sample of ``inspectable_samples`` at the rules' spacing, whether another plan already covers
+        it (:attr:`Coverage.covered` of that plan at the same rules): the points generated then complete
+        it, covering `target` of what it leaves. None: the whole surface.
+    prefix : str
+        The points' names: ``f"{prefix}_{k:02d}"`` in visiting order.
 
     Raises
     ------
     InputError
         Naming the argument: `source` not a World or Mockup, `settings` or `rules` of the wrong type,
-        `target` outside (0, 1], `arm` not a bool.
+        `target` outside (0, 1], `arm` not a bool, `covered` not one flag per sample, `prefix` not a
+        name.
     """
     began = time.perf_counter()
     mockup = _mockup_of(source)
@@ -590,17 +600,22 @@ def generate_plan(
     from rsi.sim.anomalies import AnomalySet
     from rsi.sim.world import World
 
+    if not isinstance(prefix, str) or not prefix.isidentifier():
+        raise InputError(f"prefix must be a name such as 'cad'; got {prefix!r}.")
     sight = Sight(mockup, rules)
+    done = _must_inputs(covered, len(sight.samples), "covered")
     arm_world = World(mockup, AnomalySet(()), seed=0, arm=True) if arm else None
     weighed = weigh_candidates(mockup, sight, settings.door_open_rad, arm_world)
     if not weighed:
         raise InputError("source's mock-up has no inspectable surface any candidate view covers.")
+    # What another plan covers already weighs nothing: the cover aims at the rest.
+    area = np.where(done, 0.0, sight.samples.area_m2)
     chosen, coverable = greedy_cover(
-        weighed, sight.samples.area_m2, target, must=np.isin(sight.samples.kind, SITE_KINDS)
+        weighed, area, target, must=np.isin(sight.samples.kind, SITE_KINDS) & ~done
     )
     picked = [weighed[k] for k in chosen]
     reached = [c.reachable for c in picked]
-    start: FloatArray = np.asarray(picked[0].vista.position_m)
+    start: FloatArray = np.asarray(picked[0].vista.position_m) if picked else np.zeros(3)
     if arm_world is not None:
         reached = [
             ok and ik_reaches(arm_world, c.vista, c.door_angle_rad)
@@ -617,6 +632,7 @@ def generate_plan(
         start=np.asarray(start),
         weighed=len(weighed),
         began=began,
+        prefix=prefix,
     )
 
 
@@ -629,9 +645,10 @@ def _assembled(
     start: FloatArray,
     weighed: int,
     began: float,
+    prefix: str,
 ) -> CadPlan:
     """The plan record: points named in visiting order, the coverage of the chosen views, the tour."""
-    vistas = tuple(replace(c.vista, name=f"cad_{k:02d}") for k, c in enumerate(picked))
+    vistas = tuple(replace(c.vista, name=f"{prefix}_{k:02d}") for k, c in enumerate(picked))
     points = tuple(
         PlanPoint(p.name, p.name, c.door_angle_rad, c.jaw_opening_m)
         for p, c in zip(vistas, picked, strict=True)

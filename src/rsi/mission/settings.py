@@ -19,7 +19,7 @@ MISSION_SIZE = (480, 640)  # the seed's video frame (seed §2.1)
 FRAME_MARGIN_PX = 16
 OVERVIEW_SIZE = (600, 800)
 REPEATABILITY = ("lab", "space")
-PLANS = ("auto", "hand", "cad")
+PLANS = ("auto", "hand", "cad", "hand+cad")
 
 
 @dataclass(frozen=True)
@@ -130,11 +130,13 @@ class MissionSettings:
     panel_standoff_m : float
         Standoff of the close solar-panel views: 0.46 mm pixels, where the cells' 0.8 mm texels no longer
         alias between visits.
-    plan : {"auto", "hand", "cad"}
+    plan : {"auto", "hand", "cad", "hand+cad"}
         The vista points: ``"hand"`` the ten hand-placed points of the truss (:mod:`rsi.mission.plan`,
         the operating point of the figures in docs/mission.md), ``"cad"`` a plan generated from the CAD
-        model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 28 points on the truss),
-        ``"auto"`` (default) the hand plan on the truss layout and the CAD plan on any other.
+        model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 29 points on the truss),
+        ``"hand+cad"`` the hand plan, then the points generated for what it leaves at its own 1 mm pixels
+        and 45 deg (five on the truss: the tanks' flanks), ``"auto"`` (default) ``"hand+cad"`` on the
+        truss layout and the CAD plan on any other.
     """
 
     p_false_alarm: float = 1e-9
