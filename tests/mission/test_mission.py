@@ -20,6 +20,7 @@ from rsi.mission import (
     MissionFinding,
     MissionResult,
     MissionScore,
+    MissionSettings,
     run_mission,
     score_mission,
 )
@@ -30,6 +31,9 @@ from rsi.sim.world import load
 SEED = 0
 SMALL = (240, 320)
 STILL = {"arm": False, "orbit": False}  # free camera, fixed lamp: fast (the arm's mission: test_motion.py)
+# The cases below lie in the hand plan's views: the points that complete it (the truss's default) add
+# minutes to each mission and nothing to the case
+HAND_PLAN = MissionSettings(plan="hand")
 
 
 VISITS: list[tuple[str, tuple[MissionFinding, ...]]] = []  # on_visit's calls in the archived run
@@ -332,7 +336,9 @@ def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -
 
 def test_screws_and_the_swapped_component_are_found_at_full_size() -> None:
     # the seed mock-up's draw of seed 26: screws B_2 and D_2 missing, the A ORU dented (seed §4 defects)
-    result = run_mission(26, active=False, arm=False, orbit=False, anomalies=AnomalySettings.seed_mockup())
+    result = run_mission(
+        26, active=False, arm=False, orbit=False, anomalies=AnomalySettings.seed_mockup(), settings=HAND_PLAN
+    )
     score = score_mission(result)
     assert score.per_type["missing_screw"].found == score.per_type["missing_screw"].truth >= 1
     # the image-change fallback for heads stereo cannot resolve costs ~0.25 false screws per run (issue 13
@@ -352,7 +358,8 @@ def test_impacts_on_a_discoloured_replacement_are_found_on_its_own_pixels_and_se
     # comparison (its own gain and bias, seed §2.3) finds them, and no line or glint of it becomes an
     # impact. At space repeatability nothing on the panel places the pose, and the second look finds the
     # blob by registering the two visits, not where the believed poses put it (11 px off on this seed).
-    result = run_mission(2, repeatability="space", orbit_start_s=(ORBIT_START_S[0], ORBIT_START_S[1] + 300.0))
+    later = (ORBIT_START_S[0], ORBIT_START_S[1] + 300.0)
+    result = run_mission(2, repeatability="space", orbit_start_s=later, settings=HAND_PLAN)
     truth = result.truth.anomalies
     panel = next(a for a in truth if a.KIND == "swapped_component" and a.site == "C_panel")
     assert panel.defect == "discoloured" and panel.reflectance_factor > 1.0  # type: ignore[attr-defined]
@@ -386,7 +393,7 @@ def test_an_impact_beside_a_discoloured_tank_keeps_its_second_look() -> None:
     # it. Both looks compare the frame without the tank's pixels, registered again for their own gain and
     # bias; from a start at no shift the second look's registration ran 780 px off, its comparison held no
     # pixel and the impact was rejected. Started from the registration in depth, it is confirmed.
-    result = run_mission(13)
+    result = run_mission(13, settings=HAND_PLAN)
     truth = result.truth.anomalies
     tank = next(a for a in truth if a.KIND == "swapped_component" and a.site == "B_tank")
     assert tank.defect == "discoloured"  # type: ignore[attr-defined]
