@@ -343,8 +343,8 @@ def demo(
     layout: Annotated[
         str,
         typer.Option(
-            help="The mock-up's layout: 'truss' (seed §4, the hand plan) or 'truss-b' (issue 15, a plan "
-            "generated from its CAD model)."
+            help="The mock-up's layout: 'truss' (seed §4, the hand plan completed from its CAD model) or "
+            "'truss-b' (issue 15, a plan generated from its CAD model)."
         ),
     ] = "truss",
 ) -> None:
