@@ -293,7 +293,7 @@ def greedy_cover(
     matrix = sparse.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(len(candidates), area.size))
     weight = np.array([1.0 if c.reachable else UNREACHABLE_WEIGHT for c in candidates])
     coverable = np.asarray(matrix.sum(axis=0)).ravel() > 0
-    needed = _must_inputs(must, area.size) & coverable
+    needed = _sample_flags(must, area.size) & coverable
     goal = _Goal(target * float(area[coverable].sum()), needed)
     covered = np.zeros(area.size, dtype=bool)
     chosen: list[int] = []
@@ -323,7 +323,7 @@ class _Goal:
         return float(area[seen].sum()) >= self.area_m2 and not (self.needed & ~seen).any()
 
 
-def _must_inputs(must: object, size: int, name: str = "must") -> BoolArray:
+def _sample_flags(must: object, size: int, name: str = "must") -> BoolArray:
     if must is None:
         return np.zeros(size, dtype=bool)
     flags = np.asarray(must)
@@ -603,7 +603,7 @@ def generate_plan(
     if not isinstance(prefix, str) or not prefix.isidentifier():
         raise InputError(f"prefix must be a name such as 'cad'; got {prefix!r}.")
     sight = Sight(mockup, rules)
-    done = _must_inputs(covered, len(sight.samples), "covered")
+    done = _sample_flags(covered, len(sight.samples), "covered")
     arm_world = World(mockup, AnomalySet(()), seed=0, arm=True) if arm else None
     weighed = weigh_candidates(mockup, sight, settings.door_open_rad, arm_world)
     if not weighed:
