@@ -222,6 +222,7 @@ WORLD_METHODS = (
     "own_body_footprint",
     "next_frame",
     "reflash",
+    "ambient_frame",
     "overview",
     "overview_picture",
     "begin_visit",
@@ -445,6 +446,7 @@ def _tour_values(world: World) -> dict[str, st.SearchStrategy[Any]]:
         "truth": st.booleans(),
         "strobe_energy": st.floats(0.5, 2.0),
         "shutter": st.floats(0.2, 1.0),
+        "exposure_s": st.floats(1e-5, 1.0),
     }
 
 
@@ -455,8 +457,10 @@ def test_a_tour_lets_only_named_errors_escape(world: World) -> None:
     tour = Tour(world, seed=0, size=SIZE, arm=False, orbit=False)
     _fuzz(tour.start_pass, "Tour.start_pass", values)
     _fuzz(tour.reflash, "Tour.reflash (before a visit)", values)
+    _fuzz(tour.ambient_frame, "Tour.ambient_frame (before a visit)", values)
     _fuzz(tour.visit, "Tour.visit", values, rare=5)
     _fuzz(tour.reflash, "Tour.reflash", values, rare=3)
+    _fuzz(tour.ambient_frame, "Tour.ambient_frame", values)
 
 
 # ---------------------------------------------------------------------- load and the mission, refused

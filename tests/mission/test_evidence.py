@@ -829,3 +829,59 @@ def _screw_in_view(view: Any) -> Any:
         return next(site for site, in_view in zip(screws, seen, strict=True) if in_view)
     finally:
         world.close()
+
+
+def _sunlit(level: np.ndarray, variance_scale: float = 1.0) -> Any:
+    from rsi.imaging.bracket import AmbientImage
+
+    return AmbientImage(
+        image=level.astype(np.float32),
+        variance=np.maximum(level, 1.0).astype(np.float32) * np.float32(variance_scale),
+        valid=np.ones(level.shape, bool),
+        exposure_s=1e-3,
+        exposures_s=(1e-4, 1e-3),
+    )
+
+
+def _sunlit_face(shape: tuple[int, int], seed: int = 0) -> np.ndarray:
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    texture = cv2.GaussianBlur(rng.normal(0.0, 1.0, shape).astype(np.float32), (0, 0), 6.0)
+    return np.maximum(1000.0 + 6000.0 * texture, 50.0)
+
+
+def test_a_spot_the_sun_lights_in_both_passes_echoes_in_the_ambient_and_noise_does_not() -> None:
+    from rsi.mission.ambient import ambient_echo
+
+    shape, at = (160, 200), (80, 100)
+    rng = np.random.default_rng(1)
+    surface = _sunlit_face(shape)
+    # the sun moved between the passes: the same surface reads 0.7 of the reference's light (a gain)
+    before = surface + rng.normal(0.0, 1.0, shape) * np.sqrt(surface)
+    after = 0.7 * surface + rng.normal(0.0, 1.0, shape) * np.sqrt(0.7 * surface)
+    spot = after.copy()
+    spot[at[0] - 1 : at[0] + 2, at[1] - 1 : at[1] + 2] *= 0.7  # a darkening of 30 %: reflectance lost
+    look = _look((0.0, 0.0, 1.0), 4e-6, (at[0] - 1, at[1] - 1, at[0] + 2, at[1] + 2), contrast=0.3)
+    seen = ambient_echo(_sunlit(before), _sunlit(spot), look, SETTINGS)
+    unseen = ambient_echo(_sunlit(before), _sunlit(after), look, SETTINGS)
+    limits = thresholds(SETTINGS)
+    assert seen is not None and unseen is not None
+    assert seen.score < -limits.confirm  # darker: negative, past the confirming threshold
+    assert abs(unseen.score) < limits.preliminary
+    # the contrast of the look, at that light and noise: what a change of reflectance must show
+    assert seen.reach > limits.confirm
+
+
+def test_a_place_the_sun_does_not_light_or_the_ambient_does_not_read_has_no_echo() -> None:
+    from rsi.mission.ambient import ambient_echo
+
+    shape, at = (160, 200), (80, 100)
+    lit = _sunlit(_sunlit_face(shape))
+    look = _look((0.0, 0.0, 1.0), 4e-6, (at[0] - 1, at[1] - 1, at[0] + 2, at[1] + 2), contrast=0.3)
+    shadow = _sunlit(np.zeros(shape))
+    assert ambient_echo(lit, shadow, look, SETTINGS) is None  # in shadow in the inspection pass
+    assert ambient_echo(shadow, lit, look, SETTINGS) is None  # in shadow in the reference pass
+    clipped = dataclasses.replace(lit, valid=np.ones(shape, bool))
+    clipped.valid[at] = False  # every reading of that pixel clipped
+    assert ambient_echo(lit, clipped, look, SETTINGS) is None

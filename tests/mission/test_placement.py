@@ -73,6 +73,36 @@ def test_a_visit_taken_again_keeps_its_placement_and_its_own_strobe_image(world:
     assert np.median(taken.strobe.image[lit] / visit.strobe.image[lit]) == pytest.approx(2.0, rel=0.1)
 
 
+def test_the_ambient_bracket_lifts_the_sunlit_surface_near_the_top_and_keeps_every_reading(
+    world: Any,
+) -> None:
+    from rsi.mission.exposure import ambient_bracket, ambient_dn
+    from rsi.mission.settings import MissionSettings
+    from rsi.mission.tour import Tour
+    from rsi.mission.views import inspection_region, sense
+
+    settings = MissionSettings()
+    tour = Tour(world, seed=5, size=MISSION_SIZE, arm=False, orbit=False)
+    visit = sense(tour.visit("B_tank", "B_tank", state="reference", truth=False))
+    region = inspection_region(visit, settings)
+    bright = ambient_dn(visit, settings, region)  # the strobe frames' unlit rows, at the seed's shutter
+    assert bright > 10.0  # the lamp lights the tank: the case the bracket is for
+    merged = ambient_bracket(tour, visit, settings, shutter=1.0)
+    strobe_s = visit.capture.frames[0].exposure_s
+    # the strobe pair, then ambient-only frames, each longer (seed §2 further work)
+    assert merged.exposures_s[:2] == (strobe_s, strobe_s)
+    assert len(merged.exposures_s) >= 3 and np.all(np.diff(merged.exposures_s[1:]) > 0)
+    # the first ambient frame lifts the brightest 0.5 % of the surface to about 200 DN: its exposure is
+    # the strobe frames' times 200 over what they read
+    assert merged.exposures_s[2] / strobe_s == pytest.approx(200.0 / bright, rel=1e-6)
+    level = merged.image * (merged.exposures_s[2] / merged.exposure_s)  # DN at the first ambient frame
+    assert np.percentile(level[region & merged.valid], settings.meter_percentile) == pytest.approx(
+        200, rel=0.1
+    )
+    # the strobe frames' short readings keep what the longer frames clip
+    assert merged.valid[region].mean() > 0.99
+
+
 def _jump_pixels(depth_m: Any) -> Any:
     import cv2
 

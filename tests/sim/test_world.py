@@ -238,3 +238,21 @@ def test_strobe_energy_scales_the_strobe_exposure_and_nothing_else(world: World)
     world.set_strobe_energy(1.0)
     assert strobe[1] / strobe[0] == pytest.approx(2.5, rel=1e-5)
     assert ambient[1] == pytest.approx(ambient[0], rel=1e-6)  # the sun's lux per render unit is the flash's
+
+
+def test_an_ambient_frame_holds_the_sun_alone_scaled_by_its_shutter(world: World) -> None:
+    view = world.render("B_tank", size=SMALL, truth=False)  # lit by the sun and by the strobe
+    black = view.frame.camera.black_level_dn
+    longer = world.ambient_frame(view, exposure_s=4.0 * view.frame.exposure_s)
+    assert longer.lit_field == "none"
+    # no flash in it: every row reads the ambient, four times the strobe frame's unlit rows (linear, §2.1)
+    # where it does not clip
+    read = ~longer.saturated[0::2] & ~longer.saturated[1::2]
+    unlit = float(view.frame.raw[0::2][read].astype(float).mean()) - black  # the strobe lit the odd rows
+    rows = [float(longer.raw[parity::2][read].astype(float).mean()) - black for parity in (0, 1)]
+    assert rows[0] / unlit == pytest.approx(4.0, rel=0.1)
+    assert rows[1] == pytest.approx(rows[0], rel=0.05)
+    with pytest.raises(InputError, match="exposure_s must be in"):
+        world.ambient_frame(view, exposure_s=0.0)
+    with pytest.raises(InputError, match="view must be a View"):
+        world.ambient_frame("view", exposure_s=1e-4)  # type: ignore[arg-type]

@@ -12,10 +12,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from rsi.constants import FIELD_S, SHUTTER_S
 from rsi.mission.settings import MissionSettings
 from rsi.mission.views import Sensed, inspection_region, reflashed
 
 if TYPE_CHECKING:
+    from rsi.imaging.bracket import AmbientImage
     from rsi.imaging.camera import Frame
     from rsi.mission.tour import Tour
     from rsi.sim.world import World
@@ -163,6 +165,72 @@ def shortened(
         if not clipped(sensed, settings):
             break
     return sensed, taken_at
+
+
+# An ambient-only frame needs no headroom for a flash: the brightest 0.5 % of the surface lifted to this DN
+# keep 55 DN below the 8-bit top for the sun's change over a visit
+_AMBIENT_FRAME_DN = 200.0
+# a pixel under this many DN above black is in shadow for the bracket: 8-bit steps and read noise are
+# >= 10 % of its reading (seed §1: "a large dynamic range with sharp shadows")
+_SHADOW_DN = 10.0
+# each longer frame of the bracket opens the shutter this much more: four stops, a 10 DN shadow to 160 DN
+_BRACKET_STEP = 16.0
+# the camera's longest electronic shutter, one video field (seed §2.1: 1/60 s), in the seed's 1/10000 s
+MAX_AMBIENT_SHUTTER = FIELD_S / SHUTTER_S
+# frames past the strobe pair: the metered ambient frame and the shadows' two steps reach 256 x its shutter
+_MAX_AMBIENT_FRAMES = 3
+
+
+def ambient_bracket(tour: Tour, sensed: Sensed, settings: MissionSettings, *, shutter: float) -> AmbientImage:
+    """The visit's ambient-lit image (seed §2 further work): the unlit rows of its two strobe frames
+    (shutter `shutter`, a fraction of the seed's), and ambient-only frames at longer shutters metered from
+    the pixels, merged (:func:`rsi.imaging.bracket.merge_ambient`).
+
+    The strobe frames' shutter holds sunlight down for the flash (:func:`metered_shutter`), so the ambient
+    reads a few tens of DN. The first frame lifts the brightest 0.5 % of the inspected surface to
+    ``_AMBIENT_FRAME_DN``; where more than 0.5 % of it then still reads under ``_SHADOW_DN``, the next opens
+    the shutter ``_BRACKET_STEP`` times longer, while that lifts the shadows at all (a shadow no light
+    reaches stays black however long the shutter) and up to one video field. The strobe frames' readings
+    keep the sunlit pixels the longer frames clip.
+    """
+    from rsi.imaging.bracket import merge_ambient
+    from rsi.sim.world import MAX_EXPOSURE_S
+
+    frames = list(sensed.capture.frames)
+    seconds_per_shutter = frames[0].exposure_s / shutter
+    # the laboratory's dimmer sun is taken with a longer shutter for the same ratio (seed §2.1's practical
+    # note): its field's worth may pass the camera's longest exposure
+    longest = min(MAX_AMBIENT_SHUTTER, MAX_EXPOSURE_S / seconds_per_shutter)
+    region = inspection_region(sensed, settings)
+    bright = ambient_dn(sensed, settings, region)
+    # no ambient at all in view (a face the sun does not reach): one field's exposure shows what is there
+    longer = shutter * _AMBIENT_FRAME_DN / bright if bright >= _SHADOW_DN / _BRACKET_STEP else longest
+    while len(frames) < 2 + _MAX_AMBIENT_FRAMES and shutter < longer:
+        longer = min(longer, longest)
+        frames.append(tour.ambient_frame(exposure_s=seconds_per_shutter * longer))
+        if longer >= longest or not _shadows_to_lift(frames, region, settings):
+            break
+        longer *= _BRACKET_STEP
+    return merge_ambient(frames)
+
+
+def _shadows_to_lift(frames: list[Frame], region: NDArray[np.bool_], settings: MissionSettings) -> bool:
+    """Whether more than the meter's 0.5 % of `region` reads under ``_SHADOW_DN`` in the last frame and a
+    longer shutter may lift it: the first ambient frame's shadows may be lit faintly; a later frame that
+    read them no brighter than the one before shows no light reaches them."""
+    last = frames[-1]
+    dark = region & (last.raw.astype(np.float32) - np.float32(last.camera.black_level_dn) < _SHADOW_DN)
+    if dark.sum() <= (1.0 - settings.meter_percentile / 100.0) * region.sum():
+        return False
+    first_ambient = len(frames) == 3  # the two strobe frames' unlit rows before it
+    return first_ambient or _mean_dn(last, dark) > _mean_dn(frames[-2], dark) + 1.0
+
+
+def _mean_dn(frame: Frame, pixels: NDArray[np.bool_]) -> float:
+    """Mean reading above black of `frame` over `pixels` (0 where none)."""
+    if not pixels.any():
+        return 0.0
+    return float(frame.raw[pixels].mean()) - frame.camera.black_level_dn
 
 
 # run_mission's internals, no public API (PEP 8: an empty __all__): every caller is

@@ -116,6 +116,10 @@ class MissionFinding:
     flaw : Flaw or None
         The detection a visual blob finding was made from (its box, area and first-look score), in the
         inspection's field frame; None for screws, components found by their disc, and sensor findings.
+    ambient_score : float or None
+        A visual blob read again in the ambient-lit images of both passes (the sun's light, same viewpoint,
+        :mod:`rsi.mission.ambient`), signed noise sigmas; None where the sun does not light the place in
+        both passes, and for every finding that is no impact-sized visual blob.
     """
 
     kind: str
@@ -126,6 +130,7 @@ class MissionFinding:
     score: float
     second_look: bool = False
     flaw: Flaw | None = None
+    ambient_score: float | None = None
 
     @property
     def bbox(self) -> tuple[int, int, int, int] | None:

@@ -26,7 +26,7 @@ from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.mission.coverage import coverage
 from rsi.mission.evidence import head_glint, screw_relief_m
-from rsi.mission.exposure import metered, settle
+from rsi.mission.exposure import ambient_bracket, metered, settle
 from rsi.mission.plan import plan_vistas
 from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
 from rsi.mission.score import run_roc
@@ -220,6 +220,7 @@ def _reference_pass(
         world.set_shutter(shutter)
         world.set_strobe_energy(energy)
         reference = stored_strobe(view, settings)
+        ambient = ambient_bracket(tour, view, settings, shutter=shutter)
         depth = view.range_m
         screws = seen_screws(world, view)
         reliefs = {site.name: screw_relief_m(depth, view, site) for site in screws}
@@ -245,6 +246,7 @@ def _reference_pass(
             shutter,
             second_range_m=again.range_m,
             glints=glints,
+            ambient=ambient,
         )
         report(f"reference {point.name}")
     return stored

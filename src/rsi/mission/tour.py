@@ -24,6 +24,7 @@ from rsi.mission.viewing import focal_px, look_rotation, world_arm, world_vista
 from rsi.sim.capture import capture
 
 if TYPE_CHECKING:
+    from rsi.imaging.camera import Frame
     from rsi.sim.capture import Capture
     from rsi.sim.world import View, World
 
@@ -121,6 +122,14 @@ class Tour:
         self.views[-1] = (label, again)
         self._last = capture(self.world, again, cad=self._last.cad)
         return self._last
+
+    def ambient_frame(self, *, exposure_s: float) -> Frame:
+        """A frame of the last visit with no flash, its shutter open `exposure_s` seconds (seed §2 further
+        work: the ambient-lit image's bracket); the clock advances by a frame."""
+        if self._last is None:
+            raise InputError("ambient_frame needs a visit first: call Tour.visit.")
+        self.clock_s += FRAME_S
+        return self.world.ambient_frame(self.views[-1][1], exposure_s=exposure_s)
 
     def _view(self, label: str, vista: str, *, state: str, truth: bool) -> View:
         from rsi.sim.world import REPEATABILITY_PX

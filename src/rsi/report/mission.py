@@ -47,6 +47,7 @@ FINDING_COLUMNS = (
     "source",
     "score",
     "second_look",
+    "ambient_score",
     "row0",
     "col0",
     "row1",
@@ -172,6 +173,7 @@ def finding_records(result: MissionResult, score: MissionScore) -> list[dict[str
                 "source": finding.source,
                 "score": finding.score,
                 "second_look": finding.second_look,
+                "ambient_score": finding.ambient_score,
                 "row0": row0,
                 "col0": col0,
                 "row1": row1,
@@ -263,6 +265,10 @@ def _table(
 
 def _mm(value_m: float) -> str:
     return "" if not math.isfinite(value_m) else f"{1000.0 * value_m:.1f}"
+
+
+def _ambient(score: float | None) -> str:
+    return "" if score is None else f"{score:.3g}"
 
 
 def _position_mm(position_m: Sequence[float]) -> str:
@@ -410,17 +416,19 @@ def findings_section(result: MissionResult, score: MissionScore) -> str:
                 record["source"],
                 f"{record['score']:.3g}",
                 "yes" if record["second_look"] else "no",
+                _ambient(record["ambient_score"]),
                 truth,
             )
         )
         classes.append("finding false" if matched is None else "finding found")
     headers = ("#", "kind", "position mm (x, y, z)", "size mm", "confidence", "source", "score",
-               "second look", "ground truth")  # fmt: skip
-    table = _table(headers, rows, row_classes=classes, text_columns=(1, 5, 8))
+               "second look", "ambient", "ground truth")  # fmt: skip
+    table = _table(headers, rows, row_classes=classes, text_columns=(1, 5, 8, 9))
     return (
         "<h2>Findings</h2>\n<p class='note'>Score: LRT peak in noise sigmas (impacts, components), the head "
         "relief lost in m (screws), the temperature difference in K (pyrometer) or the peak ppm "
-        f"(gas).</p>\n{table}"
+        "(gas). Ambient: an impact read again in the sunlit images of both passes, in sigmas (seed §2 "
+        f"further work); blank where the sun does not light it in both.</p>\n{table}"
     )
 
 

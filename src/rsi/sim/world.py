@@ -786,6 +786,26 @@ class World:
         )
         return replace(flashed, frame=self.next_frame(flashed, lit_field=view.frame.lit_field))
 
+    def ambient_frame(self, view: View, *, exposure_s: float) -> Frame:
+        """The visit's ambient alone over `exposure_s` seconds: a frame from the same pose with no flash
+        (seed §2 further work: several shutter settings for the ambient-lit image's dynamic range).
+
+        The camera's electronic shutter runs from the flash's own ~20 us (``MIN_SHUTTER`` of the seed's)
+        to one video field; without a flash no shorter bound applies, and :data:`MAX_EXPOSURE_S` bounds
+        the longer.
+        """
+        if not isinstance(view, View):
+            raise InputError(f"view must be a View from World.render; got {type(view).__name__}.")
+        seconds = v.in_range(exposure_s, "exposure_s", low=0.0, high=MAX_EXPOSURE_S, low_inclusive=False)
+        return expose(
+            view.ambient_lux,
+            np.zeros_like(view.ambient_lux),
+            exposure_s=seconds,
+            camera=self.camera,
+            lit_field="none",
+            rng=self._noise_rng,
+        )
+
     def _shot_settings(
         self, size: object, state: str, lit_field: str, exposure_s: float | None, truth: object
     ) -> tuple[tuple[int, int], dict[str, Any]]:
