@@ -76,6 +76,7 @@ def test_a_visit_taken_again_keeps_its_placement_and_its_own_strobe_image(world:
 def test_the_ambient_bracket_lifts_the_sunlit_surface_near_the_top_and_keeps_every_reading(
     world: Any,
 ) -> None:
+    from rsi.errors import InputError
     from rsi.mission.exposure import ambient_bracket, ambient_dn
     from rsi.mission.settings import MissionSettings
     from rsi.mission.tour import Tour
@@ -83,6 +84,8 @@ def test_the_ambient_bracket_lifts_the_sunlit_surface_near_the_top_and_keeps_eve
 
     settings = MissionSettings()
     tour = Tour(world, seed=5, size=MISSION_SIZE, arm=False, orbit=False)
+    with pytest.raises(InputError, match="ambient_frame needs a visit first"):
+        tour.ambient_frame(exposure_s=1e-4)
     visit = sense(tour.visit("B_tank", "B_tank", state="reference", truth=False))
     region = inspection_region(visit, settings)
     bright = ambient_dn(visit, settings, region)  # the strobe frames' unlit rows, at the seed's shutter

@@ -3,6 +3,8 @@
 - :mod:`~rsi.imaging.camera` the linear CCD with its noise (seed §2.1): :func:`expose`, :class:`Frame`;
 - :mod:`~rsi.imaging.compensation` strobe minus ambient (seed §2.2): :func:`compensate_interlaced`,
   :func:`compensate_field_pair`, :class:`Compensated`;
+- :mod:`~rsi.imaging.bracket` the ambient-lit image from several shutters (seed §2 further work):
+  :func:`merge_ambient`, :class:`AmbientImage`;
 - :mod:`~rsi.imaging.registration` Gauss-Newton registration (seed §2.3): :func:`register`;
 - :mod:`~rsi.imaging.io` reading and writing grey images: :func:`read_image`, :func:`write_image`.
 """
@@ -14,6 +16,7 @@ from typing import TYPE_CHECKING
 from rsi._lazy import lazy_getattr
 
 if TYPE_CHECKING:
+    from rsi.imaging.bracket import AmbientImage, merge_ambient
     from rsi.imaging.camera import DEFAULT_CAMERA, BadPixelMap, CameraModel, Frame, expose
     from rsi.imaging.compensation import (
         Compensated,
@@ -33,6 +36,8 @@ if TYPE_CHECKING:
 
 # public names, loaded on first use so that importing the package stays cheap (PEP 562)
 _LAZY = {
+    "AmbientImage": "rsi.imaging.bracket",
+    "merge_ambient": "rsi.imaging.bracket",
     "DEFAULT_CAMERA": "rsi.imaging.camera",
     "BadPixelMap": "rsi.imaging.camera",
     "CameraModel": "rsi.imaging.camera",
@@ -60,6 +65,7 @@ __all__ = [
     "DEFAULT_CAMERA",
     "MODELS",
     "REGISTRATION_MODELS",
+    "AmbientImage",
     "BadPixelMap",
     "CameraModel",
     "Compensated",
@@ -70,6 +76,7 @@ __all__ = [
     "compensate_interlaced",
     "compensate_two_frames",
     "expose",
+    "merge_ambient",
     "prepare_reference",
     "read_image",
     "register",
