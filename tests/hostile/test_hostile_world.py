@@ -223,6 +223,7 @@ WORLD_METHODS = (
     "next_frame",
     "reflash",
     "ambient_frame",
+    "other_strobe_frames",
     "overview",
     "overview_picture",
     "begin_visit",
@@ -458,9 +459,11 @@ def test_a_tour_lets_only_named_errors_escape(world: World) -> None:
     _fuzz(tour.start_pass, "Tour.start_pass", values)
     _fuzz(tour.reflash, "Tour.reflash (before a visit)", values)
     _fuzz(tour.ambient_frame, "Tour.ambient_frame (before a visit)", values)
+    _fuzz(tour.other_strobe_frames, "Tour.other_strobe_frames (before a visit)", values)
     _fuzz(tour.visit, "Tour.visit", values, rare=5)
     _fuzz(tour.reflash, "Tour.reflash", values, rare=3)
     _fuzz(tour.ambient_frame, "Tour.ambient_frame", values)
+    _fuzz(tour.other_strobe_frames, "Tour.other_strobe_frames", values)
 
 
 # ---------------------------------------------------------------------- load and the mission, refused

@@ -852,7 +852,7 @@ def _sunlit_face(shape: tuple[int, int], seed: int = 0) -> np.ndarray:
 
 
 def test_a_spot_the_sun_lights_in_both_passes_echoes_in_the_ambient_and_noise_does_not() -> None:
-    from rsi.mission.ambient import ambient_echo
+    from rsi.mission.echoes import ambient_echo
 
     shape, at = (160, 200), (80, 100)
     rng = np.random.default_rng(1)
@@ -874,7 +874,7 @@ def test_a_spot_the_sun_lights_in_both_passes_echoes_in_the_ambient_and_noise_do
 
 
 def test_a_place_the_sun_does_not_light_or_the_ambient_does_not_read_has_no_echo() -> None:
-    from rsi.mission.ambient import ambient_echo
+    from rsi.mission.echoes import ambient_echo
 
     shape, at = (160, 200), (80, 100)
     lit = _sunlit(_sunlit_face(shape))

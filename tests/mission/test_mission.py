@@ -402,3 +402,22 @@ def test_an_impact_beside_a_discoloured_tank_keeps_its_second_look() -> None:
     score = score_mission(result)
     assert below in score.matches.values()
     assert score.per_type["swapped_component"].found == score.per_type["swapped_component"].truth
+
+
+def test_a_found_impact_is_seen_again_under_the_other_strobe(archived: tuple[MissionResult, Path]) -> None:
+    from rsi.mission.visual import thresholds
+
+    result, path = archived
+    score = score_mission(result)
+    impacts = [
+        finding
+        for index, finding in enumerate(result.findings)
+        if finding.kind == "impact" and index in score.matches and finding.other_strobe_score is not None
+    ]
+    assert impacts  # seed 0's impacts are read under the ISEE's other strobe (seed §3 B)
+    # a flaw is a change of the surface: both strobes by the lens show it (seed §2.5)
+    preliminary = thresholds(result.settings).preliminary
+    assert all(abs(finding.other_strobe_score) > preliminary for finding in impacts)  # type: ignore[arg-type]
+    with Archive.open(path, create=False) as archive:
+        stored = [f.extras for f in archive.findings(archive.runs()[-1].run_id) if f.kind == "impact"]
+    assert {"ambient_score", "other_strobe_score"} <= set(stored[0])

@@ -86,6 +86,8 @@ def test_the_ambient_bracket_lifts_the_sunlit_surface_near_the_top_and_keeps_eve
     tour = Tour(world, seed=5, size=MISSION_SIZE, arm=False, orbit=False)
     with pytest.raises(InputError, match="ambient_frame needs a visit first"):
         tour.ambient_frame(exposure_s=1e-4)
+    with pytest.raises(InputError, match="other_strobe_frames needs a visit first"):
+        tour.other_strobe_frames()
     visit = sense(tour.visit("B_tank", "B_tank", state="reference", truth=False))
     region = inspection_region(visit, settings)
     bright = ambient_dn(visit, settings, region)  # the strobe frames' unlit rows, at the seed's shutter

@@ -256,3 +256,23 @@ def test_an_ambient_frame_holds_the_sun_alone_scaled_by_its_shutter(world: World
         world.ambient_frame(view, exposure_s=0.0)
     with pytest.raises(InputError, match="view must be a View"):
         world.ambient_frame("view", exposure_s=1e-4)  # type: ignore[arg-type]
+
+
+def test_the_other_strobe_lights_the_same_view_from_below_the_lens(world: World) -> None:
+    from rsi.imaging.compensation import compensate_field_pair
+
+    view = world.render("B_tank", size=SMALL, truth=False)
+    upper = compensate_field_pair(view.frame, world.next_frame(view, lit_field="even"))
+    frames = world.other_strobe_frames(view)
+    assert [frame.lit_field for frame in frames] == ["odd", "even"]
+    assert all(frame.exposure_s == view.frame.exposure_s for frame in frames)
+    lower = compensate_field_pair(*frames)
+    lit = upper.valid & lower.valid & (upper.image > 10.0)
+    # the same flash 3 cm on the lens's other side (seed §3 B): as bright overall, brighter towards the
+    # frame's bottom, which it is nearer, and dimmer towards its top
+    assert float(lower.image[lit].sum() / upper.image[lit].sum()) == pytest.approx(1.0, abs=0.15)
+    ratio = np.where(lit, lower.image / np.maximum(upper.image, 1.0), np.nan)
+    rows = SMALL[0]
+    assert np.nanmedian(ratio[rows * 3 // 4 :]) > np.nanmedian(ratio[: rows // 4])
+    with pytest.raises(InputError, match="view must be a View"):
+        world.other_strobe_frames("view")  # type: ignore[arg-type]

@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from rsi.detection.detect import Flaw
     from rsi.detection.pair import PairResult
     from rsi.imaging.compensation import Compensated
-    from rsi.mission.ambient import AmbientEcho
+    from rsi.mission.echoes import Echo
     from rsi.sim.anomalies import Site
     from rsi.sim.world import World
 
@@ -60,8 +60,10 @@ class Look:
     # that component's pixels alone, and the swap's blob around it does not absorb it
     component: str | None = None
     peak_px: tuple[int, int] | None = None  # field-image (row, col) of its peak score (:func:`blobs`)
-    # the look read again in the ambient-lit images (rsi.mission.ambient.ambient_echo); None: not read
-    ambient: AmbientEcho | None = None
+    # the look read again under the sun (the ambient-lit images) and under the other strobe
+    # (rsi.mission.echoes); None: not read
+    ambient: Echo | None = None
+    other_strobe: Echo | None = None
 
     @property
     def bbox(self) -> tuple[int, int, int, int]:

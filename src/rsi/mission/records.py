@@ -118,8 +118,11 @@ class MissionFinding:
         inspection's field frame; None for screws, components found by their disc, and sensor findings.
     ambient_score : float or None
         A visual blob read again in the ambient-lit images of both passes (the sun's light, same viewpoint,
-        :mod:`rsi.mission.ambient`), signed noise sigmas; None where the sun does not light the place in
+        :mod:`rsi.mission.echoes`), signed noise sigmas; None where the sun does not light the place in
         both passes, and for every finding that is no impact-sized visual blob.
+    other_strobe_score : float or None
+        The same blob read again under the ISEE's other strobe, below the lens, in both passes
+        (:mod:`rsi.mission.echoes`), signed noise sigmas; None where not read.
     """
 
     kind: str
@@ -131,6 +134,7 @@ class MissionFinding:
     second_look: bool = False
     flaw: Flaw | None = None
     ambient_score: float | None = None
+    other_strobe_score: float | None = None
 
     @property
     def bbox(self) -> tuple[int, int, int, int] | None:

@@ -24,6 +24,7 @@ import numpy as np
 
 from rsi import _validate as v
 from rsi.errors import InputError
+from rsi.imaging.compensation import compensate_field_pair
 from rsi.mission.coverage import coverage
 from rsi.mission.evidence import head_glint, screw_relief_m
 from rsi.mission.exposure import ambient_bracket, metered, settle
@@ -221,6 +222,7 @@ def _reference_pass(
         world.set_strobe_energy(energy)
         reference = stored_strobe(view, settings)
         ambient = ambient_bracket(tour, view, settings, shutter=shutter)
+        other_strobe = stored_strobe(view, settings, compensate_field_pair(*tour.other_strobe_frames()))
         depth = view.range_m
         screws = seen_screws(world, view)
         reliefs = {site.name: screw_relief_m(depth, view, site) for site in screws}
@@ -247,6 +249,7 @@ def _reference_pass(
             second_range_m=again.range_m,
             glints=glints,
             ambient=ambient,
+            other_strobe=other_strobe,
         )
         report(f"reference {point.name}")
     return stored

@@ -72,7 +72,12 @@ def store_findings(
                 area_px=None if f.flaw is None else f.flaw.area_px,
                 size_m=f.size_m,
                 score=f.score,
-                extras={"source": f.source, "second_look": f.second_look, "ambient_score": f.ambient_score},
+                extras={
+                    "source": f.source,
+                    "second_look": f.second_look,
+                    "ambient_score": f.ambient_score,
+                    "other_strobe_score": f.other_strobe_score,
+                },
             )
             for f in findings
         ],

@@ -131,6 +131,14 @@ class Tour:
         self.clock_s += FRAME_S
         return self.world.ambient_frame(self.views[-1][1], exposure_s=exposure_s)
 
+    def other_strobe_frames(self) -> tuple[Frame, Frame]:
+        """The last visit's two frames again with the ISEE's other strobe (seed §3 B, §2.5), from where the
+        camera still stands; the clock advances by the two frames."""
+        if self._last is None:
+            raise InputError("other_strobe_frames needs a visit first: call Tour.visit.")
+        self.clock_s += 2 * FRAME_S
+        return self.world.other_strobe_frames(self.views[-1][1])
+
     def _view(self, label: str, vista: str, *, state: str, truth: bool) -> View:
         from rsi.sim.world import REPEATABILITY_PX
 

@@ -23,7 +23,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi.errors import InputError
-from rsi.mission.ambient import ambient_echo
+from rsi.imaging.compensation import compensate_field_pair
+from rsi.mission.echoes import ambient_echo, echo_in
 from rsi.mission.evidence import (
     Explanation,
     HeadGlint,
@@ -105,7 +106,10 @@ class StoredView:
         The second reference's stereo range map (NaN where unmatched), for its occlusions.
     ambient : AmbientImage or None
         The reference's ambient-lit image (:func:`rsi.mission.exposure.ambient_bracket`), for the looks'
-        ambient echo (:func:`rsi.mission.ambient.ambient_echo`); None: not taken.
+        echo under the sun (:func:`rsi.mission.echoes.ambient_echo`); None: not taken.
+    other_strobe : Compensated or None
+        The reference's image under the ISEE's other strobe, for the looks' echo under it
+        (:func:`rsi.mission.echoes.echo_in`); None: not taken.
     """
 
     reference: Compensated
@@ -118,9 +122,10 @@ class StoredView:
     second_range_m: NDArray[np.float32] | None = None
     glints: Mapping[str, HeadGlint] = field(default_factory=dict)
     ambient: AmbientImage | None = None
+    other_strobe: Compensated | None = None
 
 
-def stored_strobe(view: Sensed, settings: MissionSettings) -> Compensated:
+def stored_strobe(view: Sensed, settings: MissionSettings, image: Compensated | None = None) -> Compensated:
     """A pristine visit's strobe image as the reference pass keeps it: without its view of the ISEE's own
     jaws and a guard band (``settings.inspection_guard_px``) about their edges.
 
@@ -128,12 +133,14 @@ def stored_strobe(view: Sensed, settings: MissionSettings) -> Compensated:
     took: where the arm cannot reach a vista the tour takes the frame with the free camera, which holds the
     surface there. One pass may reach a vista and the other not; the inspection's own model then draws no
     jaws where the reference holds them, and without this the jaws' edges would be compared with the
-    surface behind them (truss-b at space repeatability, 3.9 -> ~8 false impacts per run).
+    surface behind them (truss-b at space repeatability, 3.9 -> ~8 false impacts per run). `image`: another
+    strobe image of the same visit (the other strobe's) kept the same way; the visit's own by default.
     """
+    image = view.strobe if image is None else image
     own = own_body(view.capture.cad)
     if not own.any():
-        return view.strobe
-    return _restricted(view.strobe, ~grown(own, settings.inspection_guard_px))
+        return image
+    return _restricted(image, ~grown(own, settings.inspection_guard_px))
 
 
 @dataclass(frozen=True)
@@ -259,7 +266,9 @@ def inspect_visit(
     )
     world.set_shutter(shutter)  # the second looks' frames too
     ambient = ambient_bracket(tour, view, settings, shutter=shutter)
-    inspection = _restricted(view.strobe, _point_region(world, point, view, settings))
+    region = _point_region(world, point, view, settings)
+    other_strobe = _restricted(compensate_field_pair(*tour.other_strobe_frames()), region)
+    inspection = _restricted(view.strobe, region)
     p_first = settings.p_preliminary if active else settings.p_false_alarm
     comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
 
@@ -323,10 +332,12 @@ def inspect_visit(
             limits=limits,
             settings=settings,
         )
-    if stored.ambient is not None:
-        # read as a spot against its ring: a component's broad change has its own tests
-        for look in (look for look in looks if look.area_m2 <= settings.component_area_m2):
+    # read as a spot against its ring: a component's broad change has its own tests
+    for look in (look for look in looks if look.area_m2 <= settings.component_area_m2):
+        if stored.ambient is not None:
             look.ambient = ambient_echo(stored.ambient, ambient, look, settings)
+        if stored.other_strobe is not None:
+            look.other_strobe = echo_in(stored.other_strobe, other_strobe, look, settings)
     looked = (
         _second_looks(again, looks, explanations, first=inspection, limits=limits, settings=settings)
         if active
@@ -986,26 +997,37 @@ def _second_looks(
         # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3; a fused score
         # carried by the first look alone is no echo: the second must see the blob itself
         fused = (look.score + echo) / math.sqrt(3.0) if echo > limits.preliminary else 0.0
-        look.score, look.second_look = max(fused, _seen_in_ambient(look, limits)), True
-        confirmed += fused > limits.confirm
+        look.score, look.second_look = max(fused, _seen_in_other_light(look, limits)), True
+        confirmed += look.score > limits.confirm
     return (len(looks), confirmed, len(looks) - confirmed)
 
 
-def _seen_in_ambient(look: Look, limits: Thresholds) -> float:
-    """The first look's score where its ambient echo confirms it as well, else 0: the weaker of the two.
+def _seen_in_other_light(look: Look, limits: Thresholds) -> float:
+    """The look's score where it is seen again from the same viewpoint under another light, else 0: under
+    the sun (the ambient-lit images) the weaker of its first look and its echo, both over the confirming
+    threshold; under the other strobe the two looks fused.
 
-    Seed §2 further work: the ambient-lit image "sees" the place under another light, from the same
-    viewpoint, for free. What the strobe alone made (its glare, its shadow beside an edge, both riding with
-    the camera) is not in it; a flaw the sun lights in both passes is (development seeds 2049-2052 at
-    300 s and 2057-2060 in space: every impact with an echo read 8.7-85 sigma there but one, 2.5; the four
-    sunlit false candidates 1.3-2.2). A second visit that missed a flaw (the blob read in the wrong place,
-    its own viewpoint error) is then outvoted by both other looks. The echo alone never makes a finding:
-    an absent echo rejects nothing (a crater's slopes relit from another angle may show little).
+    What the strobe alone made (its glare, its shadow beside an edge, riding with the camera) is in
+    neither; a second visit that missed a flaw (its own viewpoint error, the blob read in the wrong place)
+    is then outvoted. No echo rejects nothing.
+
+    - **The sun** (seed §2 further work, for free): a flaw's contrast under another light is its own (a
+      crater's slopes relit from another angle may show little), so it is no second sample of one signal:
+      each look must confirm alone. Development seeds 2049-2052 at 300 s and 2057-2060 in space: every
+      impact with an echo read 8.7-85 sigma there but one (2.5); the four sunlit false candidates 1.3-2.2.
+    - **The other strobe** (seed §2.5, §3 B: the ISEE's second flash, 6 cm from the first across the lens):
+      near the lens as the first, it shows a flaw as the first does, from new frames of both passes: a
+      second sample of the same signal, fused as two independent looks, ``(s1 + s2) / sqrt(2)``, once it
+      passes the confirming threshold itself. The same seeds: every impact read 6.7-154 sigma under it but
+      one unconfirmed (1.3); all 247 false candidates it read, at most 5.4.
     """
-    echo = look.ambient
-    if echo is None or look.score <= limits.confirm:
-        return 0.0
-    return min(look.score, abs(echo.score)) if abs(echo.score) > limits.confirm else 0.0
+    best = 0.0
+    sun, other = look.ambient, look.other_strobe
+    if sun is not None and look.score > limits.confirm and abs(sun.score) > limits.confirm:
+        best = min(look.score, abs(sun.score))
+    if other is not None and look.score > limits.preliminary and abs(other.score) > limits.confirm:
+        best = max(best, (look.score + abs(other.score)) / math.sqrt(2.0))
+    return best
 
 
 def _believed_px(view: Sensed, look: Look) -> tuple[float, float]:
@@ -1043,6 +1065,7 @@ def _visual_finding(look: Look, source: str, limits: Thresholds, settings: Missi
         second_look=look.second_look,
         flaw=look.flaw,
         ambient_score=None if look.ambient is None else look.ambient.score,
+        other_strobe_score=None if look.other_strobe is None else look.other_strobe.score,
     )
 
 

@@ -48,6 +48,7 @@ FINDING_COLUMNS = (
     "score",
     "second_look",
     "ambient_score",
+    "other_strobe_score",
     "row0",
     "col0",
     "row1",
@@ -174,6 +175,7 @@ def finding_records(result: MissionResult, score: MissionScore) -> list[dict[str
                 "score": finding.score,
                 "second_look": finding.second_look,
                 "ambient_score": finding.ambient_score,
+                "other_strobe_score": finding.other_strobe_score,
                 "row0": row0,
                 "col0": col0,
                 "row1": row1,
@@ -267,7 +269,7 @@ def _mm(value_m: float) -> str:
     return "" if not math.isfinite(value_m) else f"{1000.0 * value_m:.1f}"
 
 
-def _ambient(score: float | None) -> str:
+def _echo(score: float | None) -> str:
     return "" if score is None else f"{score:.3g}"
 
 
@@ -416,19 +418,21 @@ def findings_section(result: MissionResult, score: MissionScore) -> str:
                 record["source"],
                 f"{record['score']:.3g}",
                 "yes" if record["second_look"] else "no",
-                _ambient(record["ambient_score"]),
+                _echo(record["ambient_score"]),
+                _echo(record["other_strobe_score"]),
                 truth,
             )
         )
         classes.append("finding false" if matched is None else "finding found")
     headers = ("#", "kind", "position mm (x, y, z)", "size mm", "confidence", "source", "score",
-               "second look", "ambient", "ground truth")  # fmt: skip
-    table = _table(headers, rows, row_classes=classes, text_columns=(1, 5, 8, 9))
+               "second look", "ambient", "other strobe", "ground truth")  # fmt: skip
+    table = _table(headers, rows, row_classes=classes, text_columns=(1, 5, 8, 9, 10))
     return (
         "<h2>Findings</h2>\n<p class='note'>Score: LRT peak in noise sigmas (impacts, components), the head "
         "relief lost in m (screws), the temperature difference in K (pyrometer) or the peak ppm "
-        "(gas). Ambient: an impact read again in the sunlit images of both passes, in sigmas (seed §2 "
-        f"further work); blank where the sun does not light it in both.</p>\n{table}"
+        "(gas). Ambient, other strobe: an impact read again in both passes' images under the sun (seed §2 "
+        "further work; blank where the sun does not light it in both) and under the ISEE's other strobe "
+        f"(seed §2.5), in sigmas.</p>\n{table}"
     )
 
 

@@ -8,6 +8,8 @@ Light groups (one basis image each, see :mod:`rsi.sim.render`):
   12 deg, exponent 0, shadows from a 2048 map: a directional light puts 1-px shadow acne on panels that
   looks like flaws) and the room's dim ambient (seed §4: a room darkened by black curtains);
 - ``"strobe"``: the end-effector strobe (seed §2.1), a spot light beside the camera falling off as 1/d^2;
+- ``"other_strobe"``: the ISEE's second strobe (seed §3 B), as far on the lens's other side, flashed only for
+  a second look (seed §2.5);
 - ``"lamps"``: the two end-effector halogen lamps (seed §3), likewise.
 
 Geom groups keep the pristine mock-up and the anomalous one in a single model: group 0 is common, group 3
@@ -68,6 +70,9 @@ STROBE_LEVEL = 0.2  # with 1/d^2 fall-off: 0.8 at the reference distance
 # The strobe beside the lens (seed §2.1), in the camera's frame (x right, y up, looking along -z), and its
 # beam's half-angle: at the CAD plan's closest standoffs (~0.24 m) the frame's far corners reach 30 deg
 STROBE_OFFSET_M = (0.0, 0.03, 0.0)
+# The ISEE's second strobe (seed §3 B: "two fast pulse strobe flashes"), as far below the lens: the other
+# light of active inspection (seed §2.5, "different illuminator/camera combinations")
+OTHER_STROBE_OFFSET_M = (0.0, -0.03, 0.0)
 STROBE_CUTOFF_DEG = 32.0
 HALOGEN_LEVEL = 0.1  # each of two lamps: 0.8 together at the reference distance
 REFERENCE_DISTANCE_M = 0.5  # seed §2.1 inspection standoff at which strobe and lamps are calibrated
@@ -83,6 +88,7 @@ DECAL_LIFT_M = 1e-4  # above the surface: clear of depth-buffer fighting at 0.5 
 LIGHT_GROUPS: dict[str, tuple[str, ...]] = {
     "sun": ("solar_lamp", "room"),
     "strobe": ("strobe",),
+    "other_strobe": ("other_strobe",),
     "lamps": ("halogen_0", "halogen_1"),
 }
 
@@ -586,7 +592,9 @@ def _document(
     materials: list[str], textures: list[str], world: list[str], door: list[str], mockup: Mockup
 ) -> str:
     lamp_dir = "0 0 -1"
-    strobe = _spot("strobe", STROBE_OFFSET_M, STROBE_LEVEL, STROBE_CUTOFF_DEG)
+    strobe = _spot("strobe", STROBE_OFFSET_M, STROBE_LEVEL, STROBE_CUTOFF_DEG) + _spot(
+        "other_strobe", OTHER_STROBE_OFFSET_M, STROBE_LEVEL, STROBE_CUTOFF_DEG
+    )
     halogens = "".join(
         _spot(f"halogen_{k}", (x, -0.03, 0.0), HALOGEN_LEVEL, 35.0) for k, x in enumerate((-0.05, 0.05))
     )

@@ -786,6 +786,32 @@ class World:
         )
         return replace(flashed, frame=self.next_frame(flashed, lit_field=view.frame.lit_field))
 
+    def other_strobe_frames(self, view: View) -> tuple[Frame, Frame]:
+        """The visit's two frames again with the ISEE's other strobe (seed §3 B), below the lens, in the odd
+        and then the even field: same pose, shutter and flash energy, new noise (seed §2.5: "selection of
+        different illuminator/camera combinations to get more data").
+
+        Taken where the camera now stands: call it before the camera moves on from `view`'s visit.
+        """
+        if not isinstance(view, View):
+            raise InputError(f"view must be a View from World.render; got {type(view).__name__}.")
+        camera = self.arm.camera_name("left") if view.carried else "isee"
+        basis = self._renderer(view.frame.raw.shape).luminance(
+            self.data, camera, state=view.state, lights=tuple(self._lights["other_strobe"])
+        )
+        strobe = self._strobe_lux_s(basis)
+        return tuple(  # type: ignore[return-value]
+            expose(
+                view.ambient_lux,
+                strobe,
+                exposure_s=view.frame.exposure_s,
+                camera=self.camera,
+                lit_field=field_name,
+                rng=self._noise_rng,
+            )
+            for field_name in ("odd", "even")
+        )
+
     def ambient_frame(self, view: View, *, exposure_s: float) -> Frame:
         """The visit's ambient alone over `exposure_s` seconds: a frame from the same pose with no flash
         (seed §2 further work: several shutter settings for the ambient-lit image's dynamic range).
@@ -906,13 +932,18 @@ class World:
             ambient = ambient + basis["lamps"] * np.float32(
                 HALOGEN_LUX / (255 * 2 * HALOGEN_LEVEL * at_reference)
             )
-        strobe = basis["strobe"] * np.float32(
-            self.strobe_energy * STROBE_LUX_S / (255 * STROBE_LEVEL * at_reference)
-        )
+        strobe = self._strobe_lux_s(basis["strobe"])
         frame = expose(
             ambient, strobe, exposure_s=seconds, camera=self.camera, lit_field=lit_field, rng=self._noise_rng
         )
         return frame, basis, ambient, strobe
+
+    def _strobe_lux_s(self, luminance: F32) -> F32:
+        """A strobe's exposure in lux s from its luminance render: the flash at this world's energy, its
+        render level calibrated at the reference distance (seed §2.1: 1.3 lm s over 0.1 m^2)."""
+        return luminance * np.float32(
+            self.strobe_energy * STROBE_LUX_S / (255 * STROBE_LEVEL * (1.0 / REFERENCE_DISTANCE_M**2))
+        )
 
     def _truth(
         self, pose: CameraPose, depth: F32, segments: NDArray[np.int32], state: str, *, camera: str = "isee"
