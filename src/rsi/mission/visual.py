@@ -332,12 +332,7 @@ def inspect_visit(
             limits=limits,
             settings=settings,
         )
-    # read as a spot against its ring: a component's broad change has its own tests
-    for look in (look for look in looks if look.area_m2 <= settings.component_area_m2):
-        if stored.ambient is not None:
-            look.ambient = ambient_echo(stored.ambient, ambient, look, settings)
-        if stored.other_strobe is not None:
-            look.other_strobe = echo_in(stored.other_strobe, other_strobe, look, settings)
+    _read_in_other_light(looks, stored, (ambient, other_strobe), settings)
     looked = (
         _second_looks(again, looks, explanations, first=inspection, limits=limits, settings=settings)
         if active
@@ -356,6 +351,23 @@ def inspect_visit(
         rejected=counts[2],
     )
     return Visit(tuple(findings), record, screws_checked | checked, comparison.pair)
+
+
+def _read_in_other_light(
+    looks: list[Look],
+    stored: StoredView,
+    taken: tuple[AmbientImage, Compensated],
+    settings: MissionSettings,
+) -> None:
+    """Each impact-sized look read again under the sun and under the other strobe (`taken`: this visit's
+    ambient-lit image and other-strobe image), against the reference's (:mod:`rsi.mission.echoes`); read
+    as a spot against its ring: a component's broad change has its own tests."""
+    ambient, other_strobe = taken
+    for look in (look for look in looks if look.area_m2 <= settings.component_area_m2):
+        if stored.ambient is not None:
+            look.ambient = ambient_echo(stored.ambient, ambient, look, settings)
+        if stored.other_strobe is not None:
+            look.other_strobe = echo_in(stored.other_strobe, other_strobe, look, settings)
 
 
 def _point_region(
