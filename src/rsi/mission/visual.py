@@ -1025,13 +1025,13 @@ def _seen_in_other_light(look: Look, limits: Thresholds) -> float:
 
     - **The sun** (seed §2 further work, for free): a flaw's contrast under another light is its own (a
       crater's slopes relit from another angle may show little), so it is no second sample of one signal:
-      each look must confirm alone. Development seeds 2049-2052 at 300 s and 2057-2060 in space: every
-      impact with an echo read 8.7-85 sigma there but one (2.5); the four sunlit false candidates 1.3-2.2.
+      each look must confirm alone. Development seeds 2049-2052 at 300 s and 2057-2060 in space: seven of the
+      ten impacts it read echoed 8.7-85 sigma (the others 0-3.6); the six sunlit false candidates at most 2.1.
     - **The other strobe** (seed §2.5, §3 B: the ISEE's second flash, 6 cm from the first across the lens):
       near the lens as the first, it shows a flaw as the first does, from new frames of both passes: a
       second sample of the same signal, fused as two independent looks, ``(s1 + s2) / sqrt(2)``, once it
       passes the confirming threshold itself. The same seeds: every impact read 6.7-154 sigma under it but
-      one unconfirmed (1.3); all 247 false candidates it read, at most 5.4.
+      one unconfirmed (1.3); the 251 false candidates it read, at most 5.4.
     """
     best = 0.0
     sun, other = look.ambient, look.other_strobe
