@@ -36,6 +36,7 @@ MODULES = (
     "rsi.imaging.io",
     "rsi.imaging.camera",
     "rsi.imaging.compensation",
+    "rsi.imaging.bracket",
     "rsi.imaging.registration",
     "rsi.imaging.stereo",
     "rsi.detection.detect",
