@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rsi.imaging.compensation import Compensated
-from rsi.mission.evidence import CLUTTER_REACH_PX, FOLLOW_HALF_PX, Look, second_look_score
+from rsi.mission.evidence import CLUTTER_REACH_PX, FOLLOW_HALF_PX, Look, follow_window, second_look_score
 from rsi.mission.settings import MissionSettings
 
 if TYPE_CHECKING:
@@ -135,12 +135,7 @@ def _registered_about(images: list[Compensated], at: tuple[float, float]) -> Reg
     too few pixels or no convergence."""
     from rsi.imaging.registration import register
 
-    window = np.zeros(images[0].image.shape, bool)
-    window[
-        max(round(at[0]) - FOLLOW_HALF_PX, 0) : round(at[0]) + FOLLOW_HALF_PX + 1,
-        max(round(at[1]) - FOLLOW_HALF_PX, 0) : round(at[1]) + FOLLOW_HALF_PX + 1,
-    ] = True
-    mask = window & images[0].valid
+    mask = follow_window(images[0].image.shape, at) & images[0].valid
     if int(mask.sum()) < _MIN_FIT_PX:
         return None
     fit = register(images[0].image, images[1].image, model="translation", mask=mask)

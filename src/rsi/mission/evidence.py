@@ -1159,6 +1159,18 @@ def line_shaped(look: Look, mask: NDArray[np.bool_], statistic: NDArray[np.float
 FOLLOW_HALF_PX = 48
 
 
+def follow_window(shape: tuple[int, ...], at_px: tuple[float, float]) -> NDArray[np.bool_]:
+    """The pixels within ``FOLLOW_HALF_PX`` of field pixel `at_px` (row, col), in an image of `shape`: where
+    a look's two images are registered about it."""
+    row, col = round(at_px[0]), round(at_px[1])
+    window = np.zeros(shape, bool)
+    window[
+        max(row - FOLLOW_HALF_PX, 0) : row + FOLLOW_HALF_PX + 1,
+        max(col - FOLLOW_HALF_PX, 0) : col + FOLLOW_HALF_PX + 1,
+    ] = True
+    return window
+
+
 def followed(
     first: Compensated, second: Compensated, at_px: tuple[float, float], believed: tuple[float, float]
 ) -> tuple[float, float]:
@@ -1175,9 +1187,7 @@ def followed(
     from rsi.imaging.registration import register
 
     row, col = at_px
-    window = np.zeros(first.image.shape, bool)
-    top, left = max(round(row) - FOLLOW_HALF_PX, 0), max(round(col) - FOLLOW_HALF_PX, 0)
-    window[top : round(row) + FOLLOW_HALF_PX + 1, left : round(col) + FOLLOW_HALF_PX + 1] = True
+    window = follow_window(first.image.shape, at_px)
     # started by phase correlation (register's default): a start at the believed offset, 11 px off in
     # that case, stalls on the panel's periodic cells
     fit = register(first.image, second.image, model="translation", mask=window & first.valid)
