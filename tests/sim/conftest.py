@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -23,3 +23,9 @@ def world() -> Iterator[World]:
     built = load("truss", seed=SEED, settings=SETTINGS)
     yield built
     built.close()
+
+
+@pytest.fixture
+def same_draw() -> Callable[[], World]:
+    """A new world of the module world's draw, for a setting MuJoCo reads when a renderer is made."""
+    return lambda: load("truss", seed=SEED, settings=SETTINGS)

@@ -19,6 +19,7 @@ group 4 what they remove (removed screws, the original components: the *referenc
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from functools import cache
 from typing import TYPE_CHECKING, Any
@@ -79,6 +80,15 @@ REFERENCE_DISTANCE_M = 0.5  # seed §2.1 inspection standoff at which strobe and
 LAMP_DISTANCE_M = 3.0
 LAMP_CUTOFF_DEG = 12.0
 SHADOW_MAP_PX = 2048
+# seed §2.1: the strobe lights each point by its distance and its angle off the beam. MuJoCo's renderer
+# lights each vertex and interpolates across the triangle, and draws a box face as numquads x numquads quads
+# (default 4: 13 cm quads on the panel, 10 cm on a plate), so a vertex past a spot light's cut-off darkens
+# its whole quad: the panel's strobe image moved by 16 % from 4 quads to 8. Between two visits a vertex that
+# crossed the cut-off moved a wedge of its quad: a 75-sigma false swapped component on a plate 23 deg inside
+# the 32-deg beam (truss-b seed 2062 in space, cad_04). Quads of 1.5 cm subtend at most 4.1 deg at the
+# closest plan standoff (0.21 m), inside the beam margin the mission trusts (5 deg,
+# ``MissionSettings.strobe_beam_margin_deg``).
+BOX_QUAD_M = 0.015
 STEREO_BASELINE_M = 0.06
 CAMERA_FOVY_DEG = 35.0  # 0.32 m x 0.32 m at 0.5 m: the seed's ~0.1 m^2 scene (seed §2.1)
 MAX_RENDER_PX = 2048
@@ -592,6 +602,7 @@ def _document(
     materials: list[str], textures: list[str], world: list[str], door: list[str], mockup: Mockup
 ) -> str:
     lamp_dir = "0 0 -1"
+    quads = _box_quads(mockup)
     strobe = _spot("strobe", STROBE_OFFSET_M, STROBE_LEVEL, STROBE_CUTOFF_DEG) + _spot(
         "other_strobe", OTHER_STROBE_OFFSET_M, STROBE_LEVEL, STROBE_CUTOFF_DEG
     )
@@ -606,7 +617,7 @@ def _document(
   <visual>
     <headlight active="0" ambient="0 0 0" diffuse="0 0 0" specular="0 0 0"/>
     <global offwidth="{MAX_RENDER_PX}" offheight="{MAX_RENDER_PX}" fovy="{CAMERA_FOVY_DEG}"/>
-    <quality shadowsize="{SHADOW_MAP_PX}"/>
+    <quality shadowsize="{SHADOW_MAP_PX}" numquads="{quads}"/>
     <map znear="0.004" zfar="20" haze="0"/>
     <rgba fog="0 0 0 1" haze="0 0 0 1"/>
   </visual>
@@ -636,6 +647,12 @@ def _document(
     <rangefinder name="isee_range" site="isee_range"/>
   </sensor>
 </mujoco>"""
+
+
+def _box_quads(mockup: Mockup) -> int:
+    """Quads along a box face's side (MuJoCo's ``numquads``, one for all boxes): none over BOX_QUAD_M."""
+    longest = max((2.0 * max(part.size) for part in mockup.parts if part.shape == "box"), default=0.0)
+    return max(4, math.ceil(longest / BOX_QUAD_M))
 
 
 def _spot(name: str, pos: tuple[float, float, float], level: float, cutoff_deg: float) -> str:
