@@ -115,6 +115,30 @@ def test_pixels_the_two_viewpoints_see_past_different_edges_leave_the_comparison
     assert not occluded[:60].any() and not occluded[180:].any()
 
 
+def test_where_the_stereo_left_the_edge_unranged_the_reference_s_surface_marks_the_occlusion() -> None:
+    reference, inspection, depth = _scene()
+    fit = fit_parallax(reference, inspection, depth, start_xy=(5.0, -3.0))
+    surface = np.full(SHAPE, 0.5, np.float32)
+    surface[80 + 4 - 2 : 160 + 4 - 2, 100 - 6 - 3 : 220 - 6 - 3] = 0.35
+    # a stereo pair leaves the left frame's first f B / Z columns unmatched: the box's left edge among them
+    ranged = surface.copy()
+    ranged[:, :140] = np.nan
+    compensated = _compensated(reference)
+    by_range = predict_reference(compensated, fit, depth, reference_range_m=ranged)
+    assert not by_range.occluded[:, :130].any()
+    by_surface = predict_reference(
+        compensated, fit, depth, reference_range_m=ranged, reference_surface_m=surface
+    )
+    assert by_surface.occluded[80:160, 90:110].any()  # the left edge's band
+    assert not by_surface.reference.valid[by_surface.occluded].any()
+    # the same occlusions as a range without holes, and the result still carries the range it was given
+    whole = predict_reference(compensated, fit, depth, reference_range_m=surface)
+    np.testing.assert_array_equal(by_surface.occluded, whole.occluded)
+    assert np.isnan(by_surface.range_m[:, :120]).all()
+    with pytest.raises(InputError, match="reference_surface_m must have the reference's shape"):
+        predict_reference(compensated, fit, depth, reference_surface_m=surface[:10])
+
+
 def test_a_false_match_of_the_reference_range_away_from_every_edge_is_no_occlusion() -> None:
     reference, inspection, depth = _scene()
     fit = fit_parallax(reference, inspection, depth, start_xy=(5.0, -3.0))

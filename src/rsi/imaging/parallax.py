@@ -333,6 +333,7 @@ def predict_reference(
     range_m: NDArray[np.floating],
     *,
     reference_range_m: NDArray[np.floating] | None = None,
+    reference_surface_m: NDArray[np.floating] | None = None,
     range_std_m: NDArray[np.floating] | float = 0.0,
     occlusion_m: float = 0.02,
     about_shift: bool = False,
@@ -352,6 +353,11 @@ def predict_reference(
         at a pixel's preimage, within the parallax of a step of more than `occlusion_m` in `range_m`, the
         two viewpoints see different surfaces there (an occluding edge); farther from every step the
         disagreement is a false match of the reference's range, and the pixel stays.
+    reference_surface_m : ndarray of shape (M, N), optional
+        The reference's surface for the occlusion test in place of `reference_range_m` (which the result
+        still carries): its range, and where the range has a hole a model's depth. A stereo pair leaves
+        the edges it should tell unmatched (the left frame's first ``f B / Z`` columns, 90-180 px, and the
+        tank silhouettes' strips), so a range alone marks no occlusion there.
     range_std_m : float or ndarray
         One-sigma noise of `range_m`, metres (into the warp's uncertainty).
     occlusion_m : float
@@ -374,6 +380,8 @@ def predict_reference(
     range_m = _range_map(range_m, "range_m", shape)
     if reference_range_m is not None:
         reference_range_m = _range_map(reference_range_m, "reference_range_m", shape)
+    if reference_surface_m is not None:
+        reference_surface_m = _range_map(reference_surface_m, "reference_surface_m", shape)
     range_std = v.as_float_array(range_std_m, "range_std_m")
     if range_std.shape not in ((), shape) or not (np.isfinite(range_std) & (range_std >= 0)).all():
         raise InputError(
@@ -404,8 +412,10 @@ def predict_reference(
     before = np.full(shape, np.nan, dtype=np.float32)
     if reference_range_m is not None:
         before = warp(np.asarray(reference_range_m, dtype=np.float32), cv2.INTER_NEAREST)
+    surface = before if reference_surface_m is None else warp(reference_surface_m, cv2.INTER_NEAREST)
+    if reference_range_m is not None or reference_surface_m is not None:
         with np.errstate(invalid="ignore"):
-            occluded = (np.abs(before - seen_m) > occlusion_m) & _near_steps(known, fit, occlusion_m)
+            occluded = (np.abs(surface - seen_m) > occlusion_m) & _near_steps(known, fit, occlusion_m)
         valid &= ~occluded
     std = fit.std_px(known, range_std_m)
     grad_x, grad_y = _gradients(image)

@@ -250,6 +250,8 @@ def _reference_pass(
             glints=glints,
             ambient=ambient,
             other_strobe=other_strobe,
+            surface_m=view.surface_m,
+            second_surface_m=again.surface_m,
         )
         report(f"reference {point.name}")
     return stored
