@@ -85,6 +85,18 @@ def test_a_face_s_strobe_image_does_not_depend_on_how_finely_its_box_is_drawn(
     assert _largest_change(_panel_strobe(same_draw, 4), _panel_strobe(same_draw, 8)) > 0.1
 
 
+def test_live_video_s_coarser_drawing_leaves_the_model_s_settings_as_they_were(world: World) -> None:
+    from rsi.sim.render import SceneRenderer
+
+    quality = world.model.vis.quality
+    before = (quality.offsamples, quality.numslices, quality.numstacks, quality.numquads)
+    renderer = SceneRenderer(world.model, *SIZE, fast=True)
+    renderer.close()
+    assert (quality.offsamples, quality.numslices, quality.numstacks, quality.numquads) == before
+    # the inspection frames keep their fine quads (rsi.sim.scene.BOX_QUAD_M), live video MuJoCo's four
+    assert quality.numquads > 4
+
+
 def test_an_unknown_gl_backend_fails_only_when_rendering_with_a_clear_error() -> None:
     code = (
         "import rsi.sim as s; w = s.load('truss', seed=1); print('built', len(w.anomalies));\n"

@@ -174,6 +174,9 @@ class CameraPose:
 # ISEE camera took 31.6 ms at 28 x 16 and 25.0 ms at 16 x 8 (bench in docs/console.md); 16 slices keep a
 # tube's outline within 2 % of its radius (1 - cos(pi / 16)).
 FAST_TESSELLATION = (16, 8)
+# Quads along a box face's side in live video: MuJoCo's default. The inspection frames' fine quads
+# (rsi.sim.scene.BOX_QUAD_M) make the strobe's light true per point; the operator's video shows no strobe
+FAST_BOX_QUADS = 4
 
 
 class SceneRenderer:
@@ -187,8 +190,9 @@ class SceneRenderer:
     show_rangefinders : bool
         Draw the rangefinders' rays (MuJoCo's default). False (default): camera images show only the scene.
     fast : bool
-        Live video (the operator console): no shadow map, no multisampling, and the round shapes (the
-        truss's tubes, the tanks) drawn with :data:`FAST_TESSELLATION` facets. On the CPU renderer the
+        Live video (the operator console): no shadow map, no multisampling, the round shapes (the
+        truss's tubes, the tanks) drawn with :data:`FAST_TESSELLATION` facets and box faces with
+        :data:`FAST_BOX_QUADS` quads a side. On the CPU renderer the
         lamp's 2048-px shadow map and 4x multisampling are most of a frame's cost, and the facets most of
         the rest (docs/console.md has the timings); frames for inspection keep all three (False, the
         default).
@@ -207,13 +211,14 @@ class SceneRenderer:
         self._context = _gl_context(width, height)
         self._context.make_current()
         quality = model.vis.quality
-        kept = (quality.offsamples, quality.numslices, quality.numstacks)
+        kept = (quality.offsamples, quality.numslices, quality.numstacks, quality.numquads)
         if fast:  # the context reads multisampling and tessellation from the model when it is made
             quality.offsamples, quality.numslices, quality.numstacks = 0, *FAST_TESSELLATION
+            quality.numquads = FAST_BOX_QUADS
         try:
             self._mjr = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100.value)
         finally:
-            quality.offsamples, quality.numslices, quality.numstacks = kept
+            quality.offsamples, quality.numslices, quality.numstacks, quality.numquads = kept
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._mjr)
         self._mjr.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._scene = mujoco.MjvScene(model, maxgeom=4000)
