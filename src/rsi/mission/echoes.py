@@ -5,7 +5,10 @@ and the ISEE's other strobe ("selection of different illuminator/camera combinat
 Every visit takes its ambient alone at several shutters (:func:`rsi.mission.exposure.ambient_bracket`),
 merged into one image of high dynamic range (:func:`rsi.imaging.bracket.merge_ambient`), and its frames again
 with the other strobe, below the lens (:meth:`rsi.sim.world.World.other_strobe_frames`). A look the strobe
-comparison found is read in each against the reference pass's image under the same light.
+comparison found is read in each against the reference pass's image under the same light. The echoes go
+into each finding's record (``MissionFinding.ambient_score``, ``other_strobe_score``) and decide nothing:
+taken from the first look's viewpoint, they share every artefact it made (door-edge points confirmed at
+6.5-16 sigma under either light where a second visit had rejected them, held-out seeds 2105 and 2134).
 """
 
 from __future__ import annotations

@@ -1037,32 +1037,14 @@ def _second_looks(
         # both looks share the reference's noise: correlation 1/2, so Var(s1 + s2) = 3; a fused score
         # carried by the first look alone is no echo: the second must see the blob itself
         fused = (look.score + echo) / math.sqrt(3.0) if echo > limits.preliminary else 0.0
-        look.score, look.second_look = max(fused, _seen_in_other_light(look, limits)), True
+        # seed §2 further work: the echoes under the sun and the other strobe (look.ambient,
+        # look.other_strobe) are read and reported, not voted: taken from the first look's own viewpoint
+        # they share every artefact it made. Voting, the other strobe's confirmed two points of the door's
+        # edge at 16 sigma (held-out 2105, lab, 0 s) and the sun's two more at 6.5 and 7.8 sigma (held-out
+        # 2134), each rejected by the second visit; on development seeds neither vote found an impact more
+        look.score, look.second_look = fused, True
         confirmed += look.score > limits.confirm
     return (len(looks), confirmed, len(looks) - confirmed)
-
-
-def _seen_in_other_light(look: Look, limits: Thresholds) -> float:
-    """The look's score where it is seen again under the sun from the same viewpoint, else 0: the weaker
-    of its first look and its ambient echo, both over the confirming threshold.
-
-    Seed §2 further work: the ambient-lit image sees the place under another light, for free. What the
-    strobe alone made (its glare, its shadow beside an edge, riding with the camera) is not in it; a second
-    visit that missed a flaw (its own viewpoint error) is then outvoted. A flaw's contrast under another
-    light is its own (a crater's slopes relit from another angle may show little), so each look must
-    confirm alone, and no echo rejects anything. Development seeds 2049-2052 at 300 s and 2057-2060 in
-    space: seven of the ten impacts it read echoed 8.7-85 sigma (the others 0-3.6); the six sunlit false
-    candidates at most 2.1.
-
-    The other strobe's echo (``look.other_strobe``) is read and reported, not voted: from the same
-    viewpoint pair it shares every viewpoint-made artefact. Fused with the first look it confirmed two
-    points of the door's edge at 16 sigma on held-out seed 2105 (lab, 0 s), where the second visit had
-    rejected them.
-    """
-    sun = look.ambient
-    if sun is None or look.score <= limits.confirm or abs(sun.score) <= limits.confirm:
-        return 0.0
-    return min(look.score, abs(sun.score))
 
 
 def _believed_px(view: Sensed, look: Look) -> tuple[float, float]:
