@@ -885,3 +885,70 @@ def test_a_place_the_sun_does_not_light_or_the_ambient_does_not_read_has_no_echo
     clipped = dataclasses.replace(lit, valid=np.ones(shape, bool))
     clipped.valid[at] = False  # every reading of that pixel clipped
     assert ambient_echo(lit, clipped, look, SETTINGS) is None
+
+
+def _panel_patch_pairs(seed: int, factors: tuple[float, float]) -> tuple[Any, Any, Any, tuple[float, ...]]:
+    """A view of the solar panel and its comparisons with two pristine visits, the inspection darker by
+    `factors` (one per visit's comparison: a glare in one visit) over a 2.5 cm patch 12 cm off its centre."""
+    from rsi.mission.views import disc, seen_components
+    from rsi.sim.world import load
+
+    world: Any = load("truss", seed=0)
+    try:
+        view = _sensed(world, "C_panel")
+    finally:
+        world.close()
+    site = next(site for site in seen_components(world, view) if site.name == "C_panel")
+    off_centre = (site.position_m[0] + 0.12, site.position_m[1], site.position_m[2])
+    patch = disc((120, 160), view, off_centre, 0.025) & view.capture.cad.components["C_panel"]
+    rng = np.random.default_rng(seed)
+    reference = _textured(seed)
+    pairs = []
+    for factor in factors:
+        before, now = (reference + rng.normal(0.0, 1.0, reference.shape).astype(np.float32) for _ in "ab")
+        now[patch] *= np.float32(factor)
+        pairs.append(compare(_image(before, 1.0), _image(now, 1.0), 1e-4, SETTINGS))
+    return view, site, pairs, off_centre
+
+
+def test_a_patch_off_the_component_s_centre_is_found_where_it_is_and_read_there_again() -> None:
+    from rsi.mission.evidence import component_change, component_checks, patch_change
+
+    view, site, pairs, off_centre = _panel_patch_pairs(9, (0.6, 0.6))
+    # seed §4: a discoloured patch anywhere on the face; the central disc sees almost none of it
+    assert abs(component_change(pairs[0], view, site, SETTINGS)) < SETTINGS.component_change_min
+    found = patch_change(pairs, view, site, SETTINGS)
+    assert found.change < -0.5 and found.position_m is not None
+    assert math.dist(found.position_m, off_centre) < 0.025
+    # read again at the first look's place; a place on the panel away from it reads nothing
+    assert patch_change(pairs, view, site, SETTINGS, at_m=found.position_m).change < -0.5
+    far = (site.position_m[0] - 0.12, site.position_m[1], site.position_m[2])
+    assert patch_change(pairs, view, site, SETTINGS, at_m=far).change == 0.0
+    world = SimpleNamespace(mockup=SimpleNamespace(candidates=SimpleNamespace(component_sites=(site,))))
+    checks = component_checks(
+        pairs, view, "C_panel", reference_m=view.range_m, world=world, settings=SETTINGS
+    )
+    assert [(finding.kind, why.patch_m is not None) for finding, why in checks] == [
+        ("swapped_component", True)
+    ]
+    # a second look reads no patch where the first look saw none
+    assert (
+        component_checks(
+            pairs,
+            view,
+            "C_panel",
+            reference_m=view.range_m,
+            world=world,
+            settings=SETTINGS,
+            only={"C_panel"},
+            patches_at={},
+        )
+        == []
+    )
+
+
+def test_a_patch_seen_against_one_pristine_visit_only_is_none() -> None:
+    from rsi.mission.evidence import patch_change
+
+    view, site, pairs, _ = _panel_patch_pairs(10, (0.6, 1.0))
+    assert abs(patch_change(pairs, view, site, SETTINGS).change) < SETTINGS.patch_change_min
