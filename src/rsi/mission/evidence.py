@@ -880,15 +880,12 @@ def patch_change(
     confirming threshold; truss-b seed 2129's 27 % brighter patch made only spots of <= 0.3 cm^2. A square
     window of the disc's area whose radius is ``settings.patch_radius_m`` slides over the component's
     compared pixels (its CAD projection, the `trusted` ones where given); it is read where those fill at
-    least ``settings.patch_cover`` of it (all of it by default). Each comparison's fraction brighter less
-    darker beyond 3 sigma (:func:`component_change`'s reading) is taken where all share a sign, the smallest
+    least ``settings.patch_cover`` of it (all of it by default): a window reaching into the strobe's fall at
+    the frame's corners reads the light a viewpoint error moved (truss 2142 in space, a pristine panel's top
+    corner read +0.32 and again +0.19 on the second look). Each comparison's fraction brighter less darker
+    beyond 3 sigma (:func:`component_change`'s reading) is taken where all share a sign, the smallest
     (:func:`agreed`), and the strongest such window is the reading; with `at_m`, the strongest within half
     a window of that point's projection (a second look at the first one's patch).
-
-    What it does not tell from a patch: a glossy panel's strobe return that a viewpoint error changed over
-    a few centimetres near the frame's top corners, or over one cell, the same way in both comparisons and
-    on the second look (development truss 2140 and 2141, truss-b 2133 in space: pristine panels read 0.2-0.7
-    there, false swaps; docs/mission.md).
     """
     mask = view.capture.cad.components.get(site.name)
     if mask is None or not mask.any():
