@@ -880,12 +880,12 @@ def patch_change(
     confirming threshold; truss-b seed 2129's 27 % brighter patch made only spots of <= 0.3 cm^2. A square
     window of the disc's area whose radius is ``settings.patch_radius_m`` slides over the component's
     compared pixels (its CAD projection, the `trusted` ones where given); it is read where those fill at
-    least ``settings.patch_cover`` of it (all of it by default): a window reaching into the strobe's fall at
-    the frame's corners reads the light a viewpoint error moved (truss 2142 in space, a pristine panel's top
-    corner read +0.32 and again +0.19 on the second look). Each comparison's fraction brighter less darker
-    beyond 3 sigma (:func:`component_change`'s reading) is taken where all share a sign, the smallest
-    (:func:`agreed`), and the strongest such window is the reading; with `at_m`, the strongest within half
-    a window of that point's projection (a second look at the first one's patch).
+    least ``settings.patch_cover`` of it: a window across the frame's or the beam's edge reads what the
+    viewpoint's own fall-off left (truss 2142 in space, a pristine panel's top rows read +0.47 and again
+    +0.29 on the second look, there only). Each comparison's fraction brighter less darker beyond 3 sigma
+    (:func:`component_change`'s reading) is taken where all share a sign, the smallest (:func:`agreed`),
+    and the strongest such window is the reading; with `at_m`, the strongest within half a window of that
+    point's projection (a second look at the first one's patch).
     """
     mask = view.capture.cad.components.get(site.name)
     if mask is None or not mask.any():
@@ -921,9 +921,7 @@ def _window_change(
     side = (2 * half + 1, 2 * half + 1)
     filled = cv2.blur(compared, side, borderType=cv2.BORDER_CONSTANT)
     share = cv2.blur(net * compared, side, borderType=cv2.BORDER_CONSTANT)
-    # the box filter's float sums round: a window the pixels fill reads 1 within float32's rounding
-    full = filled >= np.float32(cover) - np.float32(1e-5)
-    return np.where(full, share / np.maximum(filled, np.float32(1e-6)), np.float32(0.0))
+    return np.where(filled >= cover, share / np.maximum(filled, np.float32(1e-6)), np.float32(0.0))
 
 
 def agreed_map(readings: Sequence[FloatArray]) -> FloatArray:

@@ -106,11 +106,7 @@ class MissionSettings:
         (``AnomalySettings.discolour_patch_radius_range_m``); a 2 cm window is filled by most of them and
         mostly by the smallest.
     patch_cover : float
-        Share of that window the component's compared pixels must fill for it to be read, in (0, 1]. 1: every
-        pixel, inside the frame and the beam's trusted core: a window reaching into the strobe's fall at the
-        frame's corners reads the light a viewpoint error moved as a one-way change (at 0.9, pristine panels
-        on truss 2140 and 2142 and truss-b 2133 and 2149 in space read 0.3-0.9 there, and again on the
-        second look).
+        Share of that window the component's compared pixels must fill for it to be read, in (0, 1].
     patch_change_min : float
         Fraction of that window changed one way (brighter less darker), against both pristine visits, that
         makes a discoloured patch: 0.15, below the least a whole component's discolouring read in the
@@ -179,7 +175,7 @@ class MissionSettings:
     component_change_min: float = 0.05
     component_dimming_min: float = 0.1
     patch_radius_m: float = 0.02
-    patch_cover: float = 1.0
+    patch_cover: float = 0.9
     patch_change_min: float = 0.15
     dent_relief_min_m: float = 1.5e-3
     impact_merge_m: float = 0.008
