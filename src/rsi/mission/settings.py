@@ -109,9 +109,7 @@ class MissionSettings:
         Share of that window the component's compared pixels must fill for it to be read, in (0, 1].
     patch_change_min : float
         Fraction of that window changed one way (brighter less darker), against both pristine visits, that
-        makes a discoloured patch: 0.15, below the least a whole component's discolouring read in the
-        central disc (0.16, seeds 0-5), which a window the patch fills reads as much. It only decides where
-        a second look reads again (seed §2.5); a patch is kept where that look reads it beyond this too.
+        makes a discoloured patch. PROVISIONAL
     dent_relief_min_m : float
         Dents are 2-10 mm deep (seed §4 defects); the stereo relief's noise is ~0.2 mm.
     impact_merge_m, screw_match_m : float
