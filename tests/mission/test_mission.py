@@ -208,7 +208,6 @@ def test_bad_input_names_the_argument(kwargs: dict[str, object], message: str) -
         ({"depth_jump_m": 0.0}, "depth_jump_m"),
         ({"nuisance_window_px": True}, "nuisance_window_px"),
         ({"plan": "manual"}, "plan"),
-        ({"patch_cover": 1.5}, "patch_cover"),
     ],
 )
 def test_settings_refuse_bad_values_by_name(changes: dict[str, object], message: str) -> None:

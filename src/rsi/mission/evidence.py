@@ -24,7 +24,6 @@ from rsi.mission.views import (
     pixel_size_m,
     seen_components,
     surface_distance_m,
-    to_field,
     visible,
 )
 from rsi.sim.mockup import SCREW_HEIGHT_M
@@ -854,104 +853,13 @@ def component_dimming(
 
 
 @dataclass(frozen=True)
-class PatchChange:
-    """The strongest one-way change of a window on a component (:func:`patch_change`): the fraction
-    brighter less darker, and the world point at the window's centre (None where nothing was read)."""
-
-    change: float
-    position_m: tuple[float, float, float] | None
-
-
-def patch_change(
-    pairs: Sequence[PairResult],
-    view: Sensed,
-    site: Site,
-    settings: MissionSettings,
-    *,
-    trusted: NDArray[np.bool_] | None = None,
-    at_m: tuple[float, float, float] | None = None,
-) -> PatchChange:
-    """The component's most changed window, new against every pristine visit (seed §4 discoloured patches).
-
-    A discoloured patch lies anywhere on a component's flat faces, not at its centre, and
-    :func:`component_change`'s central disc sees only the patches on it: truss seed 2137 in space, a patch
-    28 % darker 20 cm off the panel's centre, read -0.21 and -0.07 there from pristine cells and was
-    rejected, and its blob, broken up by the cells' gaps, fused 6.09 sigma on the second look, under the
-    confirming threshold; truss-b seed 2129's 27 % brighter patch made only spots of <= 0.3 cm^2. A square
-    window of the disc's area whose radius is ``settings.patch_radius_m`` slides over the component's
-    compared pixels (its CAD projection, the `trusted` ones where given); it is read where those fill at
-    least ``settings.patch_cover`` of it: a window across the frame's or the beam's edge reads what the
-    viewpoint's own fall-off left (truss 2142 in space, a pristine panel's top rows read +0.47 and again
-    +0.29 on the second look, there only). Each comparison's fraction brighter less darker beyond 3 sigma
-    (:func:`component_change`'s reading) is taken where all share a sign, the smallest (:func:`agreed`),
-    and the strongest such window is the reading; with `at_m`, the strongest within half a window of that
-    point's projection (a second look at the first one's patch).
-    """
-    mask = view.capture.cad.components.get(site.name)
-    if mask is None or not mask.any():
-        return PatchChange(0.0, None)
-    pixel_m = pixel_size_m(view, site.position_m)
-    half = max(1, round(settings.patch_radius_m / pixel_m * math.sqrt(math.pi) / 2))  # the disc's area
-    rows, cols = np.nonzero(mask)
-    top, left = max(int(rows.min()) - half, 0), max(int(cols.min()) - half, 0)
-    box = (slice(top, int(rows.max()) + half + 1), slice(left, int(cols.max()) + half + 1))
-    usable = mask[box] if trusted is None else mask[box] & trusted[box]
-    both = agreed_map([_window_change(pair, box, usable, half, settings.patch_cover) for pair in pairs])
-    if at_m is not None:
-        row, col, _ = to_field(view, np.asarray([at_m]))
-        both = _near(both, (round(float(row[0])) - top, round(float(col[0])) - left), half // 2)
-    at = np.unravel_index(int(np.argmax(np.abs(both))), both.shape)
-    change = float(both[at])
-    if change == 0.0:
-        return PatchChange(0.0, None)
-    return PatchChange(change, field_to_world(view, float(at[0] + top), float(at[1] + left)))
-
-
-def _window_change(
-    pair: PairResult, box: tuple[slice, slice], usable: NDArray[np.bool_], half: int, cover: float
-) -> FloatArray:
-    """Each window's fraction brighter less darker beyond 3 sigma (0 where `usable` fills less than
-    `cover` of it) on `box` of the pair's maps."""
-    import cv2
-
-    detection = pair.detection
-    compared = (usable & detection.valid[box]).astype(np.float32)
-    z = detection.difference[box] / np.maximum(detection.sigma[box], np.float32(1e-6))
-    net = (z > 3.0).astype(np.float32) - (z < -3.0).astype(np.float32)
-    side = (2 * half + 1, 2 * half + 1)
-    filled = cv2.blur(compared, side, borderType=cv2.BORDER_CONSTANT)
-    share = cv2.blur(net * compared, side, borderType=cv2.BORDER_CONSTANT)
-    return np.where(filled >= cover, share / np.maximum(filled, np.float32(1e-6)), np.float32(0.0))
-
-
-def agreed_map(readings: Sequence[FloatArray]) -> FloatArray:
-    """:func:`agreed` pixel by pixel: the smallest reading where all share a sign, else 0."""
-    stacked = np.stack(readings)
-    one_sign = np.all(stacked > 0, axis=0) | np.all(stacked < 0, axis=0)
-    smallest = np.take_along_axis(stacked, np.abs(stacked).argmin(axis=0)[None], axis=0)[0]
-    return np.where(one_sign, smallest, 0.0)
-
-
-def _near(values: FloatArray, at: tuple[int, int], reach: int) -> FloatArray:
-    """`values` within `reach` pixels (a square) of `at`, 0 elsewhere."""
-    kept = np.zeros_like(values)
-    rows = slice(max(at[0] - reach, 0), max(at[0] + reach + 1, 0))
-    cols = slice(max(at[1] - reach, 0), max(at[1] + reach + 1, 0))
-    kept[rows, cols] = values[rows, cols]
-    return kept
-
-
-@dataclass(frozen=True)
 class Explanation:
     """Where a swap found in a visit shows in its difference image: within `radius_m` of `centre_m`, and
-    only on `component`'s own pixels when given (a discoloured replacement's change ends at its outline).
-    `patch_m`: where the visit saw a discoloured patch (:func:`patch_change`), whatever found the swap: a
-    second look reads it again there."""
+    only on `component`'s own pixels when given (a discoloured replacement's change ends at its outline)."""
 
     centre_m: tuple[float, float, float]
     radius_m: float
     component: str | None = None
-    patch_m: tuple[float, float, float] | None = None
 
 
 def unexplained(
@@ -1028,7 +936,6 @@ def component_checks(
     settings: MissionSettings,
     trusted: NDArray[np.bool_] | None = None,
     only: Collection[str] | None = None,
-    patches_at: Mapping[str, tuple[float, float, float]] | None = None,
 ) -> list[tuple[MissionFinding, Explanation]]:
     """Each component site the view sees (those named in `only` where given), checked for a swap (seed
     §4): discoloured or dented.
@@ -1047,12 +954,6 @@ def component_checks(
     pixels, for the blobs' reasons (:func:`rsi.mission.visual._mostly_within`: a beam's fall or an edge-on
     surface moves with the viewpoint); that did not take out the 12 % that a pristine ORU read at a frame's
     bottom edge on truss-b seed 1973 in space, in both comparisons and on the second look.
-
-    Where the central disc and the raw brightness show nothing, the component's most changed window
-    (:func:`patch_change`) is a discoloured patch beyond ``settings.patch_change_min``. `patches_at`: a
-    second look's components whose patch the first look saw, and where; a second look reads a patch there
-    only (truss seed 2137 in space: the first look's central disc read a pristine -0.07 of the panel, which
-    the second look rejected, and its window -0.20 on the patch 20 cm away, which it read again).
     """
     found = []
     registration = pairs[0].detection.registration
@@ -1060,37 +961,24 @@ def component_checks(
     for site in seen_components(world, view):
         if only is not None and site.name not in only:
             continue
-        # a second look reads a patch only where the first look saw one
-        patch = None
-        if only is None or site.name in (patches_at or {}):
-            at_m = None if patches_at is None else patches_at.get(site.name)
-            patch = _patch_found(pairs, view, site, settings, trusted=trusted, at_m=at_m)
-        patch_m = None if patch is None else patch.position_m
         change = agreed([component_change(pair, view, site, settings, trusted) for pair in pairs])
         sunk = sinking(view, reference_m, (shift[0], shift[1]), site)
         if sunk.sunk_m > settings.dent_relief_min_m and sunk.position_m is not None:
             # the dent may be anywhere on the component: its crater's shading is explained around it
             score, margin = sunk.sunk_m, (sunk.sunk_m - settings.dent_relief_min_m) / 2e-4
             size = min(site.size_m, 2 * settings.component_disc_m)
-            explained = Explanation(sunk.position_m, settings.component_disc_m + 0.02, patch_m=patch_m)
+            explained = Explanation(sunk.position_m, settings.component_disc_m + 0.02)
         elif abs(change) > settings.component_change_min:
             score, size = abs(change), site.size_m
             margin = (score - settings.component_change_min) / 0.01
-            explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name, patch_m)
+            explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name)
         elif abs(dimming := agreed([component_dimming(p, view, site, settings, trusted) for p in pairs])) > (
             settings.component_dimming_min
         ):
             score, margin, size = dimming, (abs(dimming) - settings.component_dimming_min) / 0.01, site.size_m
             # the gain absorbed the component's change, but not its contrast with what was not repainted
             # (the panel's cell gaps and frame): those edges are the swap's, not impacts
-            explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name, patch_m)
-        elif patch is not None and patch_m is not None:
-            score, size = abs(patch.change), 2 * settings.patch_radius_m
-            margin = (score - settings.patch_change_min) / 0.01
-            # the window is the patch's least extent: blobs a window beyond it are its own, except a spot of
-            # an impact's contrast (as in a dent's crater); a patch of a few cm leaves the rest of the
-            # component in the photometric fit (no component named)
-            explained = Explanation(patch_m, 2 * settings.patch_radius_m + 0.02, patch_m=patch_m)
+            explained = Explanation(site.position_m, 0.5 * size + 0.02, site.name)
         else:
             continue
         finding = MissionFinding(
@@ -1103,19 +991,6 @@ def component_checks(
         )
         found.append((finding, explained))
     return found
-
-
-def _patch_found(
-    pairs: Sequence[PairResult],
-    view: Sensed,
-    site: Site,
-    settings: MissionSettings,
-    *,
-    trusted: NDArray[np.bool_] | None,
-    at_m: tuple[float, float, float] | None,
-) -> PatchChange | None:
-    patch = patch_change(pairs, view, site, settings, trusted=trusted, at_m=at_m)
-    return patch if abs(patch.change) > settings.patch_change_min else None
 
 
 def agreed(readings: Sequence[float]) -> float:

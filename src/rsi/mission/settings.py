@@ -100,16 +100,6 @@ class MissionSettings:
         0.16-0.63, pristine <= 0.012 (measured, seeds 0-5).
     component_dimming_min : float
         Discoloured replacements reflect 0.4-0.8 of the original (seed §4 defective components).
-    patch_radius_m : float
-        Radius of the window a discoloured patch is looked for with
-        (:func:`rsi.mission.evidence.patch_change`): the wide draw's patches are 1.5-4 cm in radius
-        (``AnomalySettings.discolour_patch_radius_range_m``); a 2 cm window is filled by most of them and
-        mostly by the smallest.
-    patch_cover : float
-        Share of that window the component's compared pixels must fill for it to be read, in (0, 1].
-    patch_change_min : float
-        Fraction of that window changed one way (brighter less darker), against both pristine visits, that
-        makes a discoloured patch. PROVISIONAL
     dent_relief_min_m : float
         Dents are 2-10 mm deep (seed §4 defects); the stereo relief's noise is ~0.2 mm.
     impact_merge_m, screw_match_m : float
@@ -172,9 +162,6 @@ class MissionSettings:
     component_disc_m: float = 0.05
     component_change_min: float = 0.05
     component_dimming_min: float = 0.1
-    patch_radius_m: float = 0.02
-    patch_cover: float = 0.9
-    patch_change_min: float = 0.15
     dent_relief_min_m: float = 1.5e-3
     impact_merge_m: float = 0.008
     screw_match_m: float = 0.008
@@ -211,11 +198,6 @@ class MissionSettings:
         for name in ("p_false_alarm", "p_preliminary"):
             if not getattr(self, name) < 0.5:
                 raise InputError(f"{name} must lie in (0, 0.5); got {getattr(self, name)!r}.")
-        if not self.patch_cover <= 1.0:
-            raise InputError(
-                f"patch_cover must lie in (0, 1]: a share of the window; got {self.patch_cover!r}. "
-                f"The default is {type(self).patch_cover!r}."
-            )
         if self.p_preliminary < self.p_false_alarm:
             raise InputError(
                 f"p_preliminary={self.p_preliminary!r} must be >= p_false_alarm={self.p_false_alarm!r}: "

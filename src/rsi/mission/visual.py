@@ -920,8 +920,6 @@ def _found_again(
         return checks, (0, 0, 0)
     view = again.view
     trusted = _trusted(view, settings)
-    # a patch is read again where the first look found it, not wherever this look's window is strongest
-    patches_at = {names[found.position_m]: why.patch_m for found, why in checks if why.patch_m is not None}
     confirmed = {
         name
         for name in doubtful
@@ -934,7 +932,6 @@ def _found_again(
             settings=settings,
             trusted=trusted,
             only={name},
-            patches_at=patches_at,
         )
     }
     kept = [(f, e) for f, e in checks if names[f.position_m] in confirmed]
