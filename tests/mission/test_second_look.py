@@ -45,10 +45,12 @@ def _stored(tour: Any, point: Any) -> StoredView:
     )
 
 
-def _active_visit(seed: int, point_name: str) -> tuple[tuple[Any, ...], Any]:
+def _active_visit(
+    seed: int | np.random.SeedSequence, point_name: str, *, layout: str = "truss", repeatability: str = "lab"
+) -> tuple[tuple[Any, ...], Any]:
     """Seed `seed`'s wide-draw anomalies and its active inspection visit of plan point `point_name` (both
     passes at the same sun, no arm, no orbit)."""
-    world = load("truss", seed=seed)
+    world = load(layout, seed=seed, repeatability=repeatability)
     try:
         point = next(p for p in plan_vistas(world) if p.name == point_name)
         tour = Tour(world, seed=seed, size=MISSION_SIZE, arm=False, orbit=False)
@@ -90,3 +92,19 @@ def test_a_missing_screw_is_read_again_before_it_is_reported() -> None:
     # every blob had its second look, and the screw one more, which found it missing again
     assert record.second_looks == record.detections + 1
     assert record.confirmed >= 1
+
+
+def test_an_impact_on_a_repainted_glossy_tank_stands_out_of_the_glare_the_repaint_left() -> None:
+    # truss-b's world of mission seed 2154 repainted the B tank to 0.63 of its reflectance, and a 2.8 mm
+    # impact that took half the light sits on it. The repaint scales the diffuse light and leaves the
+    # strobe's glare (seed §4), so the tank's own gain and bias left tens of DN over its pixels, and the
+    # impact read 3.5 sigma in space. The blocks' gain and offset take that out; the impact stays.
+    world_seed = np.random.SeedSequence(2154).spawn(3)[0]
+    anomalies, visit = _active_visit(world_seed, "cad_03", layout="truss-b", repeatability="space")
+    tank = next(a for a in anomalies if a.KIND == "swapped_component" and a.site == "B_tank")
+    assert tank.defect == "discoloured" and tank.reflectance_factor < 0.7
+    impact = next(a for a in anomalies if a.KIND == "impact" and a.site == "B_tank_mid")
+    impacts = [f for f in visit.findings if f.kind == "impact"]
+    distances = [np.linalg.norm(np.subtract(f.position_m, impact.position_m)) for f in impacts]
+    assert distances and min(distances) <= 0.01
+    assert len(impacts) == 1  # no glint of the repainted tank is an impact
