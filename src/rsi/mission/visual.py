@@ -814,8 +814,9 @@ def _on_component(
 
 
 def _smooth_residual(pair: PairResult) -> NDArray[np.float32]:
-    """What a smooth gain and offset leave of the comparison: in each block of ``CLUTTER_REACH_PX`` the
-    difference fitted as ``a p + b`` over the prediction ``p`` of its valid pixels (least squares, again
+    """The part of the comparison's difference that a smooth gain and offset explain: in each block of
+    ``CLUTTER_REACH_PX`` the difference fitted as ``a p + b`` over the prediction ``p`` of its valid pixels
+    (least squares, again
     without those beyond _PHOTOMETRIC_TRIM_SIGMAS robust sigmas: an impact covers at most a ninth of a
     block), ``a`` and ``b`` bilinear between the blocks' centres. A block less than a quarter valid takes
     the others' median fit (none: 0). The gain follows a repaint's texture (the diffuse light scaled, the
