@@ -16,7 +16,7 @@ import pytest
 from rsi.errors import InputError
 from rsi.web.app import TokenGate, create_app
 from rsi.web.console import Console
-from rsi.web.live import LiveCameras, LiveFrame, video_message
+from rsi.web.live import AckWindow, LiveCameras, LiveFrame, video_message
 from rsi.web.mission_job import MissionJob
 from rsi.web.scene import moving_poses, scene_geometry
 from rsi.web.server import console_settings, serve
@@ -39,6 +39,8 @@ CASES: list[tuple[Callable[[], Any], str]] = [
     (lambda: clamp_operator(np.zeros(3), law="TELEOP"), "law"),
     (lambda: teleop_step("loop", np.zeros(3), held=True), "loop"),
     (lambda: video_message(b"jpeg"), "frame"),
+    (lambda: AckWindow(0), "size"),
+    (lambda: AckWindow(True), "size"),
     (lambda: scene_geometry("world"), "world"),
     (lambda: moving_poses(None, None, [1]), "world"),
     (lambda: MissionJob(b"x.db"), "archive_path"),

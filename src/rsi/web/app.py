@@ -32,7 +32,7 @@ from pydantic import BaseModel, Field
 from rsi.archive import REVIEW_VERDICTS, Archive
 from rsi.errors import InputError
 from rsi.web.console import Console, new_client_id
-from rsi.web.live import CAMERAS
+from rsi.web.live import CAMERAS, AckWindow, FrameHub
 from rsi.web.mission_job import SETTINGS, MissionJob
 from rsi.web.scene import moving_poses, scene_geometry
 
@@ -439,6 +439,36 @@ def _archive_routes(api: FastAPI, archive_path: Path) -> None:
             return _finding_json(store, store.finding(finding_id))
 
 
+# Video messages a viewer may hold unshown: one on screen while the next is on its way (AckWindow)
+VIDEO_WINDOW = 2
+
+
+async def _read_acks(socket: WebSocket, window: AckWindow) -> None:
+    """Every message a video viewer sends acknowledges one frame message shown; returns when it leaves."""
+    with contextlib.suppress(WebSocketDisconnect, RuntimeError):
+        while (await socket.receive())["type"] != "websocket.disconnect":
+            window.shown()
+
+
+async def _send_video(
+    socket: WebSocket, hub: FrameHub, wanted: list[str], window: AckWindow, acks: asyncio.Task[None]
+) -> None:
+    """The newest frames of the `wanted` cameras, one message per tick, while the viewer keeps up."""
+    sent: dict[str, int] = {}
+    while not acks.done():
+        if not await window.room():
+            continue
+        fresh = [
+            frame for name, frame in hub.snapshot().items() if name in wanted and sent.get(name) != frame.seq
+        ]
+        if not fresh:
+            await hub.wait()
+            continue
+        await socket.send_bytes(b"".join(frame.message for frame in fresh))
+        window.sent()
+        sent.update((frame.camera, frame.seq) for frame in fresh)
+
+
 def _socket_routes(api: FastAPI, console: Console, mission: MissionJob) -> None:
     """Video (binary JPEG), state (JSON at 10 Hz) and control (the operator's messages)."""
 
@@ -448,20 +478,16 @@ def _socket_routes(api: FastAPI, console: Console, mission: MissionJob) -> None:
             c for c in (socket.query_params.get("cams") or ",".join(CAMERAS)).split(",") if c in CAMERAS
         ]
         await socket.accept()
-        sent: dict[str, int] = {}
+        window = AckWindow(VIDEO_WINDOW)
+        acks = asyncio.create_task(_read_acks(socket, window))
+        console.hub.viewer(joined=True)
         try:
-            while True:
-                await console.hub.wait()
-                fresh = [
-                    frame
-                    for name, frame in console.hub.snapshot().items()
-                    if name in wanted and sent.get(name) != frame.seq
-                ]
-                if fresh:
-                    await socket.send_bytes(b"".join(frame.message for frame in fresh))
-                    sent.update((frame.camera, frame.seq) for frame in fresh)
+            await _send_video(socket, console.hub, wanted, window, acks)
         except (WebSocketDisconnect, RuntimeError):
             return
+        finally:
+            console.hub.viewer(joined=False)
+            acks.cancel()
 
     @api.websocket("/ws/state")
     async def state(socket: WebSocket) -> None:

@@ -306,6 +306,11 @@ class Console:
         times: deque[float] = deque(maxlen=24)
         while self._running.is_set() and self.cameras is not None:
             started = time.perf_counter()
+            if not self.hub.watched():  # nobody looks: a render would only take the CPU from the rest
+                self.render_fps = 0.0
+                times.clear()
+                time.sleep(period)
+                continue
             with self.lock:
                 state = LiveState.of(self.world)
             try:
@@ -449,7 +454,8 @@ class Console:
                 },
                 "video": {
                     "size": list(self.live_size),
-                    "fps": round(self.render_fps, 2),
+                    "fps": round(self.render_fps, 2),  # 0 while nobody watches: the cameras idle
+                    "viewers": self.hub.viewers,
                     "frame_ms": round(self.render_ms, 1),
                 },
             }

@@ -39,6 +39,7 @@ function connectVideo() {
       showFrame(CAMERAS[view.getUint8(at)], view.getFloat64(at + 5, true), event.data.slice(at + 17, at + 17 + length));
       at += 17 + length;
     }
+    socket.send("shown"); // the server sends the next frames only to a page that keeps up (AckWindow)
   };
   socket.onclose = () => setTimeout(connectVideo, 1000);
 }
