@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,8 @@ STILL = {"arm": False, "orbit": False}  # free camera, fixed lamp: fast (the arm
 # The mechanics and the cases below lie in the hand plan's views: the points that complete it (the truss's
 # default, flown by test_transit.py, test_cli.py's demo and the report's test) add minutes and nothing here
 HAND_PLAN = MissionSettings(plan="hand")
+# A case on one component flies only the views of it (a targeted re-inspection, MissionSettings.vistas)
+PANEL_VIEWS = dataclasses.replace(HAND_PLAN, vistas=tuple(p.vista for p in PLAN if p.vista.startswith("C_")))
 
 
 VISITS: list[tuple[str, tuple[MissionFinding, ...]]] = []  # on_visit's calls in the archived run
@@ -208,6 +211,8 @@ def test_bad_input_names_the_argument(kwargs: dict[str, object], message: str) -
         ({"depth_jump_m": 0.0}, "depth_jump_m"),
         ({"nuisance_window_px": True}, "nuisance_window_px"),
         ({"plan": "manual"}, "plan"),
+        ({"vistas": "B_tank"}, "vistas"),
+        ({"vistas": ("B_tank", "")}, "vistas"),
     ],
 )
 def test_settings_refuse_bad_values_by_name(changes: dict[str, object], message: str) -> None:
@@ -215,6 +220,21 @@ def test_settings_refuse_bad_values_by_name(changes: dict[str, object], message:
 
     with pytest.raises(InputError, match=message):
         MissionSettings(**changes)  # type: ignore[arg-type]
+
+
+def test_a_targeted_plan_flies_only_the_vistas_asked_for_and_refuses_one_it_lacks() -> None:
+    from rsi.mission import plan_vistas
+
+    world = load("truss", seed=SEED)
+    try:
+        whole = plan_vistas(world, HAND_PLAN)
+        chosen = ("B_tank", "A_kapton")
+        targeted = plan_vistas(world, dataclasses.replace(HAND_PLAN, vistas=chosen))
+        assert targeted == tuple(point for point in whole if point.vista in chosen)  # the plan's order
+        with pytest.raises(InputError, match=r"settings.vistas names \['nowhere'\].*its vistas: A_door"):
+            plan_vistas(world, dataclasses.replace(HAND_PLAN, vistas=("B_tank", "nowhere")))
+    finally:
+        world.close()
 
 
 def test_settings_reach_the_result_and_change_the_plan() -> None:
@@ -279,8 +299,6 @@ def test_run_roc_is_monotone_and_theory_spans_the_probabilities(archived: tuple[
 
 def test_run_roc_is_empty_when_no_impact_centre_was_compared(archived: tuple[MissionResult, Path]) -> None:
     """Space repeatability can leave every impact where nothing was compared: no measured curve, no error."""
-    import dataclasses
-
     from rsi.mission.score import run_roc
 
     result, _ = archived
@@ -337,8 +355,9 @@ def test_inspection_region_keeps_components_and_drops_struts_and_depth_jumps() -
 
 def test_screws_and_the_swapped_component_are_found_at_full_size() -> None:
     # the seed mock-up's draw of seed 26: screws B_2 and D_2 missing, the A ORU dented (seed §4 defects)
+    off_panel = dataclasses.replace(HAND_PLAN, vistas=("A_door", "A_kapton", "B_tank", "D_tubing"))
     result = run_mission(
-        26, active=False, arm=False, orbit=False, anomalies=AnomalySettings.seed_mockup(), settings=HAND_PLAN
+        26, active=False, arm=False, orbit=False, anomalies=AnomalySettings.seed_mockup(), settings=off_panel
     )
     score = score_mission(result)
     assert score.per_type["missing_screw"].found == score.per_type["missing_screw"].truth >= 1
@@ -360,15 +379,15 @@ def test_impacts_on_a_discoloured_replacement_are_found_on_its_own_pixels_and_se
     # impact. At space repeatability nothing on the panel places the pose, and the second look finds the
     # blob by registering the two visits, not where the believed poses put it (11 px off on this seed).
     later = (ORBIT_START_S[0], ORBIT_START_S[1] + 300.0)
-    result = run_mission(2, repeatability="space", orbit_start_s=later, settings=HAND_PLAN)
+    result = run_mission(2, repeatability="space", orbit_start_s=later, settings=PANEL_VIEWS)
     truth = result.truth.anomalies
-    panel = next(a for a in truth if a.KIND == "swapped_component" and a.site == "C_panel")
-    assert panel.defect == "discoloured" and panel.reflectance_factor > 1.0  # type: ignore[attr-defined]
+    panel = next(k for k, a in enumerate(truth) if a.KIND == "swapped_component" and a.site == "C_panel")
+    assert truth[panel].defect == "discoloured" and truth[panel].reflectance_factor > 1.0  # type: ignore[attr-defined]
     on_panel = {k for k, a in enumerate(truth) if a.KIND == "impact" and a.site == "C_cells"}
     assert len(on_panel) >= 2
     score = score_mission(result)
     assert not on_panel & {miss.index for miss in score.misses}
-    assert score.per_type["swapped_component"].found == score.per_type["swapped_component"].truth
+    assert panel in score.matches.values()
     false_on_panel = [
         finding
         for k, finding in enumerate(result.findings)
@@ -394,14 +413,13 @@ def test_an_impact_beside_a_discoloured_tank_keeps_its_second_look() -> None:
     # it. Both looks compare the frame without the tank's pixels, registered again for their own gain and
     # bias; from a start at no shift the second look's registration ran 780 px off, its comparison held no
     # pixel and the impact was rejected. Started from the registration in depth, it is confirmed.
-    result = run_mission(13, settings=HAND_PLAN)
+    result = run_mission(13, settings=dataclasses.replace(HAND_PLAN, vistas=("B_tank",)))
     truth = result.truth.anomalies
-    tank = next(a for a in truth if a.KIND == "swapped_component" and a.site == "B_tank")
-    assert tank.defect == "discoloured"  # type: ignore[attr-defined]
+    tank = next(k for k, a in enumerate(truth) if a.KIND == "swapped_component" and a.site == "B_tank")
+    assert truth[tank].defect == "discoloured"  # type: ignore[attr-defined]
     below = next(k for k, a in enumerate(truth) if a.KIND == "impact" and a.site == "B_plate_bottom")
     score = score_mission(result)
-    assert below in score.matches.values()
-    assert score.per_type["swapped_component"].found == score.per_type["swapped_component"].truth
+    assert {below, tank} <= set(score.matches.values())
 
 
 def test_a_found_impact_is_seen_again_under_the_other_strobe(archived: tuple[MissionResult, Path]) -> None:

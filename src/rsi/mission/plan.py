@@ -102,11 +102,25 @@ def plan_vistas(world: World, settings: MissionSettings | None = None) -> tuple[
     if settings.plan == "cad" or (settings.plan == "auto" and world.mockup.layout != "truss"):
         from rsi.mission.plan_cad import add_plan_vistas
 
-        return with_jaws_moved(add_plan_vistas(world, _generated(world, settings)), world)
+        generated = add_plan_vistas(world, _generated(world, settings))
+        return with_jaws_moved(_chosen(generated, settings.vistas), world)
     hand = hand_plan_vistas(world, settings)
     if settings.plan != "hand":
         hand += completion_vistas(world, settings, hand)
-    return with_jaws_moved(hand, world, HAND_RULES)
+    return with_jaws_moved(_chosen(hand, settings.vistas), world, HAND_RULES)
+
+
+def _chosen(points: tuple[PlanPoint, ...], vistas: tuple[str, ...]) -> tuple[PlanPoint, ...]:
+    """The points of `points` taken from `vistas` (all of them when `vistas` is empty)."""
+    if not vistas:
+        return points
+    unknown = sorted(set(vistas) - {point.vista for point in points})
+    if unknown:
+        known = ", ".join(dict.fromkeys(point.vista for point in points))
+        raise InputError(
+            f"settings.vistas names {unknown}, which the plan does not visit; its vistas: {known}."
+        )
+    return tuple(point for point in points if point.vista in vistas)
 
 
 def completion_vistas(

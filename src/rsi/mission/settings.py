@@ -137,6 +137,10 @@ class MissionSettings:
         ``"hand+cad"`` the hand plan, then the points generated for what it leaves at its own 1 mm pixels
         and 45 deg (five on the truss: the tanks' flanks), ``"auto"`` (default) ``"hand+cad"`` on the
         truss layout and the CAD plan on any other.
+    vistas : tuple of str
+        Fly only the plan's points taken from these vistas (a targeted re-inspection: the panel again after a
+        finding there), in the plan's order, each with its second frame behind the jaws where it has one.
+        Empty (default): the whole plan.
     """
 
     p_false_alarm: float = 1e-9
@@ -178,11 +182,14 @@ class MissionSettings:
     door_open_rad: float = 1.4
     panel_standoff_m: float = 0.35
     plan: str = "auto"
+    vistas: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for item in fields(self):
             value = getattr(self, item.name)
-            if item.name == "flaw_model":
+            if item.name == "vistas":
+                _check_vistas(value)
+            elif item.name == "flaw_model":
                 _check_flaw_model(value)
             elif item.name == "plan":
                 if not isinstance(value, str) or value not in PLANS:
@@ -203,6 +210,14 @@ class MissionSettings:
                 f"p_preliminary={self.p_preliminary!r} must be >= p_false_alarm={self.p_false_alarm!r}: "
                 "the preliminary threshold of a second look lies below the confirming one (seed §2.5)."
             )
+
+
+def _check_vistas(value: object) -> None:
+    if not isinstance(value, tuple) or not all(isinstance(name, str) and name for name in value):
+        raise InputError(
+            f"vistas must be a tuple of vista names (strings); got {_shown(value)}. The default () flies the "
+            "whole plan."
+        )
 
 
 def _finite(value: object) -> bool:
