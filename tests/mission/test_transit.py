@@ -14,7 +14,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.control.blending import proximity_term
 from rsi.errors import InputError
-from rsi.mission import PLAN, PlanPoint, plan_vistas, run_mission
+from rsi.mission import PLAN, MissionSettings, PlanPoint, plan_vistas, run_mission
 from rsi.mission.sun import SUN_DIRECTION_TOLERANCE_RAD
 from rsi.mission.tour import Tour
 from rsi.mission.transit import (
@@ -209,17 +209,27 @@ def test_a_visit_takes_the_frame_from_where_the_arm_holds_the_camera(world: Worl
     assert panel.vista == "C_panel_west_front" and not tour.transits[-1].reach.reachable
 
 
+def test_every_point_that_completes_the_hand_plan_is_in_the_arms_reach(world: World) -> None:
+    fills = [point.vista for point in plan_vistas(world) if point.vista.startswith("fill_")]
+    assert fills  # the hand plan leaves the tanks' flanks to them (plan.completion_vistas)
+    assert all(reach(world, vista).reachable for vista in fills)  # plan_cad prefers the views the arm reaches
+
+
 def test_the_mission_moves_the_arm_and_follows_the_sun() -> None:
-    result = run_mission(SEED, size=TINY, active=False)
-    # the hand plan, the points that complete it, and a second frame behind the jaws where the arm reaches
+    # the default plan's kinds of point: the hand plan's in reach (with a second frame behind the jaws) and
+    # out of it (the panel from above), and a point that completes the hand plan
+    chosen = ("A_door", "B_tank", "C_panel_centre", "fill_00")
+    result = run_mission(SEED, size=TINY, active=False, settings=MissionSettings(vistas=chosen))
     points = len(result.plan)
     visits = 3 * points  # two reference visits and one inspection visit per point
     assert len(result.transits) == visits and len(result.suns) == visits
     fills = {p.name for p in result.plan if p.vista.startswith("fill_")}
     behind = {p.name: p.vista for p in result.plan if p.behind_jaws_at_m is not None and p.name not in fills}
     assert fills and behind and set(behind.values()) <= REACHABLE
-    # every completing point was chosen among the views the arm reaches (plan_cad prefers them)
-    assert {t.label for t in result.transits if t.reached} == REACHABLE | set(behind) | fills
+    # the completing point was chosen among the views the arm reaches (plan_cad prefers them)
+    in_reach = {p.name for p in result.plan} & REACHABLE
+    assert in_reach == {"A_door", "A_door_open", "B_tank"}
+    assert {t.label for t in result.transits if t.reached} == in_reach | set(behind) | fills
     stages = [s.stage for s in result.suns]
     assert stages == ["reference"] * 2 * points + ["inspection"] * points
     times = np.array([s.time_s for s in result.suns])

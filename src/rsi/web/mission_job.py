@@ -20,21 +20,26 @@ from rsi.errors import InputError
 PROVISIONAL_LIMIT = 500  # findings a running mission lists (a mission reports a handful a visit)
 
 # "small" is the fast check (a quarter of the pixels, the ISEE teleported to each vista, the lamp where the
-# world put it); "full" is the mission as rsi mission runs it (seed §2.1 video frames, arm, orbit sun).
+# world put it, the hand plan: the points that complete it look for 1 mm pixels that 120x160 frames never
+# give, and took the check from ~20 s to ~2 min); "full" is the mission as rsi mission runs it (seed §2.1
+# video frames, arm, orbit sun, the default plan).
 SETTINGS: dict[str, dict[str, Any]] = {
-    "small": {"size": (120, 160), "arm": False, "orbit": False},
-    "full": {"size": (480, 640), "arm": True, "orbit": True},
+    "small": {"size": (120, 160), "arm": False, "orbit": False, "plan": "hand"},
+    "full": {"size": (480, 640), "arm": True, "orbit": True, "plan": "auto"},
 }
 
 
-def _with_suns(settings: dict[str, Any]) -> dict[str, Any]:
-    """A mission under the orbit's sun takes its inspection pass under another sun, as `rsi demo` does
-    (seed §2: a station is never inspected under the same sun twice)."""
-    if not settings.get("orbit"):
-        return settings
-    from rsi.mission import ORBIT_START_S, SUN_OFFSET_S
+def _mission_arguments(setting: str) -> dict[str, Any]:
+    """run_mission's keyword arguments for `setting`. A mission under the orbit's sun takes its
+    inspection pass under another sun, as `rsi demo` does (seed §2: a station is never inspected under the
+    same sun twice)."""
+    from rsi.mission import ORBIT_START_S, SUN_OFFSET_S, MissionSettings
 
-    return {**settings, "orbit_start_s": (ORBIT_START_S[0], ORBIT_START_S[1] + SUN_OFFSET_S)}
+    arguments = dict(SETTINGS[setting])
+    arguments["settings"] = MissionSettings(plan=arguments.pop("plan"))
+    if arguments["orbit"]:
+        arguments["orbit_start_s"] = (ORBIT_START_S[0], ORBIT_START_S[1] + SUN_OFFSET_S)
+    return arguments
 
 
 def _run(archive_path: str, seed: int, setting: str, queue: Any) -> None:
@@ -54,7 +59,7 @@ def _run(archive_path: str, seed: int, setting: str, queue: Any) -> None:
     try:
         with Archive.open(archive_path) as archive:
             result = run_mission(
-                seed, archive=archive, progress=progress, on_visit=found, **_with_suns(SETTINGS[setting])
+                seed, archive=archive, progress=progress, on_visit=found, **_mission_arguments(setting)
             )
         queue.put(("done", result.run_id, len(result.findings), result.timings_s.get("total", 0.0)))
     except Exception as error:  # the page shows why the mission failed
