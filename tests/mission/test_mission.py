@@ -240,7 +240,7 @@ def test_a_targeted_plan_flies_only_the_vistas_asked_for_and_refuses_one_it_lack
 def test_settings_reach_the_result_and_change_the_plan() -> None:
     from rsi.mission import MissionSettings, plan_vistas
 
-    settings = MissionSettings(door_open_rad=1.0, panel_standoff_m=0.4)
+    settings = MissionSettings(door_open_rad=1.0, panel_standoff_m=0.4, plan="hand")  # both hand-plan views
     world = load("truss", seed=SEED)
     try:
         plan = plan_vistas(world, settings)
