@@ -126,9 +126,13 @@ def test_the_cameras_render_while_someone_watches_and_idle_when_nobody_does(live
             socket.send("shown")
         video = live.get("/api/status").json()["video"]
         assert video["viewers"] >= 1 and video["fps"] > 0
-    time.sleep(1.0)  # the server sees the socket close, the camera loop its next period
-    video = live.get("/api/status").json()["video"]
-    assert video["viewers"] == 0 and video["fps"] == 0
+    deadline = time.monotonic() + 10.0  # the handler notices the close within its 1 s wait, the loop then
+    while time.monotonic() < deadline:
+        video = live.get("/api/status").json()["video"]
+        if video["viewers"] == 0 and video["fps"] == 0:
+            break
+        time.sleep(0.2)
+    assert video["viewers"] == 0 and video["fps"] == 0, video
 
 
 # ------------------------------------------------------------------------------------- control
@@ -327,7 +331,7 @@ def test_a_viewer_slower_than_the_camera_gets_fresh_frames_not_a_growing_queue(l
 
 def test_a_viewer_that_acknowledges_nothing_is_sent_at_most_the_window(live: Live) -> None:
     with connect(_ws(live, f"/ws/video?cams=raw&token={live.token}"), open_timeout=30) as socket:
-        got = [socket.recv(timeout=10)]
+        got = [socket.recv(timeout=10) for _ in range(VIDEO_WINDOW)]  # a loaded machine's slow frames too
         with contextlib.suppress(TimeoutError):
             for _ in range(VIDEO_WINDOW + 4):  # bounded: a server that never waits fails here, not hangs
                 got.append(socket.recv(timeout=2.0))
