@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import re
 import subprocess
@@ -66,19 +65,24 @@ class MissionRuns:
 
 @pytest.fixture(scope="module")
 def mission_runs(tmp_path_factory: pytest.TempPathFactory) -> MissionRuns:
-    """`rsi demo` twice into one folder (seeds 0 and 1), at a quarter of the frame size, on two views of the
-    hand plan and with the camera teleported to them, to stay quick: what is tested here is the command (its
-    table, report and archive); the mission's views and transits are the mission's and the report's tests'."""
+    """`rsi demo --vista A_door --vista B_tank` twice into one folder (seeds 0 and 1), at a quarter of the
+    frame size, on the hand plan and with the camera teleported, to stay quick: what is tested here is the
+    command (its table, report, archive and --vista); the mission's views and transits are the mission's and
+    the report's tests'."""
     import rsi.mission.run
-    from rsi.mission import MissionSettings
+
+    run_mission = rsi.mission.run.run_mission
+
+    def small(*args: Any, settings: Any, **kwargs: Any) -> Any:
+        hand = dataclasses.replace(settings, plan="hand")
+        return run_mission(*args, settings=hand, size=(240, 320), arm=False, **kwargs)
 
     out = tmp_path_factory.mktemp("mission") / "results"
-    two_views = MissionSettings(plan="hand", vistas=("A_door", "B_tank"))
-    small = functools.partial(rsi.mission.run.run_mission, size=(240, 320), settings=two_views, arm=False)
+    views = ("--vista", "A_door", "--vista", "B_tank")
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(rsi.mission.run, "run_mission", small)
-        first = invoke("demo", "--seed", "0", "--out", out)
-        second = invoke("demo", "--seed", "1", "--out", out)
+        first = invoke("demo", "--seed", "0", "--out", out, *views)
+        second = invoke("demo", "--seed", "1", "--out", out, *views)
     return MissionRuns(first, second, out)
 
 
@@ -128,6 +132,9 @@ def test_demo_runs_the_mission_and_writes_its_report(mission_runs: MissionRuns) 
     assert result.exit_code == 0, result.output
     findings = json.loads((out / "runs" / "run-0001" / "findings.json").read_text())["findings"]
     assert findings
+    visual = {f["source"] for f in findings} - {"pyrometer", "gas"}
+    assert visual and visual <= {"A_door", "A_door_open", "B_tank"}  # the views --vista asked for
+    assert "Targeted run (--vista A_door, B_tank)" in " ".join(result.stdout.split())
     stdout = result.stdout
     assert "Findings of seed 0 against ground truth" in stdout
     # one printed row per finding, each with its verdict against the ground truth
@@ -405,6 +412,15 @@ def test_an_unknown_layout_is_refused_by_name_before_any_work(
     assert result.exit_code == cli.EXIT_INVALID_VALUE, result.output
     lines = result.stderr.strip().splitlines()
     assert lines == ["rsi: error: --layout='truss-c' is not known. Choose one of truss, truss-b."]
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("name", ["", "  ", "x" * 65])
+def test_a_vista_that_is_no_name_is_refused_before_any_work(name: str, tmp_path: Path) -> None:
+    result = invoke("demo", "--vista", "B_tank", "--vista", name, "--out", tmp_path / "out")
+    assert result.exit_code == cli.EXIT_INVALID_VALUE, result.output
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("rsi: error: --vista=") and "e.g. --vista B_tank" in line
     assert not (tmp_path / "out").exists()
 
 

@@ -347,6 +347,14 @@ def demo(
             "'truss-b' (issue 15, a plan generated from its CAD model)."
         ),
     ] = "truss",
+    vista: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--vista",
+            help="Fly only the plan's points taken from this vista, repeated for several (a targeted "
+            "re-inspection: --vista B_tank). Default: the whole plan.",
+        ),
+    ] = None,
 ) -> None:
     """The whole inspection mission over the simulated truss mock-up, scored, archived and reported.
     Reference pass, anomalies, inspection pass with active second looks under another sun (--sun-offset-s),
@@ -357,12 +365,13 @@ def demo(
     with _errors():
         orbit_start_s = _orbit_start_s(sun_offset_s)
         _check_layout(layout)
+        vistas = _checked_vistas(vista)
         _out_folder(out)
         settings = _anomaly_settings(anomalies, anomalies_json)
         import time
 
         from rsi.archive import Archive
-        from rsi.mission import run_mission, score_mission
+        from rsi.mission import MissionSettings, run_mission, score_mission
         from rsi.report.mission import write_mission_report
 
         start_s = time.perf_counter()
@@ -376,6 +385,7 @@ def demo(
                 anomalies=settings,
                 orbit_start_s=orbit_start_s,
                 layout=layout,
+                settings=MissionSettings(vistas=vistas),
             )
             scoring_s = time.perf_counter()
             score = score_mission(result)
@@ -446,6 +456,9 @@ def _print_mission(
         )
     console.print(table)
     console.print(_score_table(score))
+    if result.settings.vistas:
+        flown = ", ".join(result.settings.vistas)
+        console.print(f"Targeted run (--vista {flown}): anomalies no flown view sees count as misses.")
     console.print(
         f"{len(records)} findings, {score.false_findings} false; mission {result.timings_s['total']:.1f} s, "
         f"all {elapsed_s:.1f} s. Run {result.run_id} in {files['report.html'].parent / 'archive.db'}."
@@ -730,6 +743,22 @@ def _pick_vista(names: Sequence[str], vista: str) -> str:
     raise InputError(
         f"vista={vista!r} is not known. Choose an index 0-{len(names) - 1} or one of {', '.join(names)}."
     )
+
+
+def _checked_vistas(vistas: list[str] | None) -> tuple[str, ...]:
+    """--vista checked before any work: names, each given once (the plan, once generated, checks that it
+    visits them)."""
+    names = tuple(vistas or ())
+    for name in names:
+        if not name.strip() or len(name) > _MAX_VISTA_NAME:
+            raise InputError(
+                f"--vista={name[:40]!r} is not a vista name: give one of the plan's vistas (the report's "
+                "plan table lists them), e.g. --vista B_tank."
+            )
+    return tuple(dict.fromkeys(names))
+
+
+_MAX_VISTA_NAME = 64  # the mock-ups' and the generated plans' names are under 20 characters
 
 
 def _check_layout(layout: str) -> None:

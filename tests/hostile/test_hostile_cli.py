@@ -406,8 +406,13 @@ COMMANDS: dict[str, Row] = {
     "demo": (
         ["demo"],
         (),
-        ("--seed", "--out", "--anomalies", "--anomalies-json", "--sun-offset-s", "--layout"),
-        {"--seed": BAD_SEEDS, "--out": BAD_OUTS, "--layout": st.just("station")},
+        ("--seed", "--out", "--anomalies", "--anomalies-json", "--sun-offset-s", "--layout", "--vista"),
+        {
+            "--seed": BAD_SEEDS,
+            "--out": BAD_OUTS,
+            "--layout": st.just("station"),
+            "--vista": st.sampled_from(["", " ", "x" * 300]),
+        },
     ),
     "demo-pair": (["demo-pair"], (), ("--seed", "--out"), {"--seed": BAD_SEEDS, "--out": BAD_OUTS}),
     "isee proximity-demo": (
