@@ -134,7 +134,9 @@ def test_demo_runs_the_mission_and_writes_its_report(mission_runs: MissionRuns) 
     assert findings
     visual = {f["source"] for f in findings} - {"pyrometer", "gas"}
     assert visual and visual <= {"A_door", "A_door_open", "B_tank"}  # the views --vista asked for
-    assert "Targeted run (--vista A_door, B_tank)" in " ".join(result.stdout.split())
+    assert "Targeted run (--vista A_door, B_tank): scored on the anomalies its views see." in " ".join(
+        result.stdout.split()
+    )
     stdout = result.stdout
     assert "Findings of seed 0 against ground truth" in stdout
     # one printed row per finding, each with its verdict against the ground truth

@@ -458,7 +458,7 @@ def _print_mission(
     console.print(_score_table(score))
     if result.settings.vistas:
         flown = ", ".join(result.settings.vistas)
-        console.print(f"Targeted run (--vista {flown}): anomalies no flown view sees count as misses.")
+        console.print(f"Targeted run (--vista {flown}): scored on the anomalies its views see.")
     console.print(
         f"{len(records)} findings, {score.false_findings} false; mission {result.timings_s['total']:.1f} s, "
         f"all {elapsed_s:.1f} s. Run {result.run_id} in {files['report.html'].parent / 'archive.db'}."

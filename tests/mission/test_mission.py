@@ -420,6 +420,13 @@ def test_an_impact_beside_a_discoloured_tank_keeps_its_second_look() -> None:
     below = next(k for k, a in enumerate(truth) if a.KIND == "impact" and a.site == "B_plate_bottom")
     score = score_mission(result)
     assert {below, tank} <= set(score.matches.values())
+    # a targeted run is scored on what its frames see: seed 13 has visual anomalies beyond the tank's view
+    seen = {k for visit in result.visits for k in visit.visible}
+    unseen = [a for k, a in enumerate(truth) if k not in seen and a.KIND in ("impact", "missing_screw")]
+    assert unseen and all(miss.reason != "not visible in any planned frame" for miss in score.misses)
+    counted = sum(s.truth for name, s in score.per_type.items() if name in ("impact", "missing_screw"))
+    whole = score_mission(dataclasses.replace(result, settings=HAND_PLAN))  # the same run, as a whole plan
+    assert sum(whole.per_type[name].truth for name in ("impact", "missing_screw")) > counted
 
 
 def test_a_found_impact_is_seen_again_under_the_other_strobe(archived: tuple[MissionResult, Path]) -> None:

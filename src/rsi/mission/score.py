@@ -102,7 +102,9 @@ def score_mission(result: MissionResult) -> MissionScore:
 
     A finding matches an anomaly of the same kind within the kind's radius (1 cm for impacts and screws,
     3 cm for thermal spots and leaks, 5 cm for a component's site); each anomaly and finding is used once,
-    nearest first.
+    nearest first. A targeted run (``MissionSettings.vistas``) counts only the visual anomalies some frame of
+    it sees (the thermal spots and leaks, surveyed whatever the views, always count); the whole plan counts
+    every anomaly, seen or not.
 
     Raises
     ------
@@ -154,10 +156,14 @@ def _tally(
         name: {"truth": 0, "found": 0, "false": 0, "errors": []} for name in SCORED_TYPES
     }
     misses: list[Miss] = []
+    targeted = bool(result.settings.vistas)
+    seen = {k for visit in result.visits for k in visit.visible}
     for k, anomaly in enumerate(anomalies):
         kind_type = scored_type(anomaly.kind)
         if not counts_towards_recall(anomaly):
             continue
+        if targeted and anomaly.kind not in _SURVEYED and k not in seen:
+            continue  # a targeted run is scored on what its views see; the whole plan must see everything
         entry = per_type[kind_type]
         entry["truth"] += 1
         if k in matched:
@@ -171,8 +177,11 @@ def _tally(
     return per_type, misses
 
 
+_SURVEYED = ("hot_spot", "cold_spot", "gas_leak")  # read by the pyrometer and gas passes, whatever the views
+
+
 def _why_missed(result: MissionResult, index: int, anomaly: Anomaly) -> str:
-    if anomaly.kind in ("hot_spot", "cold_spot", "gas_leak"):
+    if anomaly.kind in _SURVEYED:
         return "sensor reading below its threshold or mislocated"
     seen_in = [visit.point for visit in result.visits if index in visit.visible]
     if not seen_in:
