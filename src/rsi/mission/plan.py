@@ -118,7 +118,8 @@ def _chosen(points: tuple[PlanPoint, ...], vistas: tuple[str, ...]) -> tuple[Pla
     if unknown:
         known = ", ".join(dict.fromkeys(point.vista for point in points))
         raise InputError(
-            f"settings.vistas names {unknown}, which the plan does not visit; its vistas: {known}."
+            f"vistas {unknown} are not in the plan (MissionSettings.vistas, rsi demo --vista); name some "
+            f"of its vistas: {known}."
         )
     return tuple(point for point in points if point.vista in vistas)
 
