@@ -42,6 +42,36 @@ def test_basis_images_add_up_to_the_all_lights_render(world: World) -> None:
     assert abs(float(difference.mean())) < 0.25
 
 
+def _closer(world: World, vista: str, standoff_m: float) -> None:
+    point = world.vista(vista)
+    forward = np.asarray(point.forward, dtype=float)
+    world.place_camera(np.asarray(point.position_m) + (0.5 - standoff_m) * forward, forward, point.up)
+
+
+def test_glare_past_the_renderer_s_clip_stays_linear_in_the_light(world: World) -> None:
+    # 0.25 m from the brushed tank the flash (1/d^2) and its specular return pass the classic renderer's
+    # clamp at 1 over much of the frame; a camera sees that light (seed §2.1), so the basis must scale with
+    # the lights as they do below the clip: at a quarter of every level, a quarter of the image
+    _closer(world, "B_tank", 0.25)
+    model = world.model
+    full = world.basis(size=SIZE)["strobe"]
+    saved = [model.light_diffuse.copy(), model.light_specular.copy(), model.light_ambient.copy()]
+    model.light_diffuse[:] = saved[0] / 4.0
+    model.light_specular[:] = saved[1] / 4.0
+    model.light_ambient[:] = saved[2] / 4.0
+    try:
+        quarter = world.basis(size=SIZE)["strobe"]
+    finally:
+        model.light_diffuse[:], model.light_specular[:], model.light_ambient[:] = saved
+    assert (full > 255).mean() > 0.05  # past the 8-bit render: the clip is really crossed here
+    lit = quarter > 5
+    # each render is within a unit of its own level (the lit colour and its product with the texel are
+    # both 8-bit): 1 + 4 below the clip; a glare pixel of `full` read at a 16th of it, `quarter`'s at a 4th
+    error = np.abs(full - 4 * quarter)[lit]
+    assert np.percentile(error, 99) <= 1.0 + 4.0
+    assert error.max() <= 16.0 + 4.0 * 4.0
+
+
 def test_lamp_on_a_flat_panel_leaves_no_isolated_dark_dots(world: World) -> None:
     point = world.vista("A_kapton")
     world.place_camera(point.position_m, point.forward, point.up)

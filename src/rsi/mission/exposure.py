@@ -26,6 +26,8 @@ if TYPE_CHECKING:
 _CLIPPED_DN = 3.0
 # pre-flashes the meter may take before it settles (a clipped ambient shrinks the shutter each time)
 _METER_TRIES = 3
+# a clipped pre-flash is taken again this much weaker: two steps span the strobe's 1..0.1 of the seed's
+_FLASH_STEP = 4.0
 
 
 def unlit_rows(frame: Frame) -> NDArray[np.bool_]:
@@ -69,6 +71,17 @@ def clipped(sensed: Sensed, settings: MissionSettings) -> bool:
     return bool(ambient_dn(sensed, settings) >= top - _CLIPPED_DN)
 
 
+def flash_clipped(sensed: Sensed, settings: MissionSettings) -> bool:
+    """Whether the lit rows read at the sensor's top at the meter percentile: the strobe reading is then a
+    lower bound (close to a glossy surface, the flash's 1/d^2 and its specular return saturate the sensor)."""
+    frame = sensed.capture.frames[0]
+    pixels = inspection_region(sensed, settings) & ~unlit_rows(frame)
+    if not pixels.any():
+        return False
+    top = 2**frame.camera.bits - 1
+    return bool(np.percentile(frame.raw[pixels], settings.meter_percentile) >= top - _CLIPPED_DN)
+
+
 def metered_shutter(sensed: Sensed, settings: MissionSettings, taken_at: float = 1.0) -> float:
     """Shutter (fraction of the seed's) that holds the sunlit surface's ambient to the target DN.
 
@@ -93,12 +106,17 @@ def settle(world: World, *, door_angle_rad: float) -> None:
 
 
 def metered_energy(
-    sensed: Sensed, settings: MissionSettings, shutter: float = 1.0, taken_at: float = 1.0
+    sensed: Sensed,
+    settings: MissionSettings,
+    shutter: float = 1.0,
+    taken_at: float = 1.0,
+    flashed_at: float = 1.0,
 ) -> float:
-    """Strobe energy that lifts the surface's brightest strobe pixels to the target DN (seed §2.1).
+    """Strobe energy that brings the surface's brightest strobe pixels to the target DN (seed §2.1).
 
-    The view is the pre-flash at the seed's 1.3 lm s, its shutter `taken_at`; `shutter` the one the frame
-    will be taken with. Dark solar cells and Kapton then read a
+    The view is the pre-flash at `flashed_at` times the seed's 1.3 lm s, its shutter `taken_at`; `shutter`
+    the one the frame will be taken with. Close to a glossy surface the seed's flash saturates the sensor
+    and a weaker one is metered; far from a dark one a stronger. Dark solar cells and Kapton then read a
     few tens of DN, where read noise and 8-bit quantisation swamp a millimetre impact; more flash raises the
     contrast in proportion and the shot noise only as its square root. Never less than the seed's energy.
     """
@@ -116,14 +134,15 @@ def metered_energy(
     )
     if strobe <= 0.0:
         return MAX_STROBE_ENERGY
-    return float(np.clip(headroom / strobe, settings.min_strobe_energy, MAX_STROBE_ENERGY))
+    return float(np.clip(flashed_at * headroom / strobe, settings.min_strobe_energy, MAX_STROBE_ENERGY))
 
 
 def metered(tour: Tour, sensed: Sensed, settings: MissionSettings) -> tuple[Sensed, float, float]:
     """The visit taken again at its metered shutter and strobe energy: (visit, shutter, energy).
 
     A clipped ambient is only a lower bound, so the meter shortens the shutter and looks again, up to
-    ``_METER_TRIES`` pre-flashes; the strobe energy is then metered from the last one.
+    ``_METER_TRIES`` pre-flashes; a clipped flash likewise, at a ``_FLASH_STEP`` weaker flash each time (not
+    below ``settings.min_strobe_energy``). The strobe energy is then metered from the last one.
     """
     from rsi.sim.world import MIN_SHUTTER
 
@@ -135,8 +154,15 @@ def metered(tour: Tour, sensed: Sensed, settings: MissionSettings) -> tuple[Sens
         sensed = reflashed(sensed, tour.reflash(strobe_energy=1.0, shutter=shutter))
         taken_at = shutter
         shutter = min(metered_shutter(sensed, settings, taken_at), taken_at)
-    energy = metered_energy(sensed, settings, shutter, taken_at)
-    if energy != 1.0 or shutter != taken_at:
+    flashed_at = 1.0
+    for _ in range(_METER_TRIES - 1):
+        if not flash_clipped(sensed, settings) or flashed_at <= settings.min_strobe_energy:
+            break
+        flashed_at = max(flashed_at / _FLASH_STEP, settings.min_strobe_energy)
+        sensed = reflashed(sensed, tour.reflash(strobe_energy=flashed_at, shutter=shutter))
+        taken_at = shutter
+    energy = metered_energy(sensed, settings, shutter, taken_at, flashed_at)
+    if energy != flashed_at or shutter != taken_at:
         sensed = reflashed(sensed, tour.reflash(strobe_energy=energy, shutter=shutter))
     return sensed, shutter, energy
 

@@ -111,8 +111,10 @@ class MissionSettings:
     ambient_target_dn : float
         Sunlight's share of the frame below which the shutter stays the seed's 1/10000 s.
     min_strobe_energy : float
-        Fraction of the seed's 1.3 lm s never undercut: a dimmer flash loses more to noise than it saves
-        from saturation (measured, seeds 0-19).
+        Fraction of the seed's 1.3 lm s never undercut: the strobe's weakest discharge
+        (``World.set_strobe_energy``). Close to glossy aluminium the seed's flash saturates the sensor
+        (the CAD plan's 0.2-0.35 m standoffs: 1/d^2 and the specular return). Until the renderer's glare
+        was taken past its 8-bit clip (docs/simulator.md) this was 1: the clip had hidden that saturation.
     thermal_threshold_k : float
         A Kapton circle's reading off the room's temperature beyond which it is a hot or cold spot: the
         pyrometer's 0.1 K noise at the mission's false-alarm probability (1e-9, two-sided: 6.1 sigma,
@@ -172,7 +174,7 @@ class MissionSettings:
     strobe_target_dn: float = 180.0
     meter_percentile: float = 99.5
     ambient_target_dn: float = 40.0
-    min_strobe_energy: float = 1.0
+    min_strobe_energy: float = 0.1
     thermal_threshold_k: float = 1.0
     gas_threshold_ppm: float = 2.0
     gas_standoff_m: float = 0.1

@@ -11,6 +11,16 @@ the camera maps the same surface to ~160 DN (13 lux s on reflectance 1, ``Camera
 basis step is ~0.7 camera DN: its rounding error (0.2 DN rms) stays below the camera's own read and
 quantisation noise (0.4 DN rms).
 
+Glare: the classic renderer clamps a pixel's lit colour at 1 before the texture multiplies it, so a basis
+image reads 255 times the texel wherever its lights' sum passes 1 (the strobe's specular return on the tanks
+and plates at close range), a plateau below the camera model's full well in which a bright impact cannot
+brighten: no real sensor flatters like that (seed §2.1: it sees the glare or saturates and says so). Where a
+basis image may be clipped it is rendered again with its lights at a quarter (the lit colour is linear in
+them: no headlight, no emission) and the pixels that read brighter so are taken from it, up to
+:data:`GLARE_RENDERS` times (64 times the level). :data:`CLIP_SUSPECT` is the darkest a clipped pixel can
+read: the brushed and grainy textures' darkest texel is 167 of 255; the solar cells' bus bars (63) lie
+between fingers and cells of 218 and more, which a clipped patch of cells always holds.
+
 Backend: chosen lazily from ``MUJOCO_GL`` (``egl`` by default, ``osmesa`` if EGL is not installed,
 ``glfw`` with a display); a missing one fails only when something is rendered, naming what to install.
 """
@@ -40,6 +50,9 @@ _INSTALL = {
     "osmesa": "OSMesa for CPU rendering (Debian/Ubuntu: apt-get install libosmesa6)",
     "glfw": "GLFW and a display (pip install glfw; apt-get install libglfw3; set DISPLAY)",
 }
+GLARE_DIMMING = 4.0
+GLARE_RENDERS = 3
+CLIP_SUSPECT = 166
 _LUMINANCE = np.array([0.299, 0.587, 0.114], dtype=np.float32)  # seed §2.1: luminance only (Rec. 601)
 STATES = ("inspection", "reference")
 
@@ -263,14 +276,43 @@ class SceneRenderer:
     ) -> NDArray[np.uint8]:
         """uint8 colour image of shape (M, N, 3) lit by the light ids `lights` (None: the model's own)."""
         self._update(data, camera, state, lights)
+        return self._read_colour()
+
+    def luminance(self, data: Any, camera: str, *, state: str, lights: tuple[int, ...]) -> F32:
+        """float32 luminance lit by `lights` only (seed §2.1: luminance signal), in render units: 255 is a
+        lit colour of 1, and glare goes past it (the module docstring: rendered again dimmer where clipped).
+        """
+        self._update(data, camera, state, lights)
+        colour = self._read_colour()
+        linear = colour.astype(np.float32)
+        scale = 1.0
+        for _ in range(GLARE_RENDERS):
+            if int(colour.max(initial=0)) < CLIP_SUSPECT:
+                break
+            scale /= GLARE_DIMMING
+            self._dim_lights(1.0 / GLARE_DIMMING)
+            colour = self._read_colour()
+            dimmer = colour.astype(np.float32) / np.float32(scale)
+            # each render quantises the lit colour and then its product with the texel to 8 bits: up to a
+            # unit of its own level apart (measured: 5 render units at a quarter, never more)
+            clipped = np.any(dimmer - linear > 1.0 / scale + 1.0 / (scale * GLARE_DIMMING) + 1.0, axis=2)
+            linear[clipped] = dimmer[clipped]
+            colour = np.where(clipped[..., None], colour, 0).astype(np.uint8)
+        return np.asarray(linear @ _LUMINANCE)
+
+    def _read_colour(self) -> NDArray[np.uint8]:
         buffer = np.empty((*self.shape, 3), dtype=np.uint8)
         self._mujoco.mjr_render(self._rect, self._scene, self._mjr)
         self._mujoco.mjr_readPixels(buffer, None, self._rect, self._mjr)
         return np.ascontiguousarray(buffer[::-1])
 
-    def luminance(self, data: Any, camera: str, *, state: str, lights: tuple[int, ...]) -> F32:
-        """float32 luminance (0..255 render units) lit by `lights` only (seed §2.1: luminance signal)."""
-        return np.asarray(self.rgb(data, camera, state=state, lights=lights).astype(np.float32) @ _LUMINANCE)
+    def _dim_lights(self, factor: float) -> None:
+        """Scale every light of the updated scene (the model is untouched: the next update restores it)."""
+        for k in range(self._scene.nlight):
+            light = self._scene.lights[k]
+            light.ambient[:] = np.asarray(light.ambient) * factor
+            light.diffuse[:] = np.asarray(light.diffuse) * factor
+            light.specular[:] = np.asarray(light.specular) * factor
 
     def depth_and_segments(self, data: Any, camera: str, *, state: str) -> tuple[F32, NDArray[np.int32]]:
         """Depth along the view axis in metres and the geom id seen in each pixel (-1: background)."""
