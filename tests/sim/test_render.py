@@ -72,6 +72,36 @@ def test_glare_past_the_renderer_s_clip_stays_linear_in_the_light(world: World) 
     assert error.max() <= 16.0 + 4.0 * 4.0
 
 
+def test_a_weaker_flash_is_rendered_dimmer_and_reads_the_same_light(world: World) -> None:
+    # the strobe group is rendered at the flash it fires (World.set_strobe_energy): the same basis image in
+    # the same units, quantised at that level, and glare past the seed flash's clip read all the same
+    _closer(world, "B_tank", 0.25)
+    seed_flash = world.basis(size=SIZE)["strobe"]
+    world.set_strobe_energy(0.25)
+    try:
+        weaker = world.basis(size=SIZE)["strobe"]
+    finally:
+        world.set_strobe_energy(1.0)
+    assert (seed_flash > 255).mean() > 0.05
+    error = np.abs(weaker - seed_flash)[seed_flash > 5]
+    # within a unit of each render's level: 1 and 4 below the clip (the glare's: 16 and 16)
+    assert np.percentile(error, 99) <= 1.0 + 4.0
+    assert error.max() <= 16.0 + 16.0
+
+
+def test_a_render_level_outside_0_to_1_is_refused(world: World) -> None:
+    from rsi.errors import InputError
+    from rsi.sim.render import SceneRenderer
+
+    renderer = SceneRenderer(world.model, *SIZE)
+    try:
+        for level in (0.0, 1.5, float("nan"), True):
+            with pytest.raises(InputError, match="level"):
+                renderer.luminance(world.data, "isee", state="inspection", lights=(0,), level=level)
+    finally:
+        renderer.close()
+
+
 def test_lamp_on_a_flat_panel_leaves_no_isolated_dark_dots(world: World) -> None:
     point = world.vista("A_kapton")
     world.place_camera(point.position_m, point.forward, point.up)

@@ -278,14 +278,23 @@ class SceneRenderer:
         self._update(data, camera, state, lights)
         return self._read_colour()
 
-    def luminance(self, data: Any, camera: str, *, state: str, lights: tuple[int, ...]) -> F32:
+    def luminance(
+        self, data: Any, camera: str, *, state: str, lights: tuple[int, ...], level: float = 1.0
+    ) -> F32:
         """float32 luminance lit by `lights` only (seed §2.1: luminance signal), in render units: 255 is a
         lit colour of 1, and glare goes past it (the module docstring: rendered again dimmer where clipped).
+
+        `level` in (0, 1] renders the lights that much dimmer to begin with (the result is in the same
+        units): a flash fired weaker than the seed's spends the render's 8 bits where its camera does.
         """
+        if isinstance(level, bool) or not isinstance(level, (int, float)) or not 0.0 < level <= 1.0:
+            raise InputError(f"level must be a number in (0, 1]; got {str(level)[:40]}.")
         self._update(data, camera, state, lights)
+        scale = float(level)
+        if scale < 1.0:
+            self._dim_lights(scale)
         colour = self._read_colour()
-        linear = colour.astype(np.float32)
-        scale = 1.0
+        linear = colour.astype(np.float32) / np.float32(scale)
         for _ in range(GLARE_RENDERS):
             if int(colour.max(initial=0)) < CLIP_SUSPECT:
                 break

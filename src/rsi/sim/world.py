@@ -513,7 +513,9 @@ class World:
         """Luminance of each light group alone (render units 0..255, float32) from the current camera pose."""
         renderer = self._renderer(frame_size(size))
         return {
-            group: renderer.luminance(self.data, camera, state=state, lights=tuple(ids))
+            group: renderer.luminance(
+                self.data, camera, state=state, lights=tuple(ids), level=self._render_level(group)
+            )
             for group, ids in self._lights.items()
         }
 
@@ -797,7 +799,11 @@ class World:
             raise InputError(f"view must be a View from World.render; got {type(view).__name__}.")
         camera = self.arm.camera_name("left") if view.carried else "isee"
         basis = self._renderer(view.frame.raw.shape).luminance(
-            self.data, camera, state=view.state, lights=tuple(self._lights["other_strobe"])
+            self.data,
+            camera,
+            state=view.state,
+            lights=tuple(self._lights["other_strobe"]),
+            level=self._render_level("other_strobe"),
         )
         strobe = self._strobe_lux_s(basis)
         return tuple(  # type: ignore[return-value]
@@ -919,7 +925,9 @@ class World:
         renderer = self._renderer(shape)
         groups = ("sun", "strobe", "lamps") if self.halogen_on else ("sun", "strobe")
         basis = {
-            g: renderer.luminance(self.data, camera, state=state, lights=tuple(self._lights[g]))
+            g: renderer.luminance(
+                self.data, camera, state=state, lights=tuple(self._lights[g]), level=self._render_level(g)
+            )
             for g in groups
             if g != "sun" or self.lamp_on
         }
@@ -937,6 +945,11 @@ class World:
             ambient, strobe, exposure_s=seconds, camera=self.camera, lit_field=lit_field, rng=self._noise_rng
         )
         return frame, basis, ambient, strobe
+
+    def _render_level(self, group: str) -> float:
+        """The level a light group is rendered at: a strobe at the flash it fires (so a weakened flash is
+        rendered with the 8 bits its camera spends on it, and its glare clips less), the others at theirs."""
+        return min(1.0, self.strobe_energy) if group in ("strobe", "other_strobe") else 1.0
 
     def _strobe_lux_s(self, luminance: F32) -> F32:
         """A strobe's exposure in lux s from its luminance render: the flash at this world's energy, its
