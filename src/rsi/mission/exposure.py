@@ -118,7 +118,8 @@ def metered_energy(
     the one the frame will be taken with. Close to a glossy surface the seed's flash saturates the sensor
     and a weaker one is metered; far from a dark one a stronger. Dark solar cells and Kapton then read a
     few tens of DN, where read noise and 8-bit quantisation swamp a millimetre impact; more flash raises the
-    contrast in proportion and the shot noise only as its square root. Never less than the seed's energy.
+    contrast in proportion and the shot noise only as its square root. Never less than
+    ``settings.min_strobe_energy``.
     """
     from rsi.sim.world import MAX_STROBE_ENERGY
 

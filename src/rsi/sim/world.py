@@ -510,7 +510,8 @@ class World:
     def basis(
         self, camera: str = "isee", *, size: tuple[int, int] = DEFAULT_SIZE, state: str = "inspection"
     ) -> dict[str, F32]:
-        """Luminance of each light group alone (render units 0..255, float32) from the current camera pose."""
+        """Luminance of each light group alone (float32 render units: 255 is a lit colour of 1, glare reads
+        past it) from the current camera pose."""
         renderer = self._renderer(frame_size(size))
         return {
             group: renderer.luminance(
