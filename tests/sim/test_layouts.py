@@ -142,6 +142,8 @@ def test_truss_is_the_seed_mockup_as_built_before_layouts() -> None:
 
 
 def test_truss_gives_byte_identical_mjcf_for_the_draws_taken_before_layouts() -> None:
+    # pinned before layouts; pinned again once when the large boxes became grid meshes (issue 15: a
+    # fifth of the renderer's geometry, the same lighting, tests/sim/test_render.py)
     pinned = json.loads((DATA / "truss_mjcf_sha256.json").read_text())
     built = truss_mockup()
     for key, digest in pinned.items():

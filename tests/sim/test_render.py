@@ -12,7 +12,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from rsi.sim.world import World
+from rsi.sim import scene
+from rsi.sim.render import import_mujoco
+from rsi.sim.scene import LIGHT_GROUPS
+from rsi.sim.world import AMBIENT_RENDER_LEVEL, World
 
 SIZE = (120, 160)
 
@@ -36,9 +39,10 @@ def test_basis_images_add_up_to_the_all_lights_render(world: World) -> None:
     lit = together > 0
     assert lit.mean() > 0.5
     difference = (sum(basis.values()) - together)[lit]
-    # one uint8 render per group and the all-lights one, each rounded by up to half a render unit, plus
-    # the luminance weights' rounding (four groups since the ISEE's other strobe: 3.0)
-    assert np.abs(difference).max() <= 0.5 * (len(basis) + 1) + 0.5
+    # one uint8 render per group and the all-lights one, each rounded by up to half a step, plus the
+    # luminance weights' rounding (half a unit); the sun's and the lamps' step is 1 / AMBIENT_RENDER_LEVEL
+    steps = [1.0 / AMBIENT_RENDER_LEVEL if group in ("sun", "lamps") else 1.0 for group in basis]
+    assert np.abs(difference).max() <= 0.5 * (sum(steps) + 1) + 0.5
     assert abs(float(difference.mean())) < 0.25
 
 
@@ -135,14 +139,25 @@ def _largest_change(before: NDArray[np.float32], after: NDArray[np.float32]) -> 
 
 
 def test_a_face_s_strobe_image_does_not_depend_on_how_finely_its_box_is_drawn(
-    world: World, same_draw: Callable[[], World]
+    same_draw: Callable[[], World], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    # MuJoCo lights each vertex and draws a box face as numquads^2 quads (rsi.sim.scene.BOX_QUAD_M): the
-    # panel's strobe image at the model's count against twice as many is the same within 2 % of its
-    # bright level; at MuJoCo's default of 4 against 8 it moved by 16 %
-    quads = world.model.vis.quality.numquads
-    assert _largest_change(_panel_strobe(same_draw), _panel_strobe(same_draw, 2 * quads)) < 0.02
+    # MuJoCo lights each vertex and interpolates: the panel drawn as a grid mesh (rsi.sim.scene
+    # MESHED_BOX_M) is its strobe image as MuJoCo's own box at 70 quads a side (7 mm) within 2 % of its
+    # bright level; at MuJoCo's default of 4 quads against 8 the image moved by 16 %
+    meshed = _panel_strobe(same_draw)
+    monkeypatch.setattr(scene, "MESHED_BOX_M", np.inf)
+    assert _largest_change(meshed, _panel_strobe(same_draw, 70)) < 0.02
     assert _largest_change(_panel_strobe(same_draw, 4), _panel_strobe(same_draw, 8)) > 0.1
+
+
+def test_no_box_is_drawn_with_quads_over_a_centimetre_and_a_half(world: World) -> None:
+    # the inspection frames' boxes: the large ones grid meshes, the small ones MuJoCo's numquads a side
+    mujoco = import_mujoco()
+    model = world.model
+    boxes = model.geom_type == mujoco.mjtGeom.mjGEOM_BOX
+    assert boxes.any() and (model.geom_type == mujoco.mjtGeom.mjGEOM_MESH).any()
+    longest = 2.0 * model.geom_size[boxes].max(axis=1)
+    assert np.all(longest / model.vis.quality.numquads <= scene.BOX_QUAD_M + 1e-12)
 
 
 def test_live_video_s_coarser_drawing_leaves_the_model_s_settings_as_they_were(world: World) -> None:
@@ -153,8 +168,6 @@ def test_live_video_s_coarser_drawing_leaves_the_model_s_settings_as_they_were(w
     renderer = SceneRenderer(world.model, *SIZE, fast=True)
     renderer.close()
     assert (quality.offsamples, quality.numslices, quality.numstacks, quality.numquads) == before
-    # the inspection frames keep their fine quads (rsi.sim.scene.BOX_QUAD_M), live video MuJoCo's four
-    assert quality.numquads > 4
 
 
 def test_an_unknown_gl_backend_fails_only_when_rendering_with_a_clear_error() -> None:
@@ -176,3 +189,24 @@ def test_an_unknown_gl_backend_fails_only_when_rendering_with_a_clear_error() ->
 def test_bad_sizes_are_refused(world: World, size: object) -> None:
     with pytest.raises(ValueError, match="size"):
         world.render("A_door", size=size)  # type: ignore[arg-type]
+
+
+def test_the_continuous_lights_basis_is_their_full_level_render_within_its_rounding(world: World) -> None:
+    # rendered at AMBIENT_RENDER_LEVEL: a step of 1 / level render units, the same image where nothing clips
+    from rsi.sim.render import SceneRenderer
+
+    point = world.vista("A_kapton")
+    world.place_camera(point.position_m, point.forward, point.up)
+    sun = world.basis(size=SIZE)["sun"]
+    mujoco = import_mujoco()
+    lights = tuple(
+        mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_LIGHT, name) for name in LIGHT_GROUPS["sun"]
+    )
+    renderer = SceneRenderer(world.model, *SIZE)
+    try:
+        full = renderer.luminance(world.data, "isee", state="inspection", lights=lights)
+    finally:
+        renderer.close()
+    lit = full > 20.0
+    assert lit.mean() > 0.2
+    assert np.abs(sun - full)[lit].max() <= 1.0 / AMBIENT_RENDER_LEVEL + 1.0

@@ -13,7 +13,7 @@ from rsi.sim.arm import HOME_Q, RANGEFINDER_RECESS_M, WORLD_ARM_PREFIX, Arm, arm
 from rsi.sim.mockup import truss_mockup
 from rsi.sim.render import SceneRenderer
 from rsi.sim.solar_simulator import inverse_kinematics
-from rsi.sim.world import ARM_HOME_TOOL_TIP_M, LAB_LAMP_LUX, World, load
+from rsi.sim.world import AMBIENT_RENDER_LEVEL, ARM_HOME_TOOL_TIP_M, LAB_LAMP_LUX, World, load
 
 SEED = 3
 SMALL = (120, 160)
@@ -121,8 +121,9 @@ def test_frame_from_the_isee_shows_the_plate_and_no_rangefinder_ray(arm_world: W
     drawn = SceneRenderer(arm_world.model, *size, show_rangefinders=True)
     plain = SceneRenderer(arm_world.model, *size)
     try:
-        with_rays = drawn.luminance(arm_world.data, camera, state="inspection", lights=sun)
-        without = plain.luminance(arm_world.data, camera, state="inspection", lights=sun)
+        level = AMBIENT_RENDER_LEVEL  # the level the world renders its sun at
+        with_rays = drawn.luminance(arm_world.data, camera, state="inspection", lights=sun, level=level)
+        without = plain.luminance(arm_world.data, camera, state="inspection", lights=sun, level=level)
     finally:
         drawn.close()
         plain.close()

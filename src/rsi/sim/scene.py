@@ -89,6 +89,16 @@ SHADOW_MAP_PX = 2048
 # closest plan standoff (0.21 m), inside the beam margin the mission trusts (5 deg,
 # ``MissionSettings.strobe_beam_margin_deg``).
 BOX_QUAD_M = 0.015
+# numquads is one count for every box and every face: 35 a side for the 0.52 m panel drew a 7 mm screw slot
+# and a 12 mm edge with 35 x 35 quads too, 265 000 quads in all and most of a frame's cost on the CPU
+# renderer (a shadowed sun frame 240 ms). Boxes longer than four quads are drawn as grid meshes instead
+# (rsi.sim.dent.box_mesh: a vertex every centimetre along each side, 22 000 quads in all, 130 ms), the
+# others at MuJoCo's four quads; the strobe image is the same within 2 % (tests/sim/test_render.py).
+MESHED_BOX_M = 4 * BOX_QUAD_M
+# MuJoCo stores a mesh's vertices as float32: rounded inwards, a box's edge would leave a ray that meets the
+# box exactly there (the CAD coverage's samples on a face's border) no triangle to hit, where MuJoCo's own box
+# is hit. A micrometre outside, the mesh covers the box (the camera's pixels are 0.5 mm).
+MESH_EDGE_MARGIN_M = 1e-6
 STEREO_BASELINE_M = 0.06
 CAMERA_FOVY_DEG = 35.0  # 0.32 m x 0.32 m at 0.5 m: the seed's ~0.1 m^2 scene (seed §2.1)
 MAX_RENDER_PX = 2048
@@ -429,6 +439,7 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
             if not _is_patch(anomaly):  # a patch lies on the original: nothing of it is replaced
                 pristine_names.update(part.name for part in originals)
                 pristine_geoms[index] = tuple(part.name for part in originals)
+    mesh_xml += _mesh_large_boxes([*mockup.parts, *anomaly_parts, *door_parts], meshes)
     hinge = np.asarray(mockup.door.hinge_m)
     world_xml, door_xml = [], []
     for part in mockup.parts:
@@ -509,9 +520,12 @@ def _swapped(
             Part(f"{p.name}_swapped", p.component, p.shape, p.size, p.pos, f"{p.name}_swapped", p.zaxis)
             for p in originals
         ]
-        materials = [
-            _material_xml(copy.name, _material_of(part), anomaly.reflectance_factor)
+        materials = [  # a box drawn as a grid mesh takes the material's mesh variant
+            _material_xml(
+                copy.name + suffix, _material_of(part), anomaly.reflectance_factor, mesh=bool(suffix)
+            )
             for copy, part in zip(copies, originals, strict=True)
+            for suffix in ("", MESH_MATERIAL_SUFFIX)
         ]
         return copies, tuple(copy.name for copy in copies), materials
     copies = [
@@ -570,10 +584,9 @@ def _skin_dent(anomaly: SwappedComponent, part: Part) -> SkinDent:
     )
 
 
-def _register_meshes(
-    names: tuple[str, str], pair: tuple[BoxMesh, BoxMesh], meshes: dict[str, str]
-) -> list[str]:
-    """Mesh assets of a dented part and of the undented part it replaces, registered in `meshes`.
+def _register_meshes(names: tuple[str, ...], pair: tuple[BoxMesh, ...], meshes: dict[str, str]) -> list[str]:
+    """Mesh assets of the parts `names` (a dented part and the undented part it replaces, or a large box),
+    registered in `meshes`.
 
     The pristine part is drawn as a mesh of the same grid, so both states share one texture mapping: the
     reference and the inspection images then differ by the dent alone.
@@ -651,8 +664,23 @@ def _document(
 
 def _box_quads(mockup: Mockup) -> int:
     """Quads along a box face's side (MuJoCo's ``numquads``, one for all boxes): none over BOX_QUAD_M."""
-    longest = max((2.0 * max(part.size) for part in mockup.parts if part.shape == "box"), default=0.0)
+    longest = max((2.0 * max(part.size) for part in mockup.parts if _drawn_as_box(part)), default=0.0)
     return max(4, math.ceil(longest / BOX_QUAD_M))
+
+
+def _drawn_as_box(part: Part) -> bool:
+    return part.shape == "box" and 2.0 * max(part.size) <= MESHED_BOX_M
+
+
+def _mesh_large_boxes(parts: list[Part], meshes: dict[str, str]) -> list[str]:
+    """Mesh assets of the boxes drawn as grids (:data:`MESHED_BOX_M`), registered in `meshes`; a dented box
+    and the one it replaces are registered already, with their crater's grid."""
+    xml = []
+    for part in parts:
+        if part.shape == "box" and not _drawn_as_box(part) and part.name not in meshes:
+            grown = tuple(half + MESH_EDGE_MARGIN_M for half in part.size)
+            xml += _register_meshes((part.name,), (box_mesh(grown, _TEXTURE_REPEAT_PER_M),), meshes)
+    return xml
 
 
 def _spot(name: str, pos: tuple[float, float, float], level: float, cutoff_deg: float) -> str:

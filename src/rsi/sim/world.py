@@ -81,6 +81,10 @@ MAX_EXPOSURE_S = 1.0  # 10**4 seed shutters (seed §2.1: 1/10000 s); any scene s
 MIN_SHUTTER = FLASH_S / ORBIT_EXPOSURE_S  # 0.2: a shorter shutter would cut the flash itself
 STROBE_LUX_S = STROBE_LM_S / SCENE_AREA_M2  # seed §2.1: 1.3 lm s over 0.1 m^2 at the inspection standoff
 HALOGEN_LUX = 1500.0  # end-effector lamps' regulated illuminance at the standoff (rsi.sensors.LampController)
+# seed §2.2: a continuous light's basis image lights the strobe-lit and the unlit field alike, so its 8-bit
+# rounding cancels in the compensated image; rendered at half its level it clips (and takes the renderer's
+# dimmer second render, rsi.sim.render) only on a glint past twice the lamp's full light
+AMBIENT_RENDER_LEVEL = 0.5
 DEFAULT_SIZE = (480, 640)  # the seed's video frame
 # Issue 4: the arm on its rail in the same world, rail along the truss (x) and centred on it. At home the
 # ISEE's cameras and rangefinders (on the housing face, RANGEFINDER_RECESS_M behind the jaw tips) stand the
@@ -949,8 +953,9 @@ class World:
 
     def _render_level(self, group: str) -> float:
         """The level a light group is rendered at: a strobe at the flash it fires (so a weakened flash is
-        rendered with the 8 bits its camera spends on it, and its glare clips less), the others at theirs."""
-        return min(1.0, self.strobe_energy) if group in ("strobe", "other_strobe") else 1.0
+        rendered with the 8 bits its camera spends on it, and its glare clips less), the continuous lights
+        at :data:`AMBIENT_RENDER_LEVEL`."""
+        return min(1.0, self.strobe_energy) if group in ("strobe", "other_strobe") else AMBIENT_RENDER_LEVEL
 
     def _strobe_lux_s(self, luminance: F32) -> F32:
         """A strobe's exposure in lux s from its luminance render: the flash at this world's energy, its
