@@ -7,10 +7,13 @@ import sys
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
-from rsi.sim.anomalies import AnomalySettings, seed_anomalies
+from rsi.errors import InputError
+from rsi.sim.anomalies import AnomalySet, AnomalySettings, seed_anomalies
+from rsi.sim.dent import local_rotation
 from rsi.sim.mockup import BAY_M, BAYS, truss_mockup
-from rsi.sim.scene import ANOMALY_GROUP, PRISTINE_GROUP, build_model, scene_mjcf
+from rsi.sim.scene import ANOMALY_GROUP, MESHED_BOX_M, PRISTINE_GROUP, build_model, scene_mjcf
 
 
 def test_importing_rsi_sim_does_not_import_mujoco() -> None:
@@ -95,3 +98,47 @@ def test_no_two_box_faces_overlap_in_one_plane() -> None:
             ):
                 clashes.append((name, other))
     assert clashes == []
+
+
+def test_rays_to_a_grid_mesh_s_face_meet_it_borders_included() -> None:
+    # rays from 0.3 m to points on every large box's face, its borders included (the CAD coverage's
+    # samples lie there): the grid mesh drawn for the lighting is met there or in front (a part touching
+    # it), never passed through
+    import mujoco
+
+    built = truss_mockup()
+    model, _ = build_model(built, AnomalySet(()))  # the CAD: no replacement's dent in the way
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    met, expected = _face_hits(model, data, built)
+    assert (met >= 0).all()
+    assert np.all(met <= expected + 2e-6)
+    assert np.mean(np.abs(met - expected) < 2e-6) > 0.5
+
+
+def _face_hits(model: object, data: object, built: object) -> tuple[np.ndarray, np.ndarray]:
+    """Distance met and distance to the face of rays to a 5 x 5 grid on each large box's +z face."""
+    import mujoco
+
+    met, expected = [], []
+    for part in built.parts:  # type: ignore[attr-defined]
+        if part.shape != "box" or 2 * max(part.size) <= MESHED_BOX_M:
+            continue
+        rotation = local_rotation(part.zaxis)  # a mesh geom's own frame is its inertia's: the part's is kept
+        for u in np.linspace(-1.0, 1.0, 5):
+            for w in np.linspace(-1.0, 1.0, 5):
+                local = np.array([u * part.size[0], w * part.size[1], part.size[2]])
+                target = np.asarray(part.pos) + rotation @ local
+                start = target + rotation[:, 2] * 0.3 + rotation[:, 0] * 0.05
+                direction = (target - start) / np.linalg.norm(target - start)
+                found = np.array([-1], dtype=np.int32)
+                met.append(mujoco.mj_ray(model, data, start, direction, None, 1, -1, found))
+                expected.append(np.linalg.norm(target - start))
+    return np.array(met), np.array(expected)
+
+
+def test_grid_meshes_must_be_a_bool() -> None:
+    built = truss_mockup()
+    anomalies = seed_anomalies(built.candidates, rng=np.random.default_rng(0), settings=AnomalySettings())
+    with pytest.raises(InputError, match="grid_meshes must be True or False"):
+        scene_mjcf(built, anomalies, grid_meshes="yes")  # type: ignore[arg-type]

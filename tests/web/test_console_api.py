@@ -119,6 +119,16 @@ def test_status_is_the_live_state(live: Live) -> None:
     assert status["video"]["size"] == list(LIVE_SIZE)
 
 
+def test_the_3d_scene_shows_every_box_of_the_mockup_the_grid_meshes_too(live: Live) -> None:
+    scene = live.get("/api/scene").json()
+    drawn = np.array([sorted(shape["size"]) for shape in scene["shapes"]])
+    parts = live.console.world.mockup.parts
+    boxes = [sorted(part.size) for part in parts if part.shape == "box"]
+    assert any(2 * max(box) > 0.06 for box in boxes)  # the panel, the plates: grid meshes in the model
+    for box in boxes:  # a dented replacement's bounding box is its box within a millimetre
+        assert np.abs(drawn - box).max(axis=1).min() < 1e-3, box
+
+
 def test_the_cameras_render_while_someone_watches_and_idle_when_nobody_does(live: Live) -> None:
     with connect(_ws(live, f"/ws/video?cams=raw&token={live.token}"), open_timeout=30) as socket:
         for _ in range(12):

@@ -262,7 +262,7 @@ class Sight:
 
         self.rules = v.instance_of(rules, "rules", CoverageRules, none_allowed=False)
         self.samples = inspectable_samples(mockup, rules.sample_spacing_m)
-        self.world = World(mockup, AnomalySet(()), seed=0, arm=False)
+        self.world = World(mockup, AnomalySet(()), seed=0, arm=False, grid_meshes=False)
         self._mujoco: Any = import_mujoco()
         model = self.world.model
         moving = {int(model.jnt_bodyid[joint]) for joint in range(model.njnt)}

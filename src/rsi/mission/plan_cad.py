@@ -604,7 +604,7 @@ def generate_plan(
         raise InputError(f"prefix must be a name such as 'cad'; got {prefix!r}.")
     sight = Sight(mockup, rules)
     done = _sample_flags(covered, len(sight.samples), "covered")
-    arm_world = World(mockup, AnomalySet(()), seed=0, arm=True) if arm else None
+    arm_world = World(mockup, AnomalySet(()), seed=0, arm=True, grid_meshes=False) if arm else None
     weighed = weigh_candidates(mockup, sight, settings.door_open_rad, arm_world)
     if not weighed:
         raise InputError("source's mock-up has no inspectable surface any candidate view covers.")

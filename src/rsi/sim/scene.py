@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from rsi import _validate as v
+from rsi.errors import InputError
 from rsi.sim.anomalies import (
     DENT_RIM_M,
     DENT_RIM_PER_DEPTH,
@@ -385,7 +386,9 @@ def _planted(
     return centre, normal, 1.0
 
 
-def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, bytes], SceneIndex]:
+def scene_mjcf(
+    mockup: Mockup, anomalies: AnomalySet, *, grid_meshes: bool = True
+) -> tuple[str, dict[str, bytes], SceneIndex]:
     """MJCF text, its texture assets and the flaw index for a mock-up carrying `anomalies`.
 
     Parameters
@@ -396,6 +399,10 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
         What to plant: impacts become dark or bright decals, removed screws leave a hole, swapped components
         are dented (a crater pressed into a box face or a tank's skin) or discoloured (as a whole, or a
         patch decal). Thermal spots and leaks do not show in visible light.
+    grid_meshes : bool
+        Draw the boxes longer than :data:`MESHED_BOX_M` as grid meshes (default: the camera's frames).
+        False keeps MuJoCo's boxes, all at one fine quad count: a model for rays and reach alone (the CAD
+        coverage and plan), where the meshes' triangles only slow the rays.
 
     Returns
     -------
@@ -408,6 +415,7 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
     """
     v.instance_of(mockup, "mockup", Mockup, none_allowed=False)
     v.instance_of(anomalies, "anomalies", AnomalySet, none_allowed=False)
+    meshed_over_m = _meshed_over_m(grid_meshes)
     by_name = {part.name: part for part in mockup.parts}
     materials = [_material_xml(name, material) for name, material in MATERIALS.items()]
     anomaly_parts: list[Part] = []
@@ -439,7 +447,7 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
             if not _is_patch(anomaly):  # a patch lies on the original: nothing of it is replaced
                 pristine_names.update(part.name for part in originals)
                 pristine_geoms[index] = tuple(part.name for part in originals)
-    mesh_xml += _mesh_large_boxes([*mockup.parts, *anomaly_parts, *door_parts], meshes)
+    mesh_xml += _mesh_large_boxes([*mockup.parts, *anomaly_parts, *door_parts], meshes, meshed_over_m)
     hinge = np.asarray(mockup.door.hinge_m)
     world_xml, door_xml = [], []
     for part in mockup.parts:
@@ -458,9 +466,12 @@ def scene_mjcf(mockup: Mockup, anomalies: AnomalySet) -> tuple[str, dict[str, by
             for name, material in MATERIALS.items()
         ]
     textures = {kind: _png(_texture(kind)) for kind in ("brushed", "grain", "cells")}
-    texture_xml = [f'<texture name="tex_{kind}" type="2d" file="{kind}.png"/>' for kind in textures]
-    texture_xml += mesh_xml
-    xml = _document(materials, texture_xml, world_xml, door_xml, mockup)
+    texture_xml = [
+        f'<texture name="tex_{kind}" type="2d" file="{kind}.png"/>' for kind in textures
+    ] + mesh_xml
+    xml = _document(
+        materials, texture_xml, world_xml, door_xml, mockup, quads=_box_quads(mockup, meshed_over_m)
+    )
     index_record = SceneIndex(flaw_geoms=flaw_geoms, pristine_geoms=pristine_geoms)
     return xml, {f"{kind}.png": data for kind, data in textures.items()}, index_record
 
@@ -612,10 +623,15 @@ def _door_xml(door: Door, geoms: list[str]) -> str:
 
 
 def _document(
-    materials: list[str], textures: list[str], world: list[str], door: list[str], mockup: Mockup
+    materials: list[str],
+    textures: list[str],
+    world: list[str],
+    door: list[str],
+    mockup: Mockup,
+    *,
+    quads: int,
 ) -> str:
     lamp_dir = "0 0 -1"
-    quads = _box_quads(mockup)
     strobe = _spot("strobe", STROBE_OFFSET_M, STROBE_LEVEL, STROBE_CUTOFF_DEG) + _spot(
         "other_strobe", OTHER_STROBE_OFFSET_M, STROBE_LEVEL, STROBE_CUTOFF_DEG
     )
@@ -662,22 +678,31 @@ def _document(
 </mujoco>"""
 
 
-def _box_quads(mockup: Mockup) -> int:
+def _box_quads(mockup: Mockup, meshed_over_m: float) -> int:
     """Quads along a box face's side (MuJoCo's ``numquads``, one for all boxes): none over BOX_QUAD_M."""
-    longest = max((2.0 * max(part.size) for part in mockup.parts if _drawn_as_box(part)), default=0.0)
+    longest = max(
+        (2.0 * max(part.size) for part in mockup.parts if _drawn_as_box(part, meshed_over_m)), default=0.0
+    )
     return max(4, math.ceil(longest / BOX_QUAD_M))
 
 
-def _drawn_as_box(part: Part) -> bool:
-    return part.shape == "box" and 2.0 * max(part.size) <= MESHED_BOX_M
+def _meshed_over_m(grid_meshes: object) -> float:
+    """The longest box drawn as MuJoCo's box: :data:`MESHED_BOX_M` with grid meshes, any without."""
+    if not isinstance(grid_meshes, bool):
+        raise InputError(f"grid_meshes must be True or False; got {grid_meshes!r}.")
+    return MESHED_BOX_M if grid_meshes else math.inf
 
 
-def _mesh_large_boxes(parts: list[Part], meshes: dict[str, str]) -> list[str]:
-    """Mesh assets of the boxes drawn as grids (:data:`MESHED_BOX_M`), registered in `meshes`; a dented box
-    and the one it replaces are registered already, with their crater's grid."""
+def _drawn_as_box(part: Part, meshed_over_m: float) -> bool:
+    return part.shape == "box" and 2.0 * max(part.size) <= meshed_over_m
+
+
+def _mesh_large_boxes(parts: list[Part], meshes: dict[str, str], meshed_over_m: float) -> list[str]:
+    """Mesh assets of the boxes longer than `meshed_over_m`, registered in `meshes`; a dented box and the
+    one it replaces are registered already, with their crater's grid."""
     xml = []
     for part in parts:
-        if part.shape == "box" and not _drawn_as_box(part) and part.name not in meshes:
+        if part.shape == "box" and not _drawn_as_box(part, meshed_over_m) and part.name not in meshes:
             grown = tuple(half + MESH_EDGE_MARGIN_M for half in part.size)
             xml += _register_meshes((part.name,), (box_mesh(grown, _TEXTURE_REPEAT_PER_M),), meshes)
     return xml
@@ -693,7 +718,7 @@ def _spot(name: str, pos: tuple[float, float, float], level: float, cutoff_deg: 
 
 
 def build_model(
-    mockup: Mockup, anomalies: AnomalySet, *, arm_home_tool_tip_m: object = None
+    mockup: Mockup, anomalies: AnomalySet, *, arm_home_tool_tip_m: object = None, grid_meshes: bool = True
 ) -> tuple[mujoco.MjModel, SceneIndex]:
     """Compile the mock-up with its anomalies into a MuJoCo model, optionally with the arm on its rail.
 
@@ -707,6 +732,8 @@ def build_model(
         Put the K1207-style arm with the ISEE in the same world (:func:`rsi.sim.arm.attach_arm`, names
         prefixed :data:`rsi.sim.arm.WORLD_ARM_PREFIX`), its home tool tip here. None (default): no arm,
         and the model is compiled straight from the MJCF text as always.
+    grid_meshes : bool
+        As :func:`scene_mjcf`: False for a model of rays and reach alone.
 
     Returns
     -------
@@ -718,7 +745,7 @@ def build_model(
     if arm_home_tool_tip_m is not None:  # checked before the scene is built (a second or so)
         v.vector3(arm_home_tool_tip_m, "arm_home_tool_tip_m")
     mujoco_module: Any = import_mujoco()
-    xml, assets, index = scene_mjcf(mockup, anomalies)
+    xml, assets, index = scene_mjcf(mockup, anomalies, grid_meshes=grid_meshes)
     if arm_home_tool_tip_m is None:
         return mujoco_module.MjModel.from_xml_string(xml, assets), index
     from rsi.sim.arm import attach_arm

@@ -200,6 +200,7 @@ class World:
     """A seeded truss mock-up: state, read-outs, frames and fields (seed §4).
 
     Build it with :func:`load`. Rendering starts an OpenGL context on first use (see :mod:`rsi.sim.render`).
+    ``grid_meshes=False`` builds a world for rays and reach alone (:func:`rsi.sim.scene.scene_mjcf`).
     """
 
     def __init__(
@@ -211,6 +212,7 @@ class World:
         repeatability: str = "lab",
         camera: CameraModel = DEFAULT_CAMERA,
         arm: bool = False,
+        grid_meshes: bool = True,
     ) -> None:
         self._mujoco: Any = import_mujoco()
         _check_build(repeatability, camera, arm)
@@ -225,7 +227,10 @@ class World:
         self._streams = seed_sequence(seed)
         self._start_streams(self._streams)
         model, index = build_model(
-            mockup, anomalies, arm_home_tool_tip_m=arm_home_tool_tip_m(mockup) if arm else None
+            mockup,
+            anomalies,
+            arm_home_tool_tip_m=arm_home_tool_tip_m(mockup) if arm else None,
+            grid_meshes=grid_meshes,
         )
         self.model: Any = model
         self.index: SceneIndex = index

@@ -20,8 +20,11 @@ from rsi.sim.solar_simulator import lamp_pose
 from rsi.sim.world import World
 from rsi.web.teleop import TeleopStep
 
-# MuJoCo geom types the page draws (mjtGeom values); planes and meshes are left out (the floor is a grid)
+# MuJoCo geom types the page draws (mjtGeom values); planes and meshes are left out (the floor is a grid),
+# but for a box drawn as a grid mesh (rsi.sim.scene.MESHED_BOX_M): MuJoCo gives a mesh geom its bounding
+# box's half sizes in its own frame, which for a box is the box
 SHAPES = {2: "sphere", 3: "capsule", 4: "ellipsoid", 5: "cylinder", 6: "box"}
+_MESH = 7
 VISIBLE_GROUPS = (0, 3)  # seed §4: the mock-up as inspected (group 4 holds the pristine parts it replaced)
 
 
@@ -57,9 +60,12 @@ def scene_geometry(world: World) -> dict[str, Any]:
     """Every drawn shape (type, size, colour, body, pose in its body) and every body's world pose."""
     _check_world(world)
     model, data = world.model, world.data
+    boxes = {part.name for part in world.mockup.parts if part.shape == "box"}
     shapes = []
     for geom in range(model.ngeom):
         kind = SHAPES.get(int(model.geom_type[geom]))
+        if int(model.geom_type[geom]) == _MESH and model.geom(geom).name.removesuffix("_swapped") in boxes:
+            kind = "box"  # a dented box shows as the box: its crater is a millimetre flaw
         if kind is None or int(model.geom_group[geom]) not in VISIBLE_GROUPS:
             continue
         rgba = model.geom_rgba[geom]
