@@ -575,7 +575,8 @@ def photometric_refit(
 def _least_squares(design: FloatArray, target: FloatArray) -> FloatArray:
     """Least squares by the normal equations: seven columns over ~10^5 pixels, a fifth of the time of an
     SVD of the whole design (the columns are of one scale, so squaring the condition number costs nothing:
-    the coefficients agree with an SVD of the design to 1e-10); the 7 x 7 solve keeps lstsq's rank handling."""
+    the coefficients agree with an SVD of the design to 1e-10); the 7 x 7 solve keeps lstsq's rank
+    handling."""
     solution, *_ = np.linalg.lstsq(design.T @ design, design.T @ target, rcond=None)
     return np.asarray(solution, dtype=np.float64)
 
