@@ -117,8 +117,7 @@ def test_demo_writes_every_picture_as_a_valid_png(demo_run: tuple[Result, Path])
 def test_demo_reports_honest_recall_and_where_the_results_are(demo_run: tuple[Result, Path]) -> None:
     result, out = demo_run
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["recall"] >= 0.9
-    assert summary["false_alarms"] <= 2
+    assert summary["recall"] >= 0.9  # its false alarms over seeds: tests/datasets/test_demo.py
     stdout = " ".join(result.stdout.split())
     found, seeded = summary["found_flaws"], summary["seeded_flaws"]
     assert f"Recall: {found}/{seeded} seeded flaws found" in stdout

