@@ -12,6 +12,7 @@ import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+from rsi.constants import PROXIMITY_SAMPLE_RATE_HZ
 from rsi.control.blending import proximity_term
 from rsi.errors import InputError
 from rsi.mission import PLAN, MissionSettings, PlanPoint, plan_vistas, run_mission
@@ -21,6 +22,7 @@ from rsi.mission.transit import (
     ARRIVAL_TOLERANCE_M,
     ARRIVAL_TOLERANCE_RAD,
     GUARD_LAW,
+    PHASE_TIMEOUT_S,
     Transit,
     approach_law,
     transit,
@@ -144,6 +146,21 @@ def test_the_law_stops_the_arm_short_of_a_surface_nearer_than_planned(world: Wor
     assert moved.range_true_m[approach].min() > law.hold_distance_m - 3e-3
     assert moved.pose is not None and moved.position_error_m > 0.04
     assert np.all(moved.command_m_s[approach][-20:] < 0.02)  # at rest, not creeping on
+
+
+def test_a_transfer_the_guard_holds_short_of_a_close_staging_point_ends_there(world: World) -> None:
+    # a CAD-plan standoff (0.25 m): the staging point 0.2 m back on the axis lies inside GUARD_LAW's range,
+    # whose avoidance holds the arm off it; the transfer ends there (it waited out its 12 s timeout) and the
+    # approach arrives as from any staging point
+    from rsi.sim.mockup import vista
+
+    base = world.vista("B_tank")
+    if "B_tank_close" not in world.vistas:
+        world.add_vista(vista("B_tank_close", base.target_m, tuple(-np.asarray(base.forward)), base.up, 0.25))
+    moved = transit(world, "B_tank_close", rng=7, label="B_tank_close")
+    transfer = moved.phase == "transfer"
+    assert moved.reached and moved.position_error_m < ARRIVAL_TOLERANCE_M
+    assert 0 < transfer.sum() < PHASE_TIMEOUT_S * PROXIMITY_SAMPLE_RATE_HZ / 4
 
 
 def test_same_seed_same_visits_frames_and_suns() -> None:

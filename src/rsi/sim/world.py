@@ -1088,6 +1088,7 @@ def load(
     settings: AnomalySettings | None = None,
     camera: CameraModel = DEFAULT_CAMERA,
     arm: bool = False,
+    grid_meshes: bool = True,
 ) -> World:
     """Build a seeded world (seed §4): the mock-up with anomalies drawn from `seed`.
 
@@ -1111,6 +1112,10 @@ def load(
         tip at :func:`arm_home_tool_tip_m` (:data:`ARM_HOME_TOOL_TIP_M` on "truss"). Reach it as
         :attr:`World.arm`; frames from its camera with :meth:`World.render_from_tool`. False (default)
         builds exactly the model, and the frames, of a world without it.
+    grid_meshes : bool
+        Draw the large boxes as grid meshes, lit at every centimetre (default: the inspection's frames,
+        :func:`rsi.sim.scene.scene_mjcf`). False keeps MuJoCo's boxes: a world for rays, reach and the
+        operator's live video (the console), where the meshes' triangles only cost time.
 
     Returns
     -------
@@ -1123,4 +1128,12 @@ def load(
     built = mockup(scene)
     anomalies = seed_anomalies(built.candidates, rng=np.random.default_rng(anomaly_stream), settings=settings)
     # a spawned child keeps its parent's entropy: world.seed is the user's integer
-    return World(built, anomalies, seed=world_stream, repeatability=repeatability, camera=camera, arm=arm)
+    return World(
+        built,
+        anomalies,
+        seed=world_stream,
+        repeatability=repeatability,
+        camera=camera,
+        arm=arm,
+        grid_meshes=grid_meshes,
+    )

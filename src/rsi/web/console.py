@@ -110,7 +110,8 @@ class Console:
             raise InputError(f"clock must be a callable giving monotonic seconds; got {clock!r}.")
         self.seed = seed
         self.layout = layout
-        self.world: World = load(layout, seed=seed, arm=True)
+        # the operator's live video draws MuJoCo's boxes at the fast renderer's four quads (docs/console.md)
+        self.world: World = load(layout, seed=seed, arm=True, grid_meshes=False)
         self.loop = teleop_loop(self.world.arm, seed=seed)
         self.lock = threading.RLock()
         self.clock = clock

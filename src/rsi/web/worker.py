@@ -135,7 +135,7 @@ def _serve(connection: Connection, seed: int, layout: str, size: tuple[int, int]
     """The child's loop: ``("frame", state)``, ``("shoot", state, kind)``, ``("stop",)``."""
     from rsi.sim.world import load
 
-    cameras = LiveCameras(load(layout, seed=seed, arm=True), size=size)
+    cameras = LiveCameras(load(layout, seed=seed, arm=True, grid_meshes=False), size=size)
     shooter = _Shooter(cameras)
     connection.send(("ready",))
     try:
