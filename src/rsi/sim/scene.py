@@ -401,8 +401,8 @@ def scene_mjcf(
         patch decal). Thermal spots and leaks do not show in visible light.
     grid_meshes : bool
         Draw the boxes longer than :data:`MESHED_BOX_M` as grid meshes (default: the camera's frames).
-        False keeps MuJoCo's boxes, all at one fine quad count: a model for rays and reach alone (the CAD
-        coverage and plan), where the meshes' triangles only slow the rays.
+        False keeps MuJoCo's boxes, all at one fine quad count: a model for rays and reach (the CAD coverage
+        and plan) or live video (the console), where the meshes' triangles only cost time.
 
     Returns
     -------
@@ -595,7 +595,7 @@ def _skin_dent(anomaly: SwappedComponent, part: Part) -> SkinDent:
     )
 
 
-def _register_meshes(names: tuple[str, ...], pair: tuple[BoxMesh, ...], meshes: dict[str, str]) -> list[str]:
+def _register_meshes(names: tuple[str, ...], grids: tuple[BoxMesh, ...], meshes: dict[str, str]) -> list[str]:
     """Mesh assets of the parts `names` (a dented part and the undented part it replaces, or a large box),
     registered in `meshes`.
 
@@ -603,7 +603,7 @@ def _register_meshes(names: tuple[str, ...], pair: tuple[BoxMesh, ...], meshes: 
     reference and the inspection images then differ by the dent alone.
     """
     xml = []
-    for geom, mesh in zip(names, pair, strict=True):
+    for geom, mesh in zip(names, grids, strict=True):
         meshes[geom] = f"mesh_{geom}"
         xml.append(
             f'<mesh name="mesh_{geom}" vertex="{_fmt(mesh.vertices.ravel())}" '
@@ -733,7 +733,7 @@ def build_model(
         prefixed :data:`rsi.sim.arm.WORLD_ARM_PREFIX`), its home tool tip here. None (default): no arm,
         and the model is compiled straight from the MJCF text as always.
     grid_meshes : bool
-        As :func:`scene_mjcf`: False for a model of rays and reach alone.
+        As :func:`scene_mjcf`: False for a model of rays and reach, or live video.
 
     Returns
     -------

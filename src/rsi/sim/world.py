@@ -200,7 +200,7 @@ class World:
     """A seeded truss mock-up: state, read-outs, frames and fields (seed §4).
 
     Build it with :func:`load`. Rendering starts an OpenGL context on first use (see :mod:`rsi.sim.render`).
-    ``grid_meshes=False`` builds a world for rays and reach alone (:func:`rsi.sim.scene.scene_mjcf`).
+    ``grid_meshes=False`` builds a world for rays, reach or live video (:func:`load`).
     """
 
     def __init__(
