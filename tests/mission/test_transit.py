@@ -9,6 +9,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -232,11 +233,27 @@ def test_every_point_that_completes_the_hand_plan_is_in_the_arms_reach(world: Wo
     assert all(reach(world, vista).reachable for vista in fills)  # plan_cad prefers the views the arm reaches
 
 
+def _blas_threads() -> set[int]:
+    return {int(pool["num_threads"]) for pool in threadpool_info() if pool["user_api"] == "blas"}
+
+
 def test_the_mission_moves_the_arm_and_follows_the_sun() -> None:
     # the default plan's kinds of point: the hand plan's in reach (with a second frame behind the jaws) and
     # out of it (the panel from above), and a point that completes the hand plan
     chosen = ("A_door", "B_tank", "C_panel_centre", "fill_00")
-    result = run_mission(SEED, size=TINY, active=False, settings=MissionSettings(vistas=chosen))
+    threads_during: list[set[int]] = []
+    with threadpool_limits(limits=2, user_api="blas"):
+        result = run_mission(
+            SEED,
+            size=TINY,
+            active=False,
+            settings=MissionSettings(vistas=chosen),
+            on_visit=lambda vista, findings: threads_during.append(_blas_threads()),
+        )
+        threads_after = _blas_threads()
+    # BLAS on one thread while the renderer shares the cores, the caller's setting back afterwards
+    assert threads_during and all(threads == {1} for threads in threads_during)
+    assert threads_after == {2}
     points = len(result.plan)
     visits = 3 * points  # two reference visits and one inspection visit per point
     assert len(result.transits) == visits and len(result.suns) == visits

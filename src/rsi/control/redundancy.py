@@ -387,15 +387,22 @@ def arm_angle_rad(shoulder_m: object, elbow_m: object, wrist_m: object, *, refer
     float
         rad.
     """
+    return _arm_angle(*_arm_points(shoulder_m, elbow_m, wrist_m, reference))
+
+
+def _arm_points(
+    shoulder_m: object, elbow_m: object, wrist_m: object, reference: object
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The three points and the reference as checked vectors, the arm angle defined by them."""
     s = _vector(shoulder_m, "shoulder_m", 3)
     e = _vector(elbow_m, "elbow_m", 3)
     w = _vector(wrist_m, "wrist_m", 3)
     r = _vector(reference, "reference", 3)
-    if np.linalg.norm(r) == 0:
+    if not _dot3(r, r) > 0:
         raise InputError(f"reference must be a non-zero direction; got {r}.")
-    if np.linalg.norm(w - s) == 0:
+    if not _dot3(w - s, w - s) > 0:
         raise InputError("wrist_m must differ from shoulder_m (the shoulder-wrist line is undefined).")
-    return _arm_angle(s, e, w, r)
+    return s, e, w, r
 
 
 def _arm_angle(s: FloatArray, e: FloatArray, w: FloatArray, r: FloatArray) -> float:
@@ -460,12 +467,7 @@ def arm_angle_jacobian(
     -------
     ndarray of shape (n,)
     """
-    arm_angle_rad(shoulder_m, elbow_m, wrist_m, reference=reference)  # validates the points
-    points = [
-        _vector(p, name, 3)
-        for p, name in ((shoulder_m, "shoulder_m"), (elbow_m, "elbow_m"), (wrist_m, "wrist_m"))
-    ]
-    r = _vector(reference, "reference", 3)
+    *points, r = _arm_points(shoulder_m, elbow_m, wrist_m, reference)
     jac_s = _matrix(shoulder_jacobian, "shoulder_jacobian", rows=3)
     n = jac_s.shape[1]
     jacobians = [

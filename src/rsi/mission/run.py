@@ -16,7 +16,8 @@ anomalies appeared, and fuses what it sees and senses into findings:
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -153,25 +154,26 @@ def run_mission(
     report = _progress_reporter(progress, total=2 * len(plan) + 2)
     sensor_rng = np.random.default_rng(streams.sensors)
     try:
-        tour.start_pass("reference", starts[0])
-        stored = _reference_pass(world, plan, tour, report, settings=settings)
-        clock.lap("reference")
-        tour.start_pass("inspection", starts[1])
-        visual, visits = _inspection_pass(
-            world, plan, stored, tour, report, active=active, settings=settings, on_visit=on_visit
-        )
-        clock.lap("inspection")
-        thermal, readings = pyrometer_pass(world, sensor_rng, settings)
-        report("pyrometer")
-        gas, stations, gas_ppm = gas_pass(world, sensor_rng, settings)
-        report("gas")
-        pose_errors = {point.name: pose_error_m(world, point.vista, shape[0]) for point in plan}
-        sites = world.mockup.candidates.component_sites
-        findings = (*fuse_findings(visual, sites, settings, pose_errors), *thermal, *gas)
-        overview_rgb, overview_pose = world.overview(size=OVERVIEW_SIZE)
-        run_settings = {"repeatability": repeatability, "active": active}
-        run_id = _archived(archive, world, plan, stored, findings, seed, run_settings, settings)
-        clock.lap("sensors")
+        with _blas_on_one_thread():
+            tour.start_pass("reference", starts[0])
+            stored = _reference_pass(world, plan, tour, report, settings=settings)
+            clock.lap("reference")
+            tour.start_pass("inspection", starts[1])
+            visual, visits = _inspection_pass(
+                world, plan, stored, tour, report, active=active, settings=settings, on_visit=on_visit
+            )
+            clock.lap("inspection")
+            thermal, readings = pyrometer_pass(world, sensor_rng, settings)
+            report("pyrometer")
+            gas, stations, gas_ppm = gas_pass(world, sensor_rng, settings)
+            report("gas")
+            pose_errors = {point.name: pose_error_m(world, point.vista, shape[0]) for point in plan}
+            sites = world.mockup.candidates.component_sites
+            findings = (*fuse_findings(visual, sites, settings, pose_errors), *thermal, *gas)
+            overview_rgb, overview_pose = world.overview(size=OVERVIEW_SIZE)
+            run_settings = {"repeatability": repeatability, "active": active}
+            run_id = _archived(archive, world, plan, stored, findings, seed, run_settings, settings)
+            clock.lap("sensors")
     finally:
         world.close()
     return MissionResult(
@@ -324,6 +326,20 @@ def _archived(  # noqa: PLR0917 - the run's parts, each needed once
     )
     store_findings(archive, run_id, findings, world=world, plan=plan)
     return run_id
+
+
+@contextmanager
+def _blas_on_one_thread() -> Iterator[None]:
+    """BLAS and OpenMP on one thread for the mission, as they were before it afterwards. The simulated
+    cameras' renderer (Mesa's llvmpipe without a GPU) spreads every frame over all cores, and the mission's
+    matrix products are small (a frame's pixels by a few columns), where OpenBLAS's threads only wait for
+    one another and for the renderer: `rsi demo --layout truss-b` took 187 s with them on a 2-core machine
+    and 162 s with OMP_NUM_THREADS=1 (issue 15). OpenCV keeps its pool: its stereo matcher runs 20 ms a
+    frame on two threads against 27-36 on one, while the renderer waits."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        yield
 
 
 @dataclass(frozen=True)

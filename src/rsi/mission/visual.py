@@ -512,6 +512,10 @@ _PHOTOMETRIC_TRIM_SIGMAS = 4.0
 _PHOTOMETRIC_REFITS = 3
 # Fewer pixels than a flaw kernel's few hundred cannot fit the shading's seven parameters against the trim
 _PHOTOMETRIC_MIN_PIXELS = 256
+# The fit reads every this-many-th row and column: a smooth seven-parameter field over ~60,000 pixels is
+# known to ~1e-4 of its gain (3 DN noise on ~100 DN), a hundredth of what the detector's variance carries;
+# every pixel cost 12 s of a truss-b demo's 160 (issue 15).
+_PHOTOMETRIC_STRIDE = 2
 # The strobe's shading moves by at most this fraction of its gain over the compared pixels: truss-b's close
 # panel views at space repeatability moved it by 8-15 % across half a frame; a field that departs further
 # is a change of the surface (a replacement reflects 0.4-0.8 or 1.2-1.5 times the original, seed §4), and
@@ -547,6 +551,9 @@ def photometric_refit(
         reference.valid.astype(np.float32), output_shape=inspection.image.shape, photometric=False
     )
     used = inside & (seen > 0.999) & inspection.valid
+    lattice = np.zeros_like(used)
+    lattice[::_PHOTOMETRIC_STRIDE, ::_PHOTOMETRIC_STRIDE] = True
+    used &= lattice
     if int(used.sum()) < _PHOTOMETRIC_MIN_PIXELS:
         return aligned, reference
     rows, cols = np.nonzero(used)
