@@ -83,6 +83,22 @@ def test_two_frames_sightings_of_one_impact_merge_within_both_frames_pose_errors
     assert len(fuse_findings(one_frame, (), SETTINGS, bounds)) == 2  # one pose: their offset is real
 
 
+def test_a_frame_that_sees_two_impacts_apart_keeps_both_when_another_frame_saw_one() -> None:
+    # truss seed 2174 in space: fill_04 placed a 3.2 mm and a 1.9 mm impact 23 mm apart from one pose;
+    # D_tubing's stronger sighting of the first lay within both frames' bounds of either
+    bounds = {"D_tubing": 0.012, "fill_04": 0.012}
+    strong = _finding("impact", 0.300, 47.0, "D_tubing")
+    first_again = _finding("impact", 0.302, 20.0, "fill_04")
+    second = _finding("impact", 0.323, 9.0, "fill_04")
+    merged = fuse_findings([strong, first_again, second], (), SETTINGS, bounds)
+    assert sorted(f.score for f in merged) == [9.0, 47.0]
+    # alone in its frame, the weaker sighting is the stronger one's impact seen again, as before
+    assert [f.score for f in fuse_findings([strong, second], (), SETTINGS, bounds)] == [47.0]
+    # two sightings of one impact in a frame (within impact_merge_m) do not make it two
+    twice = _finding("impact", 0.302 + SETTINGS.impact_merge_m / 2, 8.0, "fill_04")
+    assert [f.score for f in fuse_findings([strong, first_again, twice], (), SETTINGS, bounds)] == [47.0]
+
+
 def test_pose_error_is_the_arms_repeatability_at_the_vistas_standoff() -> None:
     from rsi.mission.viewing import focal_px, pose_error_m
     from rsi.sim import load
