@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from collections.abc import Iterator
 
 import numpy as np
@@ -235,6 +236,28 @@ def test_every_point_that_completes_the_hand_plan_is_in_the_arms_reach(world: Wo
 
 def _blas_threads() -> set[int]:
     return {int(pool["num_threads"]) for pool in threadpool_info() if pool["user_api"] == "blas"}
+
+
+def test_a_mission_on_another_thread_leaves_the_processs_blas_threads_alone() -> None:
+    # OpenBLAS's thread count is the process's: changing it under another thread's BLAS call is not safe
+    threads_during: list[set[int]] = []
+
+    def mission() -> None:
+        run_mission(
+            SEED,
+            size=TINY,
+            arm=False,
+            orbit=False,
+            active=False,
+            settings=MissionSettings(plan="hand", vistas=("A_door",)),
+            on_visit=lambda vista, findings: threads_during.append(_blas_threads()),
+        )
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        worker = threading.Thread(target=mission)
+        worker.start()
+        worker.join()
+    assert threads_during and all(threads == {2} for threads in threads_during)
 
 
 def test_the_mission_moves_the_arm_and_follows_the_sun() -> None:

@@ -330,12 +330,21 @@ def _archived(  # noqa: PLR0917 - the run's parts, each needed once
 
 @contextmanager
 def _blas_on_one_thread() -> Iterator[None]:
-    """BLAS and OpenMP on one thread for the mission, as they were before it afterwards. The simulated
-    cameras' renderer (Mesa's llvmpipe without a GPU) spreads every frame over all cores, and the mission's
-    matrix products are small (a frame's pixels by a few columns), where OpenBLAS's threads only wait for
-    one another and for the renderer: `rsi demo --layout truss-b` took 187 s with them on a 2-core machine
-    and 162 s with OMP_NUM_THREADS=1 (issue 15). OpenCV keeps its pool: its stereo matcher runs 20 ms a
-    frame on two threads against 27-36 on one, while the renderer waits."""
+    """BLAS and OpenMP on one thread for a mission run on the main thread, as they were before it
+    afterwards. The simulated cameras' renderer (Mesa's llvmpipe without a GPU) spreads every frame over all
+    cores, and the mission's matrix products are small (a frame's pixels by a few columns), where
+    OpenBLAS's threads only wait for one another and for the renderer: `rsi demo --layout truss-b` took
+    187 s with them on a 2-core machine and 162 s with OMP_NUM_THREADS=1 (issue 15). OpenCV keeps its pool:
+    its stereo matcher runs 20 ms a frame on two threads against 27-36 on one, while the renderer waits.
+
+    OpenBLAS's thread count is the process's, and changing it while another thread is inside a BLAS call
+    is not safe (threadpoolctl issue #205): a mission on any other thread (the console's, a batch worker's)
+    leaves it as it is, for whatever else runs beside it."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1):
