@@ -1240,18 +1240,17 @@ def _one_impact(
     them farther apart than ``settings.impact_merge_m`` are two impacts, and the nearer one is `second`'s.
     Truss seed 2174 at repeatability "space": fill_04 saw a 3.2 mm and a 1.9 mm impact 23 mm apart, and
     the smaller merged into the larger one's sighting from another frame, within the two frames' bounds."""
-    reach = settings.impact_merge_m
-    if first.source == second.source:
-        return _apart_m(first, second) <= reach
-    reach += pose_error_m.get(first.source, 0.0) + pose_error_m.get(second.source, 0.0)
     apart = _apart_m(first, second)
+    if first.source == second.source:
+        return apart <= settings.impact_merge_m
+    bounds = pose_error_m.get(first.source, 0.0) + pose_error_m.get(second.source, 0.0)
     nearer = any(
         other.source == first.source
         and _apart_m(other, first) > settings.impact_merge_m
         and _apart_m(other, second) < apart
         for other in impacts
     )
-    return apart <= reach and not nearer
+    return apart <= settings.impact_merge_m + bounds and not nearer
 
 
 def _apart_m(first: MissionFinding, second: MissionFinding) -> float:
