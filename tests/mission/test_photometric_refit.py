@@ -111,3 +111,47 @@ def test_a_change_beyond_any_strobe_shading_keeps_the_flat_gain() -> None:
     image = _strobe_image(reference)
     _, relit = photometric_refit(first, image, _strobe_image(inspection))
     assert relit is image
+
+
+def _glare_scene(shift_px: int) -> tuple[np.ndarray, np.ndarray]:
+    """A textured glossy panel under the strobe's glare, a +60 DN Gaussian 40 px wide fixed on the frame
+    (the strobe rides with the camera, seed §3), the scene moved `shift_px` to the right in the inspection,
+    which has a 3 x 3 flaw 30 DN dark at rows 100-102, columns 150-152; 2 DN of noise each."""
+    rng = np.random.default_rng(7)
+    rows, cols = np.mgrid[0:200, 0:240].astype(np.float64)
+
+    def panel(col: np.ndarray) -> np.ndarray:
+        return 100.0 + 20.0 * np.sin(col / 2.0) * np.cos(rows / 3.0)  # finer than the glare
+
+    glare = 60.0 * np.exp(-((rows - 100) ** 2 + (cols - 110) ** 2) / (2 * 40.0**2))
+    reference = panel(cols) + glare + rng.normal(0.0, 2.0, glare.shape)
+    inspection = panel(cols - shift_px) + glare + rng.normal(0.0, 2.0, glare.shape)
+    inspection[100:103, 150:153] -= 30.0
+    return reference, inspection
+
+
+def test_the_glare_that_rides_with_the_camera_stays_on_the_frame() -> None:
+    # registered by the scene's 12 px, the reference's glare moves 12 px too: a dipole of +-15 DN that no
+    # gain takes out; kept on the frame, it is predicted to the noise and the flaw stands out whole
+    reference, inspection = _glare_scene(12)
+    moved = np.eye(3)
+    moved[0, 2] = 12.0  # the scene's own shift (the glare would pull a fit of the whole frame)
+    first = replace(register(reference, inspection, model="translation"), matrix=moved)
+    refitted, kept = photometric_refit(first, _strobe_image(reference), _strobe_image(inspection))
+    predicted, inside = refitted.warp(kept.image, output_shape=inspection.shape)
+    left = np.where(inside, inspection - predicted, 0.0)
+    away = inside.copy()
+    away[95:108, 145:158] = False
+    away[:, :20] = False  # the strip the shift brought in from beyond the reference's frame
+    assert np.std(left[away]) < 3.1  # the two images' noise, sqrt(2) x 2 DN (the code before: 4.3)
+    plain, _ = first.warp(reference, output_shape=inspection.shape)
+    assert np.abs((inspection - plain)[away]).max() > 10.0
+    assert left[100:103, 150:153].mean() < -25.0
+
+
+def test_a_scene_that_did_not_move_keeps_its_light_as_it_was() -> None:
+    # no shift: where the light rides cannot be told, and the reference is only relit
+    reference, inspection = _glare_scene(0)
+    first = register(reference, inspection, model="translation")
+    _, kept = photometric_refit(first, _strobe_image(reference), _strobe_image(inspection))
+    np.testing.assert_allclose(kept.variance, 4.0 * (kept.image / reference) ** 2, rtol=1e-4)
