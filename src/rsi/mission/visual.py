@@ -569,35 +569,36 @@ def photometric_refit(
     rows, cols = np.nonzero(used)
     shading = _shading_basis(rows, cols, inspection.image.shape)
     before, after = warped[used].astype(np.float64), inspection.image[used].astype(np.float64)
-    light = _camera_light(reference)
-    moved, _ = aligned.warp(light, output_shape=inspection.image.shape, photometric=False)
-    riding = (light - moved)[used].astype(np.float64)  # the prediction's change if the light stays put
-    start = np.zeros(shading.shape[1] + 2)
-    start[0], start[-2] = aligned.gain, aligned.bias
-    coefficients, kept = _trimmed_fit(
-        np.column_stack([shading * before[:, None], np.ones(before.size), riding]), after, start
-    )
-    gain = float(coefficients[0])
-    if not gain > 0.0:  # no strobe image is dimmer than nothing: a degenerate fit, the first one stands
+    design = np.column_stack([shading * before[:, None], np.ones(before.size)])
+    start = np.zeros(design.shape[1])
+    start[0], start[-1] = aligned.gain, aligned.bias
+    light, riding, share, rider, fitted = None, np.zeros(before.size), 0.0, 0.0, None
+    if _moved(aligned):
+        light = _camera_light(reference)
+        moved, _ = aligned.warp(light, output_shape=inspection.image.shape, photometric=False)
+        riding = (light - moved)[used].astype(np.float64)  # the prediction's change if the light stays put
+        joint, kept = _trimmed_fit(np.column_stack([design, riding]), after, np.append(start, 0.0))
+        if not joint[0] > 0.0:  # no strobe image is dimmer than nothing: a degenerate fit, the first stands
+            return aligned, reference
+        share = float(np.clip(joint[-1] / joint[0], 0.0, 1.0))
+        rider = share * float(joint[0])
+        # beyond the physical range the share is held at its end and the rest refitted
+        fitted = joint[:-1] if share == joint[-1] / joint[0] else None
+    if fitted is None:
+        coefficients, kept = _trimmed_fit(design, after - rider * riding, start)
+    else:
+        coefficients = fitted
+    gain, bias = float(coefficients[0]), float(coefficients[-1])
+    if not gain > 0.0:
         return aligned, reference
-    share = float(np.clip(coefficients[-1] / gain, 0.0, 1.0)) if _moved(aligned) else 0.0
-    if share != coefficients[-1] / gain:  # beyond the physical range: held at its end, the rest refitted
-        coefficients, kept = _trimmed_fit(
-            np.column_stack([shading * before[:, None], np.ones(before.size)]),
-            after - share * gain * riding,
-            start[:-1],
-        )
-        coefficients = np.append(coefficients, share * gain)
-        gain = float(coefficients[0])
-    bias = float(coefficients[-2])
-    field = shading @ coefficients[:-2] / gain
+    field = shading @ coefficients[:-1] / gain
     if not np.all(np.abs(field - 1.0) <= _MAX_SHADING):
         flat = np.column_stack([before, np.ones(before.size)])[kept]
-        gain, bias = _least_squares(flat, after[kept] - coefficients[-1] * riding[kept])
+        gain, bias = _least_squares(flat, after[kept] - rider * riding[kept])
         return replace(aligned, gain=float(gain), bias=float(bias)), _kept_on_frame(
             reference, aligned, light, share
         )
-    relit = _relit(reference, aligned, coefficients[:-2] / gain)
+    relit = _relit(reference, aligned, coefficients[:-1] / gain)
     return replace(aligned, gain=gain, bias=bias), _kept_on_frame(relit, aligned, light, share)
 
 
@@ -634,13 +635,14 @@ def _camera_light(reference: Compensated) -> NDArray[np.float32]:
 
 
 def _kept_on_frame(
-    reference: Compensated, aligned: Registration, light: NDArray[np.float32], share: float
+    reference: Compensated, aligned: Registration, light: NDArray[np.float32] | None, share: float
 ) -> Compensated:
     """`reference` with `share` of its smooth light moved to where `aligned` puts each pixel on the frame,
-    so that registering it by `aligned` leaves that share where it was: ``r(y) + c (L(A y) - L(y))``."""
+    so that registering it by `aligned` leaves that share where it was: ``r(y) + c (L(A y) - L(y))``;
+    `reference` itself where no light was fitted or none rides."""
     import cv2
 
-    if share == 0.0:
+    if light is None or share == 0.0:
         return reference
     rows, cols = light.shape
     on_frame = cv2.warpAffine(
