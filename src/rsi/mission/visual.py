@@ -543,8 +543,8 @@ def photometric_refit(
     a quadratic in the frame's coordinates (1, x, y, x^2, xy, y^2): no millimetre flaw bends it, and on
     truss-b's close panel views at space repeatability it took the comparison's robust sigma from 4-4.7 DN
     to 2.3-3.0 DN (a flat gain left 8-15 % across half the frame, read as swapped components). The returned
-    registration carries the gain at the frame's centre; the reference is multiplied by the field over it
-    (and its variance by the square).
+    registration carries the gain at the fitted pixels' centroid; the reference is multiplied by the field
+    over it (and its variance by the square).
 
     What of the strobe's light rides with the camera stays on the frame's pixels while the scene moves: a
     glossy panel's glare (tens of pixels across) is where it was in the frame, and registering the
@@ -567,7 +567,10 @@ def photometric_refit(
     if int(used.sum()) < _PHOTOMETRIC_MIN_PIXELS:
         return aligned, reference
     rows, cols = np.nonzero(used)
-    shading = _shading_basis(rows, cols, inspection.image.shape)
+    # the gain is read at the fitted pixels' centroid: a component's own pixels (_on_component) may lie in
+    # a corner, where a quadratic about the frame's centre extrapolates its constant to any sign
+    origin = (float(np.mean(rows)), float(np.mean(cols)))
+    shading = _shading_basis(rows, cols, inspection.image.shape, origin)
     before, after = warped[used].astype(np.float64), inspection.image[used].astype(np.float64)
     design = np.column_stack([shading * before[:, None], np.ones(before.size)])
     start = np.zeros(design.shape[1])
@@ -598,7 +601,7 @@ def photometric_refit(
         return replace(aligned, gain=float(gain), bias=float(bias)), _kept_on_frame(
             reference, aligned, light, share
         )
-    relit = _relit(reference, aligned, coefficients[:-1] / gain)
+    relit = _relit(reference, aligned, coefficients[:-1] / gain, origin)
     return replace(aligned, gain=gain, bias=bias), _kept_on_frame(relit, aligned, light, share)
 
 
@@ -682,9 +685,12 @@ def _least_squares(design: FloatArray, target: FloatArray) -> FloatArray:
     return np.asarray(solution, dtype=np.float64)
 
 
-def _shading_basis(rows: NDArray[np.intp], cols: NDArray[np.intp], shape: tuple[int, ...]) -> FloatArray:
-    """The quadratic shading's terms (1, x, y, x^2, xy, y^2) at pixels, x and y -1..1 across the frame."""
-    x, y = _frame_coordinates(rows, cols, shape)
+def _shading_basis(
+    rows: NDArray[np.intp], cols: NDArray[np.intp], shape: tuple[int, ...], origin: tuple[float, float]
+) -> FloatArray:
+    """The quadratic shading's terms (1, x, y, x^2, xy, y^2) at pixels, x and y from `origin` (row, col),
+    2 across the frame."""
+    x, y = _frame_coordinates(rows, cols, shape, origin)
     return np.column_stack([np.ones(x.size), *_shading_terms(x, y)])
 
 
@@ -694,23 +700,26 @@ def _shading_terms(x: FloatArray, y: FloatArray) -> tuple[FloatArray, ...]:
 
 
 def _frame_coordinates(
-    rows: NDArray[np.number], cols: NDArray[np.number], shape: tuple[int, ...]
+    rows: NDArray[np.number], cols: NDArray[np.number], shape: tuple[int, ...], origin: tuple[float, float]
 ) -> tuple[FloatArray, FloatArray]:
-    """Pixel positions as x and y from -1 to 1 across the frame."""
-    x = 2.0 * np.asarray(cols, dtype=np.float64) / max(shape[1] - 1, 1) - 1.0
-    y = 2.0 * np.asarray(rows, dtype=np.float64) / max(shape[0] - 1, 1) - 1.0
+    """Pixel positions as x and y from `origin` (row, col), 2 across the frame."""
+    x = 2.0 * (np.asarray(cols, dtype=np.float64) - origin[1]) / max(shape[1] - 1, 1)
+    y = 2.0 * (np.asarray(rows, dtype=np.float64) - origin[0]) / max(shape[0] - 1, 1)
     return x, y
 
 
-def _relit(reference: Compensated, aligned: Registration, shape_coefficients: FloatArray) -> Compensated:
-    """`reference` times the shading field (fitted in the inspection's frame, read where `aligned` puts each
-    reference pixel), its variance times the field's square."""
+def _relit(
+    reference: Compensated, aligned: Registration, shape_coefficients: FloatArray, origin: tuple[float, float]
+) -> Compensated:
+    """`reference` times the shading field (fitted in the inspection's frame about `origin`, read where
+    `aligned` puts each reference pixel), its variance times the field's square."""
     rows, cols = np.indices(reference.image.shape)
     matrix = aligned.matrix
     x, y = _frame_coordinates(
         matrix[1, 0] * cols + matrix[1, 1] * rows + matrix[1, 2],
         matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2],
         reference.image.shape,
+        origin,
     )
     shading = np.full(x.shape, shape_coefficients[0])
     for coefficient, term in zip(shape_coefficients[1:], _shading_terms(x, y), strict=True):
