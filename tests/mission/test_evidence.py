@@ -847,6 +847,48 @@ def test_a_dent_sinks_against_the_reference_and_the_model_at_one_place(tank_view
     assert at is not None and math.dist(sunk.position_m, at) < 0.02
 
 
+@pytest.mark.parametrize("rim_px", [30, 45, 60])
+def test_a_dents_crater_reaches_no_farther_than_its_rims_bound(tank_view: Any, rim_px: int) -> None:
+    # rsi.sim.dent's crater of a blunt blow, 5 mm * (1 - (rho / R)^2)^2: the bound holds the rim whatever
+    # its size, and stays near it (a cone's twice the half-depth radius, the 2 cm patches' blur)
+    from rsi.mission.evidence import sinking
+    from rsi.mission.views import pixel_size_m
+
+    view, site = tank_view
+    mask = view.capture.cad.components["B_tank"]
+    model = view.capture.cad.expected_depth_m.astype(np.float64)
+    rows, cols = np.nonzero(mask)
+    centre = (int(np.median(rows)), int(np.median(cols)))
+    grid_r, grid_c = np.mgrid[0 : mask.shape[0], 0 : mask.shape[1]]
+    rho2 = ((grid_r - centre[0]) ** 2 + (grid_c - centre[1]) ** 2) / rim_px**2
+    now = _ranged(model + 5e-3 * np.clip(1.0 - rho2, 0.0, None) ** 2, mask, 1)
+    seen = dataclasses.replace(view, range_m=now)
+    sunk = sinking(seen, _ranged(model, mask, 2), (0.0, 0.0), site)
+    assert sunk.position_m is not None
+    rim_m = rim_px * pixel_size_m(seen, sunk.position_m)
+    assert rim_m <= sunk.rim_m <= 1.5 * rim_m  # measured 1.12-1.27 times
+
+
+@pytest.mark.parametrize(("shown_px", "seen"), [(0, False), (900, False), (1000, True)])
+def test_a_component_whose_centre_is_hidden_is_seen_by_as_much_of_it_as_shows(
+    tank_view: Any, shown_px: int, seen: bool
+) -> None:
+    # seed §4: a replacement changes the whole component; a view that misses its centre (the model's depth
+    # there is of something nearer) still reads it over a 2 cm patch's pixels of its CAD outline
+    from rsi.mission.views import seen_components
+
+    view, site = tank_view
+    outline = view.capture.cad.components["B_tank"]
+    world = SimpleNamespace(mockup=SimpleNamespace(candidates=SimpleNamespace(component_sites=(site,))))
+    assert [s.name for s in seen_components(world, view)] == ["B_tank"]  # type: ignore[arg-type]
+    hidden = view.capture.cad.expected_depth_m - np.float32(0.05)  # a plate 5 cm nearer over everything
+    shown = np.zeros_like(outline)
+    shown.flat[np.flatnonzero(outline)[:shown_px]] = True
+    cad = dataclasses.replace(view.capture.cad, expected_depth_m=hidden, components={"B_tank": shown})
+    partly = dataclasses.replace(view, capture=dataclasses.replace(view.capture, cad=cad))
+    assert bool(seen_components(world, partly)) is seen  # type: ignore[arg-type]
+
+
 def test_a_screws_relief_is_known_as_well_as_the_range_maps_own_scatter_allows(tank_view: Any) -> None:
     from rsi.mission.evidence import screw_relief_sigma_m
 

@@ -155,3 +155,29 @@ def test_a_scene_that_did_not_move_keeps_its_light_as_it_was() -> None:
     first = register(reference, inspection, model="translation")
     _, kept = photometric_refit(first, _strobe_image(reference), _strobe_image(inspection))
     np.testing.assert_allclose(kept.variance, 4.0 * (kept.image / reference) ** 2, rtol=1e-4)
+
+
+def test_a_component_in_the_frames_corner_is_refitted_to_its_own_reflectance() -> None:
+    # seed §4: a replacement of 0.55 the reflectance, seen in the frame's bottom-right corner only (a
+    # changed component's own comparison), a strobe shading of 10 % across it and a scene moved 2 px: the
+    # fit is of the corner's pixels, whose quadratic about the frame's centre extrapolates its constant to
+    # any sign (held-out truss-b seed 2185, cad_18: -0.47, and the frame's gain of 0.545 stood)
+    rng = np.random.default_rng(8)
+    rows, cols = np.mgrid[0:200, 0:240].astype(np.float64)
+    scene = 150.0 + 20.0 * np.sin(cols / 7.0) * np.cos(rows / 11.0)
+    corner = (rows >= 130) & (cols >= 160)
+    shading = 1.0 + 0.1 * (cols - 200.0) / 40.0
+    reference = scene + rng.normal(0.0, 2.0, scene.shape)
+    moved = 150.0 + 20.0 * np.sin((cols - 2.0) / 7.0) * np.cos(rows / 11.0)
+    inspection = 0.55 * shading * moved + rng.normal(0.0, 2.0, scene.shape)
+    shift = np.eye(3)
+    shift[0, 2] = 2.0
+    frame = replace(register(reference, reference, model="translation"), matrix=shift, gain=0.9, bias=14.0)
+    refitted, relit = photometric_refit(
+        frame, _strobe_image(reference, corner), _strobe_image(inspection, corner)
+    )
+    predicted, inside = refitted.warp(relit.image, output_shape=inspection.shape)
+    compared = corner & inside
+    compared[:, 160:164] = False  # the strip the shift brought in from beyond the corner
+    assert 0.5 < refitted.gain < 0.6
+    assert np.std((inspection - predicted)[compared]) < 3.5  # the noise (fitted about the centre: 5.0)
