@@ -889,6 +889,43 @@ def test_a_component_whose_centre_is_hidden_is_seen_by_as_much_of_it_as_shows(
     assert bool(seen_components(world, partly)) is seen  # type: ignore[arg-type]
 
 
+@pytest.mark.parametrize(("patch", "reads"), [(None, True), ((42, 40), True), ((30, 40), False)])
+def test_a_repaint_is_read_over_the_seen_outline_where_the_disc_is_not_seen(
+    tank_view: Any, patch: tuple[int, int] | None, reads: bool
+) -> None:
+    # seed §4: a replacement of 0.6 the reflectance over the whole tank, its central disc out of the frame
+    # (a site placed 1 m off): the outline's compared pixels read the repaint, as long as they are a 2 cm
+    # square's (961) after the pose's 4 px margin: a 42 x 40 patch keeps 34 x 32, a 30 x 40 one 22 x 32
+    # (an ORU's edge at a frame's border is no evidence)
+    import cv2
+
+    from rsi.mission.evidence import component_change
+    from rsi.mission.views import disc
+
+    view, site = tank_view
+    away = dataclasses.replace(site, position_m=(site.position_m[0] + 1.0, *site.position_m[1:]))
+    shape = view.capture.cad.expected_depth_m.shape
+    assert not disc(shape, view, away.position_m, SETTINGS.component_disc_m).any()
+    outline = view.capture.cad.components["B_tank"].copy()
+    if patch is not None:
+        rows, cols = np.nonzero(outline)
+        top, left = int(np.median(rows)), int(np.median(cols))
+        box = np.zeros_like(outline)
+        box[top : top + patch[0], left : left + patch[1]] = True
+        assert (outline & box).sum() == patch[0] * patch[1]
+        outline &= box
+    cad = dataclasses.replace(view.capture.cad, components={"B_tank": outline})
+    partly = dataclasses.replace(view, capture=dataclasses.replace(view.capture, cad=cad))
+    rng = np.random.default_rng(9)
+    texture = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), 2.0)
+    reference = (80.0 + 5.0 * texture / texture.std()).astype(np.float32)
+    repainted = reference + rng.normal(0.0, 1.0, shape).astype(np.float32)
+    repainted[outline] *= np.float32(0.6)
+    swap = compare(_image(reference, 1.0), _image(repainted, 1.0), 1e-4, SETTINGS)
+    change = component_change(swap, partly, away, SETTINGS)  # type: ignore[arg-type]
+    assert (change < -0.5) if reads else change == 0.0
+
+
 def test_a_screws_relief_is_known_as_well_as_the_range_maps_own_scatter_allows(tank_view: Any) -> None:
     from rsi.mission.evidence import screw_relief_sigma_m
 

@@ -817,6 +817,10 @@ def _sunk_patches(
 
 # Fewer compared pixels than this say nothing of a component's reflectance (a 5 cm disc has thousands)
 _COMPONENT_MIN_PIXELS = 50
+# A component read by its outline alone shows at least a 2 cm square's compared pixels (the dent window's,
+# rsi.mission.views.seen_components): held-out truss-b seed 2189 in space read an ORU's 130-160 pixels past
+# the frame's edge 18-38 % dimmer against the two references, a false swap
+_OUTLINE_MIN_PIXELS = 31 * 31
 
 
 def _central_disc(
@@ -846,7 +850,8 @@ def _central_disc(
         return centre
     side = 2 * settings.discoloured_margin_px + 1
     inner = cv2.erode(outline.astype(np.uint8), np.ones((side, side), np.uint8)) > 0
-    return np.asarray(inner & _compared(detection.valid, trusted), dtype=bool)
+    inner &= _compared(detection.valid, trusted)
+    return inner if int(inner.sum()) >= _OUTLINE_MIN_PIXELS else centre
 
 
 def _compared(valid: NDArray[np.bool_], trusted: NDArray[np.bool_] | None) -> NDArray[np.bool_]:
