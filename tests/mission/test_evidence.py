@@ -894,12 +894,13 @@ def test_a_repaint_is_read_over_the_seen_outline_where_the_disc_is_not_seen(
     tank_view: Any, patch: tuple[int, int] | None, reads: bool
 ) -> None:
     # seed §4: a replacement of 0.6 the reflectance over the whole tank, its central disc out of the frame
-    # (a site placed 1 m off): the outline's compared pixels read the repaint, as long as they are a 2 cm
+    # (a site placed 1 m off): the outline's compared pixels read the repaint's dimming (the raw ratio: the
+    # strobe's energy is the same in both passes, whatever the fit absorbed), as long as they are a 2 cm
     # square's (961) after the pose's 4 px margin: a 42 x 40 patch keeps 34 x 32, a 30 x 40 one 22 x 32
     # (an ORU's edge at a frame's border is no evidence)
     import cv2
 
-    from rsi.mission.evidence import component_change
+    from rsi.mission.evidence import component_dimming
     from rsi.mission.views import disc
 
     view, site = tank_view
@@ -922,8 +923,8 @@ def test_a_repaint_is_read_over_the_seen_outline_where_the_disc_is_not_seen(
     repainted = reference + rng.normal(0.0, 1.0, shape).astype(np.float32)
     repainted[outline] *= np.float32(0.6)
     swap = compare(_image(reference, 1.0), _image(repainted, 1.0), 1e-4, SETTINGS)
-    change = component_change(swap, partly, away, SETTINGS)  # type: ignore[arg-type]
-    assert (change < -0.5) if reads else change == 0.0
+    dimming = component_dimming(swap, partly, away, SETTINGS)  # type: ignore[arg-type]
+    assert (abs(dimming + 0.4) < 0.02) if reads else dimming == 0.0  # the raw ratio: 0.6 = 1 - 0.4
 
 
 def test_a_screws_relief_is_known_as_well_as_the_range_maps_own_scatter_allows(tank_view: Any) -> None:

@@ -827,30 +827,36 @@ def _central_disc(
     pair: PairResult, view: Sensed, site: Site, settings: MissionSettings, trusted: NDArray[np.bool_] | None
 ) -> NDArray[np.bool_]:
     """The compared pixels of the component's central disc (``settings.component_disc_m``), the `trusted`
-    ones only where given; where the view does not show the disc, the component's pixels it does show.
-
-    A discoloured replacement changes the component's whole surface (seed §4), and the disc is only the
-    part most views show: truss-b's CAD plan looks at a tall tank's upper half from three points that miss
-    its centre (held-out seed 2185 in space, D tank repainted to 0.55 of its reflectance: the frame's gain
-    absorbed it, 0.53, and the frame's statistic, five times too wide, hid a 2.7 mm impact of 18 sigma).
-    Its CAD outline, less the margin the pose error may move it by (``settings.discoloured_margin_px``),
-    keeps the frame's other surfaces out.
-    """
-    import cv2
-
+    ones only where given."""
     detection = pair.detection
     centre: NDArray[np.bool_] = disc(
         detection.difference.shape, view, site.position_m, settings.component_disc_m
     )
     centre &= _compared(detection.valid, trusted)
-    if int(centre.sum()) >= _COMPONENT_MIN_PIXELS:
-        return centre
+    return centre
+
+
+def _seen_part(
+    pair: PairResult, view: Sensed, site: Site, settings: MissionSettings, trusted: NDArray[np.bool_] | None
+) -> NDArray[np.bool_]:
+    """The component's central disc (:func:`_central_disc`); where the view does not show it, the
+    compared pixels of the component's CAD outline, less the margin the pose error may move it by
+    (``settings.discoloured_margin_px``), where they are ``_OUTLINE_MIN_PIXELS`` or more.
+
+    A discoloured replacement changes the component's whole surface (seed §4), and the disc is only the
+    part most views show: truss-b's CAD plan looks at a tall tank's upper half from three points that miss
+    its centre (held-out seed 2185 in space, D tank repainted to 0.55 of its reflectance: the frame's gain
+    absorbed it, 0.53, and the frame's statistic, five times too wide, hid a 2.7 mm impact of 18 sigma).
+    """
+    import cv2
+
+    centre = _central_disc(pair, view, site, settings, trusted)
     outline = view.capture.cad.components.get(site.name)
-    if outline is None:
+    if int(centre.sum()) >= _COMPONENT_MIN_PIXELS or outline is None:
         return centre
     side = 2 * settings.discoloured_margin_px + 1
     inner = cv2.erode(outline.astype(np.uint8), np.ones((side, side), np.uint8)) > 0
-    inner &= _compared(detection.valid, trusted)
+    inner &= _compared(pair.detection.valid, trusted)
     return inner if int(inner.sum()) >= _OUTLINE_MIN_PIXELS else centre
 
 
@@ -866,8 +872,7 @@ def component_change(
     settings: MissionSettings,
     trusted: NDArray[np.bool_] | None = None,
 ) -> float:
-    """Fraction of the component's central disc (:func:`_central_disc`: its seen pixels where the view
-    misses the disc) changed one way beyond 3 noise sigmas (seed §4 swaps):
+    """Fraction of the component's central disc changed one way beyond 3 noise sigmas (seed §4 swaps):
     the share brighter less the share darker (negative: a darker replacement), read only on the `trusted`
     pixels where given.
 
@@ -893,16 +898,20 @@ def component_dimming(
     settings: MissionSettings,
     trusted: NDArray[np.bool_] | None = None,
 ) -> float:
-    """Relative change of the component's brightness in its central disc (:func:`_central_disc`), before
-    photometric matching.
+    """Relative change of the component's brightness in its central disc, or the part of it the view
+    shows (:func:`_seen_part`), before photometric matching.
 
     Seed §2.3 registration fits a gain and a bias, and where one component fills the frame (the solar
     panel) that fit absorbs its discolouring whole. The strobe's energy is the same on both passes
-    (metered once per vista), so the raw ratio of the medians is the reflectance change itself.
+    (metered once per vista), so the raw ratio of the medians is the reflectance change itself, whatever
+    the fit did; a change read against the fit (:func:`component_change`) is read on the disc alone: where
+    a repaint filled the frame, what else shows at its edge reads the fit's error (held-out truss-b seed
+    2190 in space: a repainted ORU took the frame's gain to 0.57, and the panel's edge beside it read
+    darker over all of its 2,800 pixels, a false swap).
     """
     detection = pair.detection
     registration = detection.registration
-    centre = _central_disc(pair, view, site, settings, trusted)
+    centre = _seen_part(pair, view, site, settings, trusted)
     if registration is None or centre.sum() < _COMPONENT_MIN_PIXELS:
         return 0.0
     predicted = pair.inspection[centre] - detection.difference[centre]
