@@ -869,64 +869,6 @@ def test_a_dents_crater_reaches_no_farther_than_its_rims_bound(tank_view: Any, r
     assert rim_m <= sunk.rim_m <= 1.5 * rim_m  # measured 1.12-1.27 times
 
 
-@pytest.mark.parametrize(("shown_px", "seen"), [(0, False), (900, False), (1000, True)])
-def test_a_component_whose_centre_is_hidden_is_seen_by_as_much_of_it_as_shows(
-    tank_view: Any, shown_px: int, seen: bool
-) -> None:
-    # seed §4: a replacement changes the whole component; a view that misses its centre (the model's depth
-    # there is of something nearer) still reads it over a 2 cm patch's pixels of its CAD outline
-    from rsi.mission.views import seen_components
-
-    view, site = tank_view
-    outline = view.capture.cad.components["B_tank"]
-    world = SimpleNamespace(mockup=SimpleNamespace(candidates=SimpleNamespace(component_sites=(site,))))
-    assert [s.name for s in seen_components(world, view)] == ["B_tank"]  # type: ignore[arg-type]
-    hidden = view.capture.cad.expected_depth_m - np.float32(0.05)  # a plate 5 cm nearer over everything
-    shown = np.zeros_like(outline)
-    shown.flat[np.flatnonzero(outline)[:shown_px]] = True
-    cad = dataclasses.replace(view.capture.cad, expected_depth_m=hidden, components={"B_tank": shown})
-    partly = dataclasses.replace(view, capture=dataclasses.replace(view.capture, cad=cad))
-    assert bool(seen_components(world, partly)) is seen  # type: ignore[arg-type]
-
-
-@pytest.mark.parametrize(("patch", "reads"), [(None, True), ((42, 40), True), ((30, 40), False)])
-def test_a_repaint_is_read_over_the_seen_outline_where_the_disc_is_not_seen(
-    tank_view: Any, patch: tuple[int, int] | None, reads: bool
-) -> None:
-    # seed §4: a replacement of 0.6 the reflectance over the whole tank, its central disc out of the frame
-    # (a site placed 1 m off): the outline's compared pixels read the repaint's dimming (the raw ratio: the
-    # strobe's energy is the same in both passes, whatever the fit absorbed), as long as they are a 2 cm
-    # square's (961) after the pose's 4 px margin: a 42 x 40 patch keeps 34 x 32, a 30 x 40 one 22 x 32
-    # (an ORU's edge at a frame's border is no evidence)
-    import cv2
-
-    from rsi.mission.evidence import component_dimming
-    from rsi.mission.views import disc
-
-    view, site = tank_view
-    away = dataclasses.replace(site, position_m=(site.position_m[0] + 1.0, *site.position_m[1:]))
-    shape = view.capture.cad.expected_depth_m.shape
-    assert not disc(shape, view, away.position_m, SETTINGS.component_disc_m).any()
-    outline = view.capture.cad.components["B_tank"].copy()
-    if patch is not None:
-        rows, cols = np.nonzero(outline)
-        top, left = int(np.median(rows)), int(np.median(cols))
-        box = np.zeros_like(outline)
-        box[top : top + patch[0], left : left + patch[1]] = True
-        assert (outline & box).sum() == patch[0] * patch[1]
-        outline &= box
-    cad = dataclasses.replace(view.capture.cad, components={"B_tank": outline})
-    partly = dataclasses.replace(view, capture=dataclasses.replace(view.capture, cad=cad))
-    rng = np.random.default_rng(9)
-    texture = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), 2.0)
-    reference = (80.0 + 5.0 * texture / texture.std()).astype(np.float32)
-    repainted = reference + rng.normal(0.0, 1.0, shape).astype(np.float32)
-    repainted[outline] *= np.float32(0.6)
-    swap = compare(_image(reference, 1.0), _image(repainted, 1.0), 1e-4, SETTINGS)
-    dimming = component_dimming(swap, partly, away, SETTINGS)  # type: ignore[arg-type]
-    assert (abs(dimming + 0.4) < 0.02) if reads else dimming == 0.0  # the raw ratio: 0.6 = 1 - 0.4
-
-
 def test_a_screws_relief_is_known_as_well_as_the_range_maps_own_scatter_allows(tank_view: Any) -> None:
     from rsi.mission.evidence import screw_relief_sigma_m
 

@@ -815,14 +815,6 @@ def _sunk_patches(
     return np.asarray(deeper - np.float32(4.0 * spread), dtype=np.float32), inside, deeper
 
 
-# Fewer compared pixels than this say nothing of a component's reflectance (a 5 cm disc has thousands)
-_COMPONENT_MIN_PIXELS = 50
-# A component read by its outline alone shows at least a 2 cm square's compared pixels (the dent window's,
-# rsi.mission.views.seen_components): held-out truss-b seed 2189 in space read an ORU's 130-160 pixels past
-# the frame's edge 18-38 % dimmer against the two references, a false swap
-_OUTLINE_MIN_PIXELS = 31 * 31
-
-
 def _central_disc(
     pair: PairResult, view: Sensed, site: Site, settings: MissionSettings, trusted: NDArray[np.bool_] | None
 ) -> NDArray[np.bool_]:
@@ -832,37 +824,10 @@ def _central_disc(
     centre: NDArray[np.bool_] = disc(
         detection.difference.shape, view, site.position_m, settings.component_disc_m
     )
-    centre &= _compared(detection.valid, trusted)
+    centre &= detection.valid
+    if trusted is not None:
+        centre &= trusted
     return centre
-
-
-def _seen_part(
-    pair: PairResult, view: Sensed, site: Site, settings: MissionSettings, trusted: NDArray[np.bool_] | None
-) -> NDArray[np.bool_]:
-    """The component's central disc (:func:`_central_disc`); where the view does not show it, the
-    compared pixels of the component's CAD outline, less the margin the pose error may move it by
-    (``settings.discoloured_margin_px``), where they are ``_OUTLINE_MIN_PIXELS`` or more.
-
-    A discoloured replacement changes the component's whole surface (seed §4), and the disc is only the
-    part most views show: truss-b's CAD plan looks at a tall tank's upper half from three points that miss
-    its centre (held-out seed 2185 in space, D tank repainted to 0.55 of its reflectance: the frame's gain
-    absorbed it, 0.53, and the frame's statistic, five times too wide, hid a 2.7 mm impact of 18 sigma).
-    """
-    import cv2
-
-    centre = _central_disc(pair, view, site, settings, trusted)
-    outline = view.capture.cad.components.get(site.name)
-    if int(centre.sum()) >= _COMPONENT_MIN_PIXELS or outline is None:
-        return centre
-    side = 2 * settings.discoloured_margin_px + 1
-    inner = cv2.erode(outline.astype(np.uint8), np.ones((side, side), np.uint8)) > 0
-    inner &= _compared(pair.detection.valid, trusted)
-    return inner if int(inner.sum()) >= _OUTLINE_MIN_PIXELS else centre
-
-
-def _compared(valid: NDArray[np.bool_], trusted: NDArray[np.bool_] | None) -> NDArray[np.bool_]:
-    """The compared pixels, the `trusted` ones only where given."""
-    return valid if trusted is None else valid & trusted
 
 
 def component_change(
@@ -877,15 +842,15 @@ def component_change(
     pixels where given.
 
     A discoloured replacement changes the whole component's reflectance one way (measured 0.16-0.63 over
-    seeds 0-5 where one was, <= 0.012 on pristine ones); a 5 cm disc at the site's centre is the part most
-    views of it show. What the comparison leaves of a viewpoint error is an edge shifted, a bright and a
+    seeds 0-5 where one was, <= 0.012 on pristine ones); a 5 cm disc at the site's centre is the part every
+    view of it shows. What the comparison leaves of a viewpoint error is an edge shifted, a bright and a
     dark crescent in equal measure (:func:`shift_explained`), and noise the model under-states is of
     either sign too: truss-b development seed 3 in space saw a pristine tank's disc 26 % brighter and 25 %
     darker beyond 3 sigmas, while its discoloured ORU changed 51 % brighter and 12 % darker.
     """
     detection = pair.detection
     centre = _central_disc(pair, view, site, settings, trusted)
-    if centre.sum() < _COMPONENT_MIN_PIXELS:
+    if centre.sum() < 50:
         return 0.0
     z = detection.difference[centre] / np.maximum(detection.sigma[centre], np.float32(1e-6))
     return float(np.mean(z > 3.0)) - float(np.mean(z < -3.0))
@@ -898,21 +863,16 @@ def component_dimming(
     settings: MissionSettings,
     trusted: NDArray[np.bool_] | None = None,
 ) -> float:
-    """Relative change of the component's brightness in its central disc, or the part of it the view
-    shows (:func:`_seen_part`), before photometric matching.
+    """Relative change of the component's brightness in its central disc, before photometric matching.
 
     Seed §2.3 registration fits a gain and a bias, and where one component fills the frame (the solar
     panel) that fit absorbs its discolouring whole. The strobe's energy is the same on both passes
-    (metered once per vista), so the raw ratio of the medians is the reflectance change itself, whatever
-    the fit did; a change read against the fit (:func:`component_change`) is read on the disc alone: where
-    a repaint filled the frame, what else shows at its edge reads the fit's error (held-out truss-b seed
-    2190 in space: a repainted ORU took the frame's gain to 0.57, and the panel's edge beside it read
-    darker over all of its 2,800 pixels, a false swap).
+    (metered once per vista), so the raw ratio of the medians is the reflectance change itself.
     """
     detection = pair.detection
     registration = detection.registration
-    centre = _seen_part(pair, view, site, settings, trusted)
-    if registration is None or centre.sum() < _COMPONENT_MIN_PIXELS:
+    centre = _central_disc(pair, view, site, settings, trusted)
+    if registration is None or centre.sum() < 50:
         return 0.0
     predicted = pair.inspection[centre] - detection.difference[centre]
     warped = (predicted - np.float32(registration.bias)) / np.float32(registration.gain)

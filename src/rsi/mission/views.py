@@ -387,29 +387,11 @@ def seen_screws(world: World, sensed: Sensed) -> list[Site]:
     return [site for site, visible in zip(sites, seen, strict=True) if visible]
 
 
-# A component seen over this many pixels of the CAD model's projection shows its reflectance whatever its
-# centre: a 2 cm square at the 0.66 mm pixels of the ISEE's 0.5 m stand-off (the dent window, ~900 px)
-_COMPONENT_SEEN_PX = 31 * 31
-
-
 def seen_components(world: World, sensed: Sensed) -> list[Site]:
-    """Component sites whose centre the view sees (depth within 2 cm: a tank's front, a panel's face), or
-    of which the placed CAD model shows ``_COMPONENT_SEEN_PX`` pixels.
-
-    A replacement changes the whole component (seed §4), and a view need not see its centre: truss-b's
-    CAD plan looks at a tall tank's upper half from points that miss it (held-out seed 2185 in space: a
-    D tank repainted to 0.55 of its reflectance filled three frames, their gain absorbed it, 0.53-0.76,
-    and no comparison checked the tank, whose 2.7 mm impact of 18 sigma read 3.4 on the frame's widened
-    statistic).
-    """
+    """Component sites whose centre the view sees (depth within 2 cm: a tank's front, a panel's face)."""
     sites = world.mockup.candidates.component_sites
     seen = visible(sensed, np.asarray([site.position_m for site in sites]), tolerance_m=0.02)
-    shown = sensed.capture.cad.components
-    return [
-        site
-        for site, centre_seen in zip(sites, seen, strict=True)
-        if centre_seen or int(np.count_nonzero(shown.get(site.name, False))) >= _COMPONENT_SEEN_PX
-    ]
+    return [site for site, visible in zip(sites, seen, strict=True) if visible]
 
 
 def near_model_edges(sensed: Sensed, reach_px: int) -> NDArray[np.bool_]:
