@@ -815,21 +815,29 @@ def _ranged(model: np.ndarray, mask: np.ndarray, seed: int) -> np.ndarray:
     return np.where(mask, model + noise, np.nan).astype(np.float32)
 
 
-@pytest.mark.parametrize("case", ["pristine", "dented", "reference off on a strip", "model off on a strip"])
-def test_a_dent_sinks_against_the_reference_and_the_model_at_one_place(tank_view: Any, case: str) -> None:
-    from rsi.mission.evidence import sinking
-    from rsi.mission.views import field_to_world
-
+def _tank_depth(tank_view: Any) -> tuple[Any, Any, np.ndarray, np.ndarray, tuple[int, int], np.ndarray]:
+    """The tank view, its site, the tank's CAD pixels and depth, their median pixel, and each pixel's
+    squared distance from it (pixels)."""
     view, site = tank_view
     mask = view.capture.cad.components["B_tank"]
     model = view.capture.cad.expected_depth_m.astype(np.float64)
     rows, cols = np.nonzero(mask)
     centre = (int(np.median(rows)), int(np.median(cols)))
+    grid_r, grid_c = np.mgrid[0 : mask.shape[0], 0 : mask.shape[1]]
+    return view, site, mask, model, centre, (grid_r - centre[0]) ** 2 + (grid_c - centre[1]) ** 2
+
+
+@pytest.mark.parametrize("case", ["pristine", "dented", "reference off on a strip", "model off on a strip"])
+def test_a_dent_sinks_against_the_reference_and_the_model_at_one_place(tank_view: Any, case: str) -> None:
+    from rsi.mission.evidence import sinking
+    from rsi.mission.views import field_to_world
+
+    view, site, mask, model, centre, radius2 = _tank_depth(tank_view)
     now, before, believed = _ranged(model, mask, 1), _ranged(model, mask, 2), model.copy()
-    strip = mask & (np.abs(np.arange(mask.shape[1]) - cols.min() - 20) < 12)[None, :]
+    left = int(np.flatnonzero(mask.any(axis=0))[0])
+    strip = mask & (np.abs(np.arange(mask.shape[1]) - left - 20) < 12)[None, :]
     if case == "dented":
-        grid_r, grid_c = np.mgrid[0 : mask.shape[0], 0 : mask.shape[1]]
-        crater = 4e-3 * np.exp(-((grid_r - centre[0]) ** 2 + (grid_c - centre[1]) ** 2) / (2 * 20.0**2))
+        crater = 4e-3 * np.exp(-radius2 / (2 * 20.0**2))
         now = (now + crater).astype(np.float32)
     elif case == "reference off on a strip":  # a prediction that failed there: 12 mm nearer
         before[strip] -= np.float32(0.012)
@@ -854,14 +862,8 @@ def test_a_dents_crater_reaches_no_farther_than_its_rims_bound(tank_view: Any, r
     from rsi.mission.evidence import sinking
     from rsi.mission.views import pixel_size_m
 
-    view, site = tank_view
-    mask = view.capture.cad.components["B_tank"]
-    model = view.capture.cad.expected_depth_m.astype(np.float64)
-    rows, cols = np.nonzero(mask)
-    centre = (int(np.median(rows)), int(np.median(cols)))
-    grid_r, grid_c = np.mgrid[0 : mask.shape[0], 0 : mask.shape[1]]
-    rho2 = ((grid_r - centre[0]) ** 2 + (grid_c - centre[1]) ** 2) / rim_px**2
-    now = _ranged(model + 5e-3 * np.clip(1.0 - rho2, 0.0, None) ** 2, mask, 1)
+    view, site, mask, model, _, radius2 = _tank_depth(tank_view)
+    now = _ranged(model + 5e-3 * np.clip(1.0 - radius2 / rim_px**2, 0.0, None) ** 2, mask, 1)
     seen = dataclasses.replace(view, range_m=now)
     sunk = sinking(seen, _ranged(model, mask, 2), (0.0, 0.0), site)
     assert sunk.position_m is not None
