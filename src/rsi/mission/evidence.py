@@ -270,8 +270,18 @@ def glare_explained(
     (:func:`component_change`).
     """
     glare = glare_light(pair, view, look)
-    if glare is None:
-        return False
+    return glare is not None and light_explains(pair, look, glare, threshold, settings)
+
+
+def light_explains(
+    pair: PairResult,
+    look: Look,
+    glare: tuple[NDArray[np.float64], NDArray[np.bool_]],
+    threshold: float,
+    settings: MissionSettings,
+) -> bool:
+    """Whether what the strobe's light `glare` (:func:`glare_light`) leaves of a large blob above
+    `threshold` is no larger than a component's least change (:func:`glare_explained`)."""
     detection = pair.detection
     row0, col0, row1, col1 = look.bbox
     blob = detection.mask[row0:row1, col0:col1]
@@ -859,6 +869,10 @@ def _sunk_patches(
     return np.asarray(deeper - np.float32(4.0 * spread), dtype=np.float32), inside, deeper
 
 
+# Fewer compared pixels than this say nothing of a component's reflectance (a 5 cm disc has thousands)
+_COMPONENT_MIN_PIXELS = 50
+
+
 def _central_disc(
     pair: PairResult, view: Sensed, site: Site, settings: MissionSettings, trusted: NDArray[np.bool_] | None
 ) -> NDArray[np.bool_]:
@@ -894,7 +908,7 @@ def component_change(
     """
     detection = pair.detection
     centre = _central_disc(pair, view, site, settings, trusted)
-    if centre.sum() < 50:
+    if centre.sum() < _COMPONENT_MIN_PIXELS:
         return 0.0
     z = detection.difference[centre] / np.maximum(detection.sigma[centre], np.float32(1e-6))
     return float(np.mean(z > 3.0)) - float(np.mean(z < -3.0))
@@ -916,7 +930,7 @@ def component_dimming(
     detection = pair.detection
     registration = detection.registration
     centre = _central_disc(pair, view, site, settings, trusted)
-    if registration is None or centre.sum() < 50:
+    if registration is None or centre.sum() < _COMPONENT_MIN_PIXELS:
         return 0.0
     predicted = pair.inspection[centre] - detection.difference[centre]
     warped = (predicted - np.float32(registration.bias)) / np.float32(registration.gain)

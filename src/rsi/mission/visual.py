@@ -38,9 +38,9 @@ from rsi.mission.evidence import (
     discoloured_components,
     discoloured_pixels,
     followed,
-    glare_explained,
     glare_light,
     impact_sized,
+    light_explains,
     line_shaped,
     same_sign_again,
     screw_checks,
@@ -849,11 +849,20 @@ def _new_blobs(
             found += [look] if _impact_like(look, comparison.pair, floor, edges, settings) else []
         elif not broad(look, settings):
             continue
-        elif not glare_explained(comparison.pair, view, look, floor, settings):
+        elif (glare := glare_light(comparison.pair, view, look)) is None or not light_explains(
+            comparison.pair, look, glare, floor, settings
+        ):
             found.append(look)
         elif not under_glare:
             found += _under_glare(
-                comparison, view, world, explanations, look, active=active, limits=limits, settings=settings
+                comparison,
+                view,
+                world,
+                explanations,
+                (look, glare),
+                active=active,
+                limits=limits,
+                settings=settings,
             )
     return found
 
@@ -876,15 +885,15 @@ def _under_glare(
     view: Sensed,
     world: World,
     explanations: list[Explanation],
-    glared: Look,
+    glared: tuple[Look, tuple[NDArray[np.float64], NDArray[np.bool_]]],
     *,
     active: bool,
     limits: Thresholds,
     settings: MissionSettings,
 ) -> list[Look]:
-    """The impacts within a large blob that the strobe's light explains (:func:`glare_explained`): the small
-    new blobs, peaked within it, of the comparison with that light taken out of the inspection over the
-    parts it was fitted on.
+    """The impacts within a large blob that the strobe's light explains (`glared`: the blob and that light,
+    :func:`rsi.mission.evidence.glare_light`): the small new blobs, peaked within it, of the comparison with
+    the light taken out of the inspection over the parts it was fitted on.
 
     A glossy part's strobe return changes with the viewpoint (seed §2.3) over the whole part, a few sigma,
     and the preliminary threshold joins an impact on it to that change in one blob: truss-b held-out seed
@@ -892,10 +901,7 @@ def _under_glare(
     light explained the blob, and a 3.8 mm dark disc of -8 DN and 30 sigma went with it. What the light
     does not explain stands out of the part as it would have without the glare.
     """
-    glare = glare_light(comparison.pair, view, glared)
-    if glare is None:
-        return []
-    light, lit = glare
+    look, (light, lit) = glared
     inspection = replace(
         comparison.inspection,
         image=(comparison.inspection.image - light).astype(np.float32),
@@ -914,15 +920,15 @@ def _under_glare(
     looks = _new_blobs(
         relit, view, world, explanations, active=active, limits=limits, settings=settings, under_glare=True
     )
-    row0, col0, row1, col1 = glared.bbox
+    row0, col0, row1, col1 = look.bbox
     blob = comparison.pair.detection.mask
     return [
-        look
-        for look in looks
-        if look.area_m2 <= settings.component_area_m2
-        and row0 <= look.at_px[0] < row1
-        and col0 <= look.at_px[1] < col1
-        and blob[int(look.at_px[0]), int(look.at_px[1])]
+        small
+        for small in looks
+        if small.area_m2 <= settings.component_area_m2
+        and row0 <= small.at_px[0] < row1
+        and col0 <= small.at_px[1] < col1
+        and blob[int(small.at_px[0]), int(small.at_px[1])]
     ]
 
 
