@@ -157,6 +157,47 @@ def test_frame_saturation_mask_and_bad_pixels_are_honoured() -> None:
     assert np.argwhere(~clean.valid).tolist() == [[1, 2]]
 
 
+def test_a_saturated_lit_pixel_over_a_read_ambient_is_a_lower_bound() -> None:
+    raw = _interlaced_dn(np.full((40, 8), 100.0))
+    raw[21, 5] = 255.0  # lit row 21 (field row 10) clipped; its ambient rows 20 and 22 read 104
+    raw[10, 3] = 255.0  # unlit row 10: lit rows 9 and 11 lose their ambient
+    raw[13, 3] = 255.0  # lit row 13 clipped, its unlit neighbour 12 read
+    raw[14, 3] = 255.0  # ... and its unlit neighbour 14 clipped too: nothing to subtract
+    defects = np.zeros((40, 8), bool)
+    defects[31, 6] = True  # a hot lit pixel reading the top is a defect, no bound
+    raw[31, 6] = 255.0
+    bad = BadPixelMap(hot=defects, dead=np.zeros_like(defects), stuck=np.zeros_like(defects))
+    result = compensate_interlaced(raw, lit_field="odd", bad_pixels=bad)
+    assert result.lower_bound is not None
+    assert np.argwhere(result.lower_bound).tolist() == [[10, 5]]
+    assert result.image[10, 5] == pytest.approx(255.0 - 104.0)
+    assert not (result.lower_bound & result.valid).any()
+
+
+def test_two_frame_lower_bound_needs_the_ambient_frame_read() -> None:
+    lit, ambient = np.full((10, 10), 150.0), np.full((10, 10), 60.0)
+    lit[2, 2] = lit[7, 1] = 255.0
+    ambient[7, 1] = 255.0
+    result = compensate_two_frames(lit, ambient)
+    assert result.lower_bound is not None
+    assert np.argwhere(result.lower_bound).tolist() == [[2, 2]]
+    assert result.image[2, 2] == pytest.approx(195.0)
+
+
+def test_field_pair_lower_bound_is_the_top_less_the_ambient_where_the_strobe_clipped() -> None:
+    strobe = np.full((20, 8), 2.0, np.float32)
+    strobe[7, 4] = strobe[8, 2] = 400.0  # a bright spot on an odd and on an even row, past the top
+    odd, even = _pair(strobe, np.full((20, 8), 8000.0, np.float32))
+    woven = compensate_field_pair(odd, even)
+    assert woven.lower_bound is not None
+    assert np.argwhere(woven.lower_bound).tolist() == [[7, 4], [8, 2]]
+    assert not woven.valid[7, 4] and not woven.valid[8, 2]
+    top = odd.camera.max_dn
+    # the row's ambient was read in the other frame: the bound is the top less about that reading
+    assert woven.image[7, 4] == pytest.approx(top - float(even.raw[7, 4]), abs=3.0)
+    assert woven.image[8, 2] == pytest.approx(top - float(odd.raw[8, 2]), abs=3.0)
+
+
 def test_two_frame_validity_uses_both_inputs() -> None:
     lit, ambient = np.full((10, 10), 150.0), np.full((10, 10), 60.0)
     lit[2, 2] = 255.0

@@ -870,6 +870,54 @@ def test_a_bright_flaw_that_saturated_its_core_is_no_shifted_edge() -> None:
     assert not shift_explained(pair, look, thresholds(SETTINGS).preliminary, max_shift_px=0.9)
 
 
+def _clipped_scene() -> tuple[Compensated, Compensated, np.ndarray, np.ndarray]:
+    """A reference with a glint it saturated (rows 20-29, columns 20-29) and an inspection that saturated
+    over a 6 px bright disc and over the glint moved a pixel right; returns both, the disc and the glint's
+    new column."""
+    rng = np.random.default_rng(13)
+    reference = 150.0 + 2.0 * (_textured(13) - 80.0)
+    inspection = reference + rng.normal(0.0, 3.0, reference.shape).astype(np.float32)
+    disc = np.zeros(reference.shape, bool)
+    disc[60:66, 80:86] = True
+    glint = np.zeros(reference.shape, bool)
+    glint[20:30, 20:30] = True
+    moved = np.roll(glint, 1, axis=1)
+    clipped = disc | moved
+    inspection[clipped] = np.float32(250.0)  # the sensor's top less the ambient read beside it
+    seen = dataclasses.replace(_image(inspection, 9.0), valid=~clipped, lower_bound=clipped)
+    return dataclasses.replace(_image(reference, 9.0), valid=~glint), seen, disc, moved & ~glint
+
+
+def test_a_bright_impact_that_saturated_the_camera_is_compared_as_a_lower_bound() -> None:
+    """Seed §2.1, §4: a bright impact can saturate the inspection wholly where the reference read far
+    under the clip (truss-b held-out seed 2202 in space: a 2.3 mm disc, all 32 pixels at 250 DN over a
+    prediction of 150). What the strobe returned there at least is a difference of one sign: the disc is a
+    bright flaw; the glint the reference clipped, moved a pixel, says nothing and stays out."""
+    reference, seen, disc, moved_edge = _clipped_scene()
+    pair = compare(reference, seen, SETTINGS.p_preliminary, SETTINGS, registration=_unmoved())
+    assert pair.detection.valid[disc].all() and not pair.detection.valid[moved_edge].any()
+    found = [f for f in pair.flaws if disc[int(round(f.row)), int(round(f.col))]]
+    assert len(found) == 1 and found[0].polarity == "bright" and found[0].score > thresholds(SETTINGS).confirm
+    blind = compare(
+        reference,
+        dataclasses.replace(seen, lower_bound=None),
+        SETTINGS.p_preliminary,
+        SETTINGS,
+        registration=_unmoved(),
+    )
+    assert not blind.detection.valid[disc].any()
+    assert not [f for f in blind.flaws if disc[int(round(f.row)), int(round(f.col))]]
+
+
+def test_a_saturated_pixel_no_brighter_than_its_prediction_is_left_out() -> None:
+    """A lower bound under the prediction bounds nothing: it must not read as a dark change."""
+    reference, seen, disc, _ = _clipped_scene()
+    brighter = dataclasses.replace(reference, image=np.where(disc, 252.0, reference.image).astype(np.float32))
+    pair = compare(brighter, seen, SETTINGS.p_preliminary, SETTINGS, registration=_unmoved())
+    assert not pair.detection.valid[disc].any()
+    assert not [f for f in pair.flaws if disc[int(round(f.row)), int(round(f.col))]]
+
+
 @pytest.fixture(scope="module")
 def tank_view() -> Any:
     from rsi.sim.world import load

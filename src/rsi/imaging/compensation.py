@@ -61,6 +61,10 @@ class Compensated:
         Part of ``variance`` due to interpolating the ambient between rows (0 for two-frame compensation).
     row_step : int
         Frame rows per output row: 2 for an intra-frame field image, 1 for two-frame compensation.
+    lower_bound : ndarray of shape (K, N), bool, or None
+        Of the pixels not ``valid``, those left out only because the strobe-lit reading reached the sensor's
+        top while the ambient was read: there ``image`` is the top less the ambient, what the strobe returned
+        *at least* (seed §2.1: the camera saturates and says so). None where this is not known.
     """
 
     image: F32
@@ -68,6 +72,7 @@ class Compensated:
     variance: F32
     interpolation_variance: F32
     row_step: int
+    lower_bound: BoolArray | None = None
 
 
 MAX_DN = 1e15
@@ -77,11 +82,13 @@ differences of DN, so 1e15 keeps every square finite (any real camera reads unde
 
 @dataclass(frozen=True)
 class _Sensed:
-    """One input frame in float32 DN, which pixels must not be used, and its sensor variance (DN^2)."""
+    """One input frame in float32 DN, which pixels must not be used (of them, those that read the sensor's
+    top and are no defect), and its sensor variance (DN^2)."""
 
     image: F32
     invalid: BoolArray
     variance: F32
+    saturated: BoolArray
 
 
 def _sense(
@@ -112,12 +119,16 @@ def _sense(
     limit = (
         camera.max_dn if saturation_dn is None else v.in_range(saturation_dn, "saturation_dn", high=MAX_DN)
     )
-    invalid = image >= np.float32(limit)
+    saturated = image >= np.float32(limit)
     if frame is not None:
-        invalid |= frame.saturated
+        saturated |= frame.saturated
+    invalid = saturated.copy()
     if bad_pixels is not None:
         invalid |= bad_pixels.defective
-    return _Sensed(image=image, invalid=invalid, variance=camera.noise_variance_dn(image))
+        saturated &= ~bad_pixels.defective
+    return _Sensed(
+        image=image, invalid=invalid, variance=camera.noise_variance_dn(image), saturated=saturated
+    )
 
 
 def compensate_two_frames(
@@ -159,6 +170,7 @@ def compensate_two_frames(
         variance=flash.variance + dark.variance,
         interpolation_variance=np.zeros_like(flash.image),
         row_step=1,
+        lower_bound=flash.saturated & ~dark.invalid,
     )
 
 
@@ -215,6 +227,7 @@ def compensate_interlaced(
         variance=rows.lit_variance + rows.ambient_variance + rows.interpolation,
         interpolation_variance=rows.interpolation,
         row_step=2,
+        lower_bound=rows.lit_saturated & ~rows.ambient_invalid,
     )
 
 
@@ -229,6 +242,7 @@ class _LitRows:
     lit: F32
     lit_variance: F32
     lit_invalid: BoolArray
+    lit_saturated: BoolArray
     ambient: F32
     ambient_variance: F32
     ambient_invalid: BoolArray
@@ -253,6 +267,7 @@ def _lit_rows(sensed: _Sensed, parity: int) -> _LitRows:
         lit=sensed.image[lit],
         lit_variance=sensed.variance[lit],
         lit_invalid=sensed.invalid[lit],
+        lit_saturated=sensed.saturated[lit],
         ambient=np.float32(0.5) * (above + below),
         ambient_variance=_ambient_variance(var_above, var_below, edges),
         ambient_invalid=bad_above | bad_below,
@@ -302,7 +317,10 @@ def compensate_field_pair(odd_lit: Frame, even_lit: Frame) -> Compensated:
         for frame, name in ((odd_lit, "odd_lit"), (even_lit, "even_lit"))
     )
     rows = odd_lit.raw.shape[0]
-    odd_rows, even_rows = _with_other_frame(odd, even, parity=1), _with_other_frame(even, odd, parity=0)
+    (odd_rows, odd_bound), (even_rows, even_bound) = (
+        _with_other_frame(odd, even, parity=1),
+        _with_other_frame(even, odd, parity=0),
+    )
 
     def woven(odd_part: NDArray[Any], even_part: NDArray[Any]) -> NDArray[Any]:
         out = np.empty((rows, *odd_part.shape[1:]), dtype=odd_part.dtype)
@@ -316,11 +334,13 @@ def compensate_field_pair(odd_lit: Frame, even_lit: Frame) -> Compensated:
         variance=woven(odd_rows.variance, even_rows.variance),
         interpolation_variance=woven(odd_rows.interpolation_variance, even_rows.interpolation_variance),
         row_step=1,
+        lower_bound=woven(odd_bound, even_bound),
     )
 
 
-def _with_other_frame(frame: _Sensed, other: _Sensed, *, parity: int) -> Compensated:
-    """`frame`'s lit rows less their ambient, estimated twice and weighted by what each estimate may miss.
+def _with_other_frame(frame: _Sensed, other: _Sensed, *, parity: int) -> tuple[Compensated, BoolArray]:
+    """`frame`'s lit rows less their ambient, estimated twice and weighted by what each estimate may miss,
+    and where that is a lower bound (:attr:`Compensated.lower_bound`).
 
     Seed §2.2: the ambient of a lit row is interpolated from the unlit rows around it, which misses where
     the ambient bends (a sun-shadow edge along the rows). The other frame, its strobe in the other field,
@@ -353,13 +373,15 @@ def _with_other_frame(frame: _Sensed, other: _Sensed, *, parity: int) -> Compens
     noise = weight * weight * np.where(rows.ambient_invalid, 0.0, rows.ambient_variance) + (
         1 - weight
     ) ** 2 * np.where(twin_invalid, 0.0, twin_variance)
-    return Compensated(
+    ambient_invalid = rows.ambient_invalid & twin_invalid
+    compensated = Compensated(
         image=(rows.lit - ambient).astype(np.float32),
-        valid=~(rows.lit_invalid | (rows.ambient_invalid & twin_invalid)),
+        valid=~(rows.lit_invalid | ambient_invalid),
         variance=(rows.lit_variance + noise + residual).astype(np.float32),
         interpolation_variance=residual,
         row_step=1,
     )
+    return compensated, rows.lit_saturated & ~ambient_invalid
 
 
 def _lit_field(frame: object, lit_field: str | None) -> str:
