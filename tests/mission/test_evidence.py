@@ -896,7 +896,7 @@ def test_a_bright_impact_that_saturated_the_camera_is_compared_as_a_lower_bound(
     reference, seen, disc, moved_edge = _clipped_scene()
     pair = compare(reference, seen, SETTINGS.p_preliminary, SETTINGS, registration=_unmoved())
     assert pair.detection.valid[disc].all() and not pair.detection.valid[moved_edge].any()
-    found = [f for f in pair.flaws if disc[int(round(f.row)), int(round(f.col))]]
+    found = [f for f in pair.flaws if disc[round(f.row), round(f.col)]]
     assert len(found) == 1 and found[0].polarity == "bright" and found[0].score > thresholds(SETTINGS).confirm
     blind = compare(
         reference,
@@ -906,7 +906,7 @@ def test_a_bright_impact_that_saturated_the_camera_is_compared_as_a_lower_bound(
         registration=_unmoved(),
     )
     assert not blind.detection.valid[disc].any()
-    assert not [f for f in blind.flaws if disc[int(round(f.row)), int(round(f.col))]]
+    assert not [f for f in blind.flaws if disc[round(f.row), round(f.col)]]
 
 
 def test_a_saturated_pixel_no_brighter_than_its_prediction_is_left_out() -> None:
@@ -915,7 +915,7 @@ def test_a_saturated_pixel_no_brighter_than_its_prediction_is_left_out() -> None
     brighter = dataclasses.replace(reference, image=np.where(disc, 252.0, reference.image).astype(np.float32))
     pair = compare(brighter, seen, SETTINGS.p_preliminary, SETTINGS, registration=_unmoved())
     assert not pair.detection.valid[disc].any()
-    assert not [f for f in pair.flaws if disc[int(round(f.row)), int(round(f.col))]]
+    assert not [f for f in pair.flaws if disc[round(f.row), round(f.col)]]
 
 
 @pytest.fixture(scope="module")

@@ -267,15 +267,34 @@ def _with_clipped_flash(
     bound = inspection.lower_bound
     if bound is None or registration is None or not bound.any():
         return inspection
-    shape = (int(inspection.image.shape[0]), int(inspection.image.shape[1]))
-    predicted, inside = registration.warp(reference.image, output_shape=shape)
-    known, _ = registration.warp(reference.valid.astype(np.float32), output_shape=shape, photometric=False)
-    side = 2 * math.ceil(settings.local_shift_px) + 1
-    trusted = cv2.erode(((known > _KNOWN) & inside).astype(np.uint8), np.ones((side, side), np.uint8)) > 0
-    brighter = bound & trusted & (inspection.image > predicted)
+    reach = math.ceil(settings.local_shift_px)
+    rows, cols = _box_around(bound, reach if registration.local is None else max(bound.shape))
+    # the registration moved to the box's corner: the few percent of the frame that saturated, warped alone
+    corner = np.eye(3)
+    corner[0, 2], corner[1, 2] = -cols.start, -rows.start
+    boxed = replace(registration, matrix=corner @ registration.matrix)
+    shape = (rows.stop - rows.start, cols.stop - cols.start)
+    predicted, inside = boxed.warp(reference.image, output_shape=shape)
+    known, _ = boxed.warp(reference.valid.astype(np.float32), output_shape=shape, photometric=False)
+    footprint = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
+    trusted = cv2.erode(((known > _KNOWN) & inside).astype(np.uint8), footprint) > 0
+    brighter = bound[rows, cols] & trusted & (inspection.image[rows, cols] > predicted)
     if not brighter.any():
         return inspection
-    return replace(inspection, valid=inspection.valid | brighter)
+    valid = inspection.valid.copy()
+    valid[rows, cols] |= brighter
+    return replace(inspection, valid=valid)
+
+
+def _box_around(mask: NDArray[np.bool_], margin: int) -> tuple[slice, slice]:
+    """The rows and columns of `mask`'s bounding box grown by `margin` pixels (within the frame)."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    height, width = mask.shape
+    return (
+        slice(max(int(rows[0]) - margin, 0), min(int(rows[-1]) + margin + 1, height)),
+        slice(max(int(cols[0]) - margin, 0), min(int(cols[-1]) + margin + 1, width)),
+    )
 
 
 def thresholds(settings: MissionSettings) -> Thresholds:
