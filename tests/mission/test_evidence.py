@@ -893,9 +893,10 @@ def _flaw_looks(pair: Any, near: tuple[int, int] | None = None) -> list[Look]:
 
 def test_a_shift_that_moves_grain_onto_a_faint_spot_does_not_explain_it() -> None:
     """Seed §2.3: a mis-registration is the neighbourhood's. Of 49 shifts some move a fine grain onto a
-    faint spot and cancel it, and fit the spot's surroundings worse: no explanation (the check before
-    took 5 of these 26 spots for shifted grain; truss development seed 2201 in space lost a 1.1 mm crater
-    on the solar cells so). Grain moved by 1-1.8 px is explained wherever it flags."""
+    faint spot and cancel it, and fit the spot's surroundings worse: no explanation on one surface (the
+    check before took 5 of these 26 spots for shifted grain, as it still does beside a step of depth;
+    truss development seed 2201 in space lost a 1.1 mm crater on the solar cells so). Grain moved by
+    1-1.8 px is explained wherever it flags."""
     from rsi.mission.evidence import shift_explained
 
     preliminary = thresholds(SETTINGS).preliminary
@@ -913,6 +914,9 @@ def test_a_shift_that_moves_grain_onto_a_faint_spot_does_not_explain_it() -> Non
         spots += [(pair, look) for look in _flaw_looks(pair, near=(60, 81))]
     assert len(spots) >= 20
     assert sum(shift_explained(pair, look, preliminary, 1.5) for pair, look in spots) <= 1
+    # beside a step of depth the ring is another surface's and any shift counts: some spots go again
+    beside = sum(shift_explained(pair, look, preliminary, 1.5, one_surface=False) for pair, look in spots)
+    assert beside >= 3
     shifted = []
     for seed, shift in enumerate((1.0, 1.4, 1.8)):
         reference, inspection = _grainy(seed, (0.6 * shift, 0.8 * shift))

@@ -933,7 +933,9 @@ def _impact_like(
         impact_sized(look, settings)
         and look.contrast >= settings.impact_contrast_min
         and not line_shaped(look, pair.detection.mask, pair.detection.statistic)
-        and not shift_explained(pair, look, floor, _shift_bound_px(look, edges, settings))
+        and not shift_explained(
+            pair, look, floor, _shift_bound_px(look, edges, settings), one_surface=not _near(look, edges)
+        )
     )
 
 
@@ -1142,10 +1144,15 @@ def _shift_bound_px(look: Look, near_edges: NDArray[np.bool_], settings: Mission
     moves a streak over a faint impact and would explain it away (seed 6 at a 300 s sun: a 0.1-contrast
     impact on the B tank explained by shifts of 1 px and more, not by 0.75 px).
     """
-    row0, col0, row1, col1 = look.bbox
-    if near_edges[row0:row1, col0:col1].any():
+    if _near(look, near_edges):
         return settings.local_shift_px
     return min(3.0 * settings.misregistration_std_px, settings.local_shift_px)
+
+
+def _near(look: Look, near_edges: NDArray[np.bool_]) -> bool:
+    """Whether `look`'s box touches `near_edges` (the placed model's edges, grown)."""
+    row0, col0, row1, col1 = look.bbox
+    return bool(near_edges[row0:row1, col0:col1].any())
 
 
 @dataclass
