@@ -884,6 +884,17 @@ def _grainy(seed: int, shift_xy: tuple[float, float] = (0.0, 0.0)) -> tuple[np.n
     return surface + noise[0], moved + noise[1]
 
 
+def _unmoved_pair(reference: np.ndarray, inspection: np.ndarray) -> Any:
+    """The preliminary comparison of two grainy images under a registration that found no motion."""
+    return compare(
+        _image(reference, 8.0),
+        _image(inspection, 8.0),
+        SETTINGS.p_preliminary,
+        SETTINGS,
+        registration=_unmoved(),
+    )
+
+
 def _flaw_looks(pair: Any, near: tuple[int, int] | None = None) -> list[Look]:
     inner = [f for f in pair.flaws if 10 < f.row < 110 and 10 < f.col < 150]
     if near is not None:
@@ -904,13 +915,7 @@ def test_a_shift_that_moves_grain_onto_a_faint_spot_does_not_explain_it() -> Non
     for seed, depth in ((seed, depth) for seed in range(8) for depth in (5.0, 7.0, 9.0)):
         reference, inspection = _grainy(seed)
         inspection[59:62, 80:83] -= np.float32(depth)
-        pair = compare(
-            _image(reference, 8.0),
-            _image(inspection, 8.0),
-            SETTINGS.p_preliminary,
-            SETTINGS,
-            registration=_unmoved(),
-        )
+        pair = _unmoved_pair(reference, inspection)
         spots += [(pair, look) for look in _flaw_looks(pair, near=(60, 81))]
     assert len(spots) >= 20
     assert sum(shift_explained(pair, look, preliminary, 1.5) for pair, look in spots) <= 1
@@ -920,13 +925,7 @@ def test_a_shift_that_moves_grain_onto_a_faint_spot_does_not_explain_it() -> Non
     shifted = []
     for seed, shift in enumerate((1.0, 1.4, 1.8)):
         reference, inspection = _grainy(seed, (0.6 * shift, 0.8 * shift))
-        pair = compare(
-            _image(reference, 8.0),
-            _image(inspection, 8.0),
-            SETTINGS.p_preliminary,
-            SETTINGS,
-            registration=_unmoved(),
-        )
+        pair = _unmoved_pair(reference, inspection)
         shifted += [(pair, look) for look in _flaw_looks(pair)]
     assert len(shifted) >= 20
     assert all(shift_explained(pair, look, preliminary, 1.5) for pair, look in shifted)

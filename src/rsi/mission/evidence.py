@@ -233,8 +233,10 @@ def shift_explained(
     unshifted = peak((0.0, 0.0))
     if unshifted <= 0.0:
         return False
-    allowed = misfit((0.0, 0.0)) if one_surface else math.inf
-    supported = (shift for shift in _quarter_shifts(max_shift_px) if misfit(shift) <= allowed)
+    supported = _quarter_shifts(max_shift_px)
+    if one_surface:
+        allowed = misfit((0.0, 0.0))
+        supported = [shift for shift in supported if misfit(shift) <= allowed]
     best = min((peak(shift) for shift in supported), default=unshifted)
     return best * look.score / unshifted <= threshold
 
