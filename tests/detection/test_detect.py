@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -240,6 +241,21 @@ def test_flaw_list_components() -> None:
     dark_only = detect(reference, inspection, noise_sigma=0.05, registration=None, polarity="dark")
     assert [flaw.polarity for flaw in dark_only.flaws] == ["dark"]
     assert dark_only.statistic[40, 40] > 0 and dark_only.score[40, 40] < 0
+
+
+def test_each_flaw_peaks_on_its_own_pixels() -> None:
+    """A ring's box holds a stronger spot in its hollow: each flaw's peak is one of its own pixels."""
+    rows, cols = np.mgrid[:64, :64]
+    radius = np.hypot(rows - 32, cols - 32)
+    inspection = np.where((radius >= 12) & (radius <= 16), 1.0, 0.0)
+    inspection[31:34, 31:34] = -3.0  # darker and stronger, 9 px clear of the ring
+    found = detect(np.zeros((64, 64)), inspection, noise_sigma=0.05, registration=None)
+    spot, ring = found.flaws
+    assert (spot.polarity, ring.polarity) == ("dark", "bright") and spot.score > ring.score
+    for flaw in found.flaws:
+        assert flaw.peak is not None and found.mask[flaw.peak]
+        assert found.score[flaw.peak] == flaw.score
+    assert ring.peak is not None and 12 <= math.hypot(ring.peak[0] - 32, ring.peak[1] - 32) <= 16
 
 
 GOOD = np.zeros((32, 32))

@@ -579,6 +579,50 @@ def test_small_looks_inside_a_swaps_blob_are_the_swaps() -> None:
     assert apart_from_swaps([inside, beside], SETTINGS) == [inside, beside]
 
 
+def _patch_beside_a_spot() -> tuple[Any, Any]:
+    """A 50 px brighter disc (a discoloured patch, seed §4: 1.3 times) and a darker 3 x 3 px spot 6 px
+    beyond its rim, in the corner of the disc's box; the comparison and a view of it square-on at 0.1 m
+    (0.6 mm pixels: the disc 3 cm wide, a swap's size, the spot an impact's)."""
+    from rsi.sim.render import CameraPose
+
+    rng = np.random.default_rng(7)
+    reference, inspection = (_textured() + rng.normal(0.0, 1.0, (120, 160)).astype(np.float32) for _ in "ab")
+    rows, cols = np.mgrid[:120, :160]
+    inspection[np.hypot(rows - 60, cols - 80) <= 25] *= np.float32(1.3)
+    inspection[37:40, 57:60] *= np.float32(0.5)  # centre (38, 58): 31 px from the disc's, 25 px its radius
+    pair = compare(_image(reference, 1.0), _image(inspection, 1.0), 1e-4, SETTINGS)
+    pose = CameraPose(np.zeros(3), np.eye(3), math.radians(40.0), (120, 160))
+    view = SimpleNamespace(surface_m=np.full((120, 160), 0.1, np.float32), believed_pose=pose)
+    return pair, view
+
+
+def test_a_large_blob_is_read_at_its_own_peak_though_its_box_holds_a_stronger_spot() -> None:
+    """Held-out truss seed 2210: the panel's brighter patch was read again at the darker impact in its
+    box, for a brighter change, and dropped (:func:`rsi.mission.evidence.same_sign_again`)."""
+    from rsi.mission.evidence import blobs
+
+    pair, view = _patch_beside_a_spot()
+    patch, spot = sorted(blobs(pair, view), key=lambda look: -look.flaw.area_px)[:2]
+    assert patch.flaw.polarity == "bright" and spot.flaw.polarity == "dark"
+    assert spot.score > patch.score  # the box's highest score is the spot's
+    row0, col0, row1, col1 = patch.bbox
+    assert row0 <= spot.at_px[0] < row1 and col0 <= spot.at_px[1] < col1
+    assert math.hypot(patch.at_px[0] - 60, patch.at_px[1] - 80) <= 26  # on the disc, not at the spot
+    assert pair.detection.statistic[int(patch.at_px[0]), int(patch.at_px[1])] > 0
+
+
+def test_a_spot_beyond_a_swaps_outline_stands_though_in_its_box() -> None:
+    from rsi.mission.evidence import apart_from_swaps, blobs
+
+    pair, view = _patch_beside_a_spot()
+    patch, spot = sorted(blobs(pair, view), key=lambda look: -look.flaw.area_px)[:2]
+    assert patch.area_m2 > SETTINGS.component_area_m2 >= spot.area_m2
+    glint = _look((0.0, 0.0, 0.0), 4e-6, (59, 79, 62, 82))  # centred on the disc: the swap's own change
+    assert apart_from_swaps([patch, spot, glint], SETTINGS) == [patch, spot]
+    boxed = dataclasses.replace(patch, outline=None)  # a look with no outline stands for its whole box
+    assert apart_from_swaps([boxed, spot, glint], SETTINGS) == [boxed]
+
+
 def test_a_glint_judges_a_head_when_its_whole_loss_would_read_three_sigma() -> None:
     """fraction * sqrt(pixels) >= 3: the binomial spread of the disc's pixels (truss-b's screw_B_3 glints
     over 0.26-0.47 of a ~250-pixel disc, which the comparison cannot read)."""

@@ -64,6 +64,9 @@ class Flaw:
         Peak score in the component.
     polarity : {"dark", "bright"}
         Sign of the change at the peak.
+    peak : (int, int), optional
+        ``(row, col)`` of the peak, one of the component's own pixels (its box may hold another flaw's);
+        None for a flaw recorded without it.
     """
 
     row: float
@@ -72,6 +75,7 @@ class Flaw:
     area_px: int
     score: float
     polarity: str
+    peak: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -432,6 +436,7 @@ def _flaws(
                 area_px=area,
                 score=float(score[peak]),
                 polarity="bright" if statistic[peak] > 0 else "dark",
+                peak=(int(peak[0]), int(peak[1])),
             )
         )
     return tuple(sorted(found, key=lambda flaw: -flaw.score))
