@@ -3,6 +3,7 @@ strata, false findings by kind and the anomaly-free runs on hand-built tallies, 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -201,6 +202,30 @@ def test_tally_run_of_a_hand_built_mission() -> None:
     assert run.outcomes[2].stratum == Stratum("thermal_spot", "hot", "kapton", "n/a")
     assert run.false_by_kind == {**dict.fromkeys(FINDING_KINDS, 0), "hot_spot": 1, "gas_leak": 1}
     assert run.false_findings == 2 and not run.anomaly_free
+
+
+def test_a_missed_swap_is_reported_as_another_kind_only_where_a_false_finding_lies_on_its_patch() -> None:
+    """Held-out truss seed 2210: a brighter patch 18 cm from the panel's site, missed, was said "reported as
+    impact" for a true impact found 2 cm from the site; a finding counts as the wrong kind only on the patch,
+    and only when it matched nothing else."""
+    from rsi.mission.records import VisitRecord
+
+    patch = SwappedComponent(
+        "C_panel", (0.0, 0.0, 0.0), UP, 0.52, "panel", defect="discoloured", reflectance_factor=1.3,
+        defect_centre_m=(0.18, 0.0, 0.0), defect_radius_m=0.03,
+    )  # fmt: skip
+    visits = (VisitRecord("C_panel", (0.0, 0.0), 0, 0, 0, 0, visible=(0, 1)),)
+    beside_the_site = dataclasses.replace(
+        _result((_finding("impact", 0.01),), (patch, _impact(2.0, x=0.01))), visits=visits
+    )
+    assert score_mission(beside_the_site).misses[0].reason == (
+        "visible in C_panel but below the detection threshold"
+    )
+    on_the_patch = dataclasses.replace(beside_the_site, findings=(_finding("impact", 0.2),))
+    assert [miss.reason for miss in score_mission(on_the_patch).misses] == [
+        "seen in C_panel but reported as impact",
+        "visible in C_panel but below the detection threshold",
+    ]
 
 
 def test_tally_run_refuses_bad_input() -> None:

@@ -170,7 +170,7 @@ def _tally(
             entry["found"] += 1
             entry["errors"].append(matched[k])
         else:
-            misses.append(Miss(k, anomaly.kind, _why_missed(result, k, anomaly)))
+            misses.append(Miss(k, anomaly.kind, _why_missed(result, k, anomaly, used_findings)))
     for i, finding in enumerate(result.findings):
         if i not in used_findings:
             per_type[scored_type(finding.kind)]["false"] += 1
@@ -180,21 +180,32 @@ def _tally(
 _SURVEYED = ("hot_spot", "cold_spot", "gas_leak")  # read by the pyrometer and gas passes, whatever the views
 
 
-def _why_missed(result: MissionResult, index: int, anomaly: Anomaly) -> str:
+def _why_missed(result: MissionResult, index: int, anomaly: Anomaly, used_findings: dict[int, int]) -> str:
     if anomaly.kind in _SURVEYED:
         return "sensor reading below its threshold or mislocated"
     seen_in = [visit.point for visit in result.visits if index in visit.visible]
     if not seen_in:
         return "not visible in any planned frame"
-    wrong = [f for f in result.findings if _near(f, anomaly, 0.02) and f.kind != anomaly.kind]
+    wrong = [
+        finding
+        for i, finding in enumerate(result.findings)
+        if i not in used_findings and finding.kind != anomaly.kind and _on_defect(finding, anomaly)
+    ]
     if wrong:
         return f"seen in {', '.join(seen_in)} but reported as {wrong[0].kind}"
     return f"visible in {', '.join(seen_in)} but below the detection threshold"
 
 
-def _near(finding: MissionFinding, anomaly: Anomaly, radius_m: float) -> bool:
-    distance = np.linalg.norm(np.asarray(finding.position_m) - np.asarray(anomaly.position_m))
-    return bool(distance <= radius_m)
+def _on_defect(finding: MissionFinding, anomaly: Anomaly) -> bool:
+    """Whether `finding` lies on what changed: within 2 cm of the anomaly, or of a swap's dent or
+    discoloured patch and its radius (a patch on the 52 cm panel is far from the panel's site, where an
+    impact found is no reading of the patch)."""
+    from rsi.sim.anomalies import SwappedComponent
+
+    centre, radius = anomaly.position_m, 0.02
+    if isinstance(anomaly, SwappedComponent) and anomaly.defect_centre_m is not None:
+        centre, radius = anomaly.defect_centre_m, 0.02 + anomaly.defect_radius_m
+    return bool(np.linalg.norm(np.subtract(finding.position_m, centre)) <= radius)
 
 
 def _check_visits(visits: object) -> None:
