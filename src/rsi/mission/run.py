@@ -275,9 +275,9 @@ def _inspection_pass(
 
     A swap is the component's (:func:`rsi.mission.visual.inspect_visit`, `known`): what one visit found,
     every later one knows, and an earlier one that showed the component without finding it had it in its
-    photometric fit. Seed §2.5 active inspection goes back where the evidence asks: such a point is visited
-    again knowing the swap, and that visit's findings take the place of the first one's (its screws, each
-    checked once, stay).
+    photometric fit. As seed §2.5's active inspection goes back where a reading is in doubt, such a point is
+    visited again knowing the swap (in a passive mission too: the reading was wrong, not doubtful), and that
+    visit's findings take the place of the first one's (its screws, each judged once, stay).
     """
     visits: dict[str, tuple[Visit, VisitRecord]] = {}
     checked: frozenset[str] = frozenset()
