@@ -94,11 +94,13 @@ def run_mission(
         Active inspection (seed §2.5): detections between the preliminary and confirming thresholds get a
         second look and are confirmed or rejected on the fused evidence. False: one look, one threshold.
     progress : callable, optional
-        ``progress(stage, done, total)`` after each visit and sensor pass.
+        ``progress(stage, done, total)`` after each visit and sensor pass; `total` grows by the points
+        visited again after the inspection pass (a swap found later that their view showed).
     on_visit : callable, optional
         ``on_visit(vista, findings)`` after each inspection visit, with what that visit found: provisional,
         before the findings of all the vistas are fused (a flaw two vistas saw is one finding in the result)
-        and before the pyrometer and gas passes. For a live view of a running mission (the console).
+        and before the pyrometer and gas passes; a point visited again is heard again, its new findings
+        replacing the first visit's. For a live view of a running mission (the console).
     size : (int, int)
         Frame (rows, cols), each >= 64.
     arm : bool
