@@ -354,17 +354,7 @@ def inspect_visit(
     comparison, translation = _with_parallax(stored, inspection, view, p_first, settings)
 
     limits = thresholds(settings)
-    pairs = (
-        comparison.pair,
-        compare(
-            comparison.second,
-            inspection,
-            p_first,
-            settings,
-            comparison.scale,
-            registration=comparison.aligned[1],
-        ),
-    )
+    pairs = _both_pairs(comparison, p_first, settings)
     checks = component_checks(
         pairs,
         view,
@@ -1254,24 +1244,24 @@ class _SecondVisit:
         changed = discoloured_pixels(self.view, explanations, self.settings)
         if changed is None:
             return self.pairs
-        kept = _restricted(self.image, ~changed)
-        first, second = (
-            compare(
-                without,
-                kept,
-                self.settings.p_preliminary,
-                self.settings,
-                self.stored.scale,
-                registration=_registered_again(without, kept, aligned),
-            )
-            for without, aligned in (
-                (_restricted(reference, ~changed), aligned)
-                for reference, aligned in zip(
-                    (self.seen.reference, self.seen.second), self.seen.aligned, strict=True
+        kept, settings = _restricted(self.image, ~changed), self.settings
+        pairs = []
+        for reference, aligned in zip(
+            (self.seen.reference, self.seen.second), self.seen.aligned, strict=True
+        ):
+            without = _restricted(reference, ~changed)
+            registered = _registered_again(without, kept, aligned)
+            pairs.append(
+                compare(
+                    without,
+                    kept,
+                    settings.p_preliminary,
+                    settings,
+                    self.stored.scale,
+                    registration=registered,
                 )
             )
-        )
-        return first, second
+        return pairs[0], pairs[1]
 
 
 def _trusted(view: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
