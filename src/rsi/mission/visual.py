@@ -633,9 +633,14 @@ def photometric_refit(
     (truss-b seed 2178 in space, cad_25: 18 px off, the comparison's robust sigma 4.5 DN, the frame's
     statistic five times too wide, three impacts of 7-10 sigma read under 3). So the prediction keeps a
     share ``c`` of the reference's own smooth light (:func:`_camera_light`) on the frame's pixels and moves
-    the rest with the scene, ``c`` fitted with the gains, between none and all of it. On cad_25 ``c`` came
-    out 1.0 and the robust sigma 1.7 DN; on views whose smooth light is the scene's own (a plate's edge
-    against the dark) it came out between -0.03 and 0.01 (held at 0 below).
+    the rest with the scene, ``c`` fitted with the gains, between none and all of it. The light multiplies
+    the surface's reflectance (an image is reflectance times irradiance), so what stays on the frame is the
+    light's ratio, ``r(y) (1 + c (L(A y) / L(y) - 1))``: the cells' dark gaps under a moved hotspot dim by
+    its ratio, not by its difference (truss seed 2228 in space, C_panel_east_front, the second pristine
+    visit 21 px off: an additive share came out 0.19 and left a dipole of +-10 DN, the frame's statistic
+    3.5 times too wide, a 2.5 mm crater read 2.9; the ratio's share came out 0.93 and the robust sigma went
+    from 5.0 to 1.9 DN). On views whose smooth light is the scene's own (a plate's edge against the dark)
+    ``c`` comes out near 0 (held at 0 below).
     """
     warped, inside = aligned.warp(reference.image, output_shape=inspection.image.shape, photometric=False)
     seen, _ = aligned.warp(
@@ -658,9 +663,10 @@ def photometric_refit(
     start[0], start[-1] = aligned.gain, aligned.bias
     light, riding, share, rider, fitted = None, np.zeros(before.size), 0.0, 0.0, None
     if _moved(aligned):
-        light = _camera_light(reference)
+        light = _camera_light(reference, _compared_in_reference(aligned, inspection.valid, reference.valid))
         moved, _ = aligned.warp(light, output_shape=inspection.image.shape, photometric=False)
-        riding = (light - moved)[used].astype(np.float64)  # the prediction's change if the light stays put
+        # the prediction's change if the light stays put on the frame: its ratio over the moved light
+        riding = before * (_light_ratio(light[used], moved[used]) - 1.0)
         joint, kept = _trimmed_fit(np.column_stack([design, riding]), after, np.append(start, 0.0))
         if not joint[0] > 0.0:  # no strobe image is dimmer than nothing: a degenerate fit, the first stands
             return aligned, reference
@@ -693,51 +699,102 @@ def _moved(aligned: Registration) -> bool:
     return bool(np.hypot(*aligned.translation_xy) >= 1.0)
 
 
-# The strobe's smooth light: a Gaussian of this sigma. A glossy panel's glare is tens of pixels across
-# (truss-b 2178 cad_25: ~100 px), a 4 mm impact 8 px, under a tenth of the weight of this window; on
-# cad_25 a sigma of 6 px left the comparison's robust sigma at 2.1 DN, 12 px at 1.7 DN.
-_CAMERA_LIGHT_SIGMA_PX = 12.0
+# The strobe's smooth light (seed §3: the strobe rides on the jaws) is read from the reference through its
+# reflectance: the median over this many pixels takes out what is narrower (the cells' gaps, a panel's grid,
+# edges, a crater), the Gaussian of this sigma then smooths the light. Chosen on two views whose pristine
+# visit was 18-21 px off (truss seed 2228 C_panel_east_front, truss-b seed 2178 cad_25; both development):
+# a 12 px Gaussian alone left the cells' gaps in the light and the comparisons' robust sigma at 3.2 DN and
+# 1.6-1.7 DN, this one 1.9 DN and 1.6 DN, with a third to a fifth of the pixels beyond 4 sigma; a 96 px
+# Gaussian flattened cad_25's glare (2.4 DN).
+_REFLECTANCE_MEDIAN_PX = 36
+_CAMERA_LIGHT_SIGMA_PX = 48.0
 _LIGHT_STEP = 4
+# Below this many DN the light is too dim to carry a ratio (a dark frame's corner): it is left as it is
+_LIGHT_FLOOR_DN = 1.0
 
 
-def _camera_light(reference: Compensated) -> NDArray[np.float32]:
-    """The reference's smooth light: its valid pixels blurred by ``_CAMERA_LIGHT_SIGMA_PX``, normalised by
-    the valid weight (0 where nothing valid is near). Blurred at a quarter of the resolution: the light is
-    smooth over a sigma three times that step, and a full-size blur cost every refit 10 ms."""
+def _compared_in_reference(
+    aligned: Registration, compared: NDArray[np.bool_], valid: NDArray[np.bool_]
+) -> NDArray[np.bool_]:
+    """The reference's `valid` pixels that `aligned` brings onto the inspection's `compared` ones."""
     import cv2
+
+    rows, cols = valid.shape
+    # aligned maps the reference's frame onto the inspection's: the reference's pixel y reads A y
+    back = cv2.warpAffine(
+        compared.astype(np.uint8),
+        aligned.matrix[:2].astype(np.float64),
+        (cols, rows),
+        flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+        borderValue=0,
+    )
+    return np.asarray(valid & back.astype(bool), dtype=bool)
+
+
+def _camera_light(reference: Compensated, surface: NDArray[np.bool_]) -> NDArray[np.float32]:
+    """The reference's smooth light over its `surface` pixels (those compared): at a quarter of the
+    resolution, the gaps filled from the nearest such pixel, their median over ``_REFLECTANCE_MEDIAN_PX``,
+    blurred by ``_CAMERA_LIGHT_SIGMA_PX`` and normalised by the weight (0 where none is near).
+
+    Only the compared surface: what lies beyond it (the dark of space past a panel's edge, a strut) has
+    another reflectance, and blurred into the panel's light it made a ratio at its edge (held-out truss-b
+    seed 2237 in space, cad_21: the black beyond the panel, 17 px off, read as the panel's edge 6-8 sigma
+    brighter, a false swapped component)."""
+    import cv2
+    from scipy import ndimage
 
     rows, cols = reference.image.shape
     small = (max(cols // _LIGHT_STEP, 1), max(rows // _LIGHT_STEP, 1))
+    weight = cv2.resize(surface.astype(np.float32), small, interpolation=cv2.INTER_AREA)
+    total = cv2.resize(reference.image * surface, small, interpolation=cv2.INTER_AREA)
+    seen = weight > 0.5
+    if not seen.any():
+        return np.zeros(reference.image.shape, np.float32)
+    level = np.where(seen, total / np.maximum(weight, 1e-3), np.float32(0.0)).astype(np.float32)
+    nearest = ndimage.distance_transform_edt(~seen, return_distances=False, return_indices=True)
+    filled = level[tuple(nearest)]
+    median = ndimage.median_filter(filled, size=max(_REFLECTANCE_MEDIAN_PX // _LIGHT_STEP, 1))
     sigma = _CAMERA_LIGHT_SIGMA_PX / _LIGHT_STEP
-    weight = reference.valid.astype(np.float32)
-    shrunk = [
-        cv2.resize(plane, small, interpolation=cv2.INTER_AREA) for plane in (reference.image * weight, weight)
-    ]
-    total, norm = (cv2.GaussianBlur(plane, (0, 0), sigma) for plane in shrunk)
-    light = np.where(norm > 1e-3, total / np.maximum(norm, 1e-3), np.float32(0.0)).astype(np.float32)
+    mask = seen.astype(np.float32)
+    blurred, norm = (cv2.GaussianBlur(plane, (0, 0), sigma) for plane in (median * mask, mask))
+    light = np.where(norm > 1e-3, blurred / np.maximum(norm, 1e-3), np.float32(0.0)).astype(np.float32)
     return np.asarray(cv2.resize(light, (cols, rows), interpolation=cv2.INTER_LINEAR), dtype=np.float32)
+
+
+def _light_ratio(light: NDArray[np.floating], moved: NDArray[np.floating]) -> FloatArray:
+    """``light / moved`` where the moved light is bright enough to divide by, 1 elsewhere."""
+    light, moved = np.asarray(light, np.float64), np.asarray(moved, np.float64)
+    bright = moved > _LIGHT_FLOOR_DN
+    return np.where(bright, light / np.where(bright, moved, 1.0), 1.0)
 
 
 def _kept_on_frame(
     reference: Compensated, aligned: Registration, light: NDArray[np.float32] | None, share: float
 ) -> Compensated:
     """`reference` with `share` of its smooth light moved to where `aligned` puts each pixel on the frame,
-    so that registering it by `aligned` leaves that share where it was: ``r(y) + c (L(A y) - L(y))``;
-    `reference` itself where no light was fitted or none rides."""
+    so that registering it by `aligned` leaves that share where it was: ``r(y) (1 + c (L(A y) / L(y) - 1))``,
+    its variance by the factor's square; `reference` itself where no light was fitted or none rides."""
     import cv2
 
     if light is None or share == 0.0:
         return reference
     rows, cols = light.shape
-    on_frame = cv2.warpAffine(
-        light,
-        aligned.matrix[:2].astype(np.float64),
-        (cols, rows),
-        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-        borderMode=cv2.BORDER_REPLICATE,
+    on_frame = np.asarray(
+        cv2.warpAffine(
+            light,
+            aligned.matrix[:2].astype(np.float64),
+            (cols, rows),
+            flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+            borderMode=cv2.BORDER_REPLICATE,
+        ),
+        dtype=np.float32,
     )
-    image = reference.image + np.float32(share) * (on_frame - light)
-    return replace(reference, image=image.astype(np.float32))
+    factor = (1.0 + share * (_light_ratio(on_frame, light) - 1.0)).astype(np.float32)
+    return replace(
+        reference,
+        image=(reference.image * factor).astype(np.float32),
+        variance=(reference.variance * factor * factor).astype(np.float32),
+    )
 
 
 def _trimmed_fit(
