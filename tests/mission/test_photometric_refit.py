@@ -187,3 +187,23 @@ def test_a_component_in_the_frames_corner_is_refitted_to_its_own_reflectance() -
     compared[:, 160:164] = False  # the strip the shift brought in from beyond the corner
     assert 0.5 < refitted.gain < 0.6
     assert np.std((inspection - predicted)[compared]) < 3.5  # the noise (fitted about the centre: 5.0)
+
+
+def test_the_light_is_read_on_the_compared_surface_only() -> None:
+    # the panel of cells against the black of space (columns 0-79 of the reference), the inspection
+    # comparing the panel alone: blurred over the black, the light would dim the panel's edge, and its
+    # ratio would leave that edge brighter than predicted over the scene's shift
+    reference, inspection = _glare_scene(-20)
+    columns = np.arange(reference.shape[1])
+    reference[:, columns < 80] = 0.0
+    inspection[:, columns < 60] = 0.0
+    panel = np.broadcast_to(columns >= 60, inspection.shape)
+    moved = np.eye(3)
+    moved[0, 2] = -20.0
+    first = replace(register(reference, inspection, model="translation"), matrix=moved)
+    refitted, kept = photometric_refit(first, _strobe_image(reference), _strobe_image(inspection, panel.copy()))
+    predicted, inside = refitted.warp(kept.image, output_shape=inspection.shape)
+    left = np.where(inside & panel, inspection - predicted, 0.0)
+    edge = left[:, 60:100][inside[:, 60:100]]
+    assert abs(float(np.mean(edge))) < 0.5  # the edge's 40 columns: no brighter band
+    assert np.std(left[inside & panel]) < 3.2
