@@ -201,7 +201,9 @@ def test_the_light_is_read_on_the_compared_surface_only() -> None:
     moved = np.eye(3)
     moved[0, 2] = -20.0
     first = replace(register(reference, inspection, model="translation"), matrix=moved)
-    refitted, kept = photometric_refit(first, _strobe_image(reference), _strobe_image(inspection, panel.copy()))
+    refitted, kept = photometric_refit(
+        first, _strobe_image(reference), _strobe_image(inspection, panel.copy())
+    )
     predicted, inside = refitted.warp(kept.image, output_shape=inspection.shape)
     left = np.where(inside & panel, inspection - predicted, 0.0)
     edge = left[:, 60:100][inside[:, 60:100]]
