@@ -702,10 +702,10 @@ def _moved(aligned: Registration) -> bool:
 # The strobe's smooth light (seed §3: the strobe rides on the jaws) is read from the reference through its
 # reflectance: the median over this many pixels takes out what is narrower (the cells' gaps, a panel's grid,
 # edges, a crater), the Gaussian of this sigma then smooths the light. Chosen on two views whose pristine
-# visit was 18-21 px off (truss seed 2228 C_panel_east_front, truss-b seed 2178 cad_25; both development):
-# a 12 px Gaussian alone left the cells' gaps in the light and the comparisons' robust sigma at 3.2 DN and
-# 1.6-1.7 DN, this one 1.9 DN and 1.6 DN, with a third to a fifth of the pixels beyond 4 sigma; a 96 px
-# Gaussian flattened cad_25's glare (2.4 DN).
+# visit was 18-21 px off (truss seed 2228 C_panel_east_front, truss-b seed 2178 cad_25; both development),
+# the light then read over the whole frame: a 12 px Gaussian alone left the cells' gaps in the light and
+# the comparisons' robust sigma at 3.2 DN and 1.6-1.7 DN, this one 1.9 DN and 1.6 DN, with a third to a
+# fifth of the pixels beyond 4 sigma; a 96 px Gaussian flattened cad_25's glare (2.4 DN).
 _REFLECTANCE_MEDIAN_PX = 36
 _CAMERA_LIGHT_SIGMA_PX = 48.0
 _LIGHT_STEP = 4
@@ -719,16 +719,28 @@ def _compared_in_reference(
     """The reference's `valid` pixels that `aligned` brings onto the inspection's `compared` ones."""
     import cv2
 
-    rows, cols = valid.shape
-    # aligned maps the reference's frame onto the inspection's: the reference's pixel y reads A y
-    back = cv2.warpAffine(
-        compared.astype(np.uint8),
-        aligned.matrix[:2].astype(np.float64),
-        (cols, rows),
-        flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
-        borderValue=0,
+    back = _read_where_inspected(compared.astype(np.float32), aligned, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT)
+    return np.asarray(valid & (back > 0.5), dtype=bool)
+
+
+def _read_where_inspected(
+    image: NDArray[np.float32], aligned: Registration, interpolation: int, border: int
+) -> NDArray[np.float32]:
+    """`image` (on the frame's pixels) read, at each reference pixel y, where `aligned` puts it on the
+    inspection's frame: ``image(A y)``."""
+    import cv2
+
+    rows, cols = image.shape[:2]
+    return np.asarray(
+        cv2.warpAffine(
+            image,
+            aligned.matrix[:2].astype(np.float64),
+            (cols, rows),
+            flags=interpolation | cv2.WARP_INVERSE_MAP,
+            borderMode=border,
+        ),
+        dtype=np.float32,
     )
-    return np.asarray(valid & back.astype(bool), dtype=bool)
 
 
 def _camera_light(reference: Compensated, surface: NDArray[np.bool_]) -> NDArray[np.float32]:
@@ -737,9 +749,9 @@ def _camera_light(reference: Compensated, surface: NDArray[np.bool_]) -> NDArray
     blurred by ``_CAMERA_LIGHT_SIGMA_PX`` and normalised by the weight (0 where none is near).
 
     Only the compared surface: what lies beyond it (the dark of space past a panel's edge, a strut) has
-    another reflectance, and blurred into the panel's light it made a ratio at its edge (held-out truss-b
-    seed 2237 in space, cad_21: the black beyond the panel, 17 px off, read as the panel's edge 6-8 sigma
-    brighter, a false swapped component)."""
+    another reflectance, and blurred into the panel's light it made a ratio at its edge (truss-b seed 2237
+    in space, held out when it was found, cad_21: the black beyond the panel, 17 px off, read as the
+    panel's edge 6-8 sigma brighter, a false swapped component)."""
     import cv2
     from scipy import ndimage
 
@@ -778,17 +790,7 @@ def _kept_on_frame(
 
     if light is None or share == 0.0:
         return reference
-    rows, cols = light.shape
-    on_frame = np.asarray(
-        cv2.warpAffine(
-            light,
-            aligned.matrix[:2].astype(np.float64),
-            (cols, rows),
-            flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-            borderMode=cv2.BORDER_REPLICATE,
-        ),
-        dtype=np.float32,
-    )
+    on_frame = _read_where_inspected(light, aligned, cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
     factor = (1.0 + share * (_light_ratio(on_frame, light) - 1.0)).astype(np.float32)
     return replace(
         reference,
