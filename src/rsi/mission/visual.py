@@ -371,17 +371,16 @@ def inspect_visit(
     explanations = list(dict.fromkeys([*known, *(explanation for _, explanation in checks)]))
     whole = comparison
     comparison = _without_discoloured(comparison, view, explanations, p_first, settings)
-    screws, checked = screw_checks(
+    screws, checked = _screws_read(
         world,
         view,
         point.name,
-        settings=settings,
-        range_m=view.range_m,
-        reliefs=stored.reliefs,
-        glints=stored.glints,
+        (pairs, pairs if comparison is whole else _both_pairs(comparison, p_first, settings)),
+        discoloured_pixels(view, explanations, settings),
+        stored=stored,
         done=screws_checked,
-        pairs=pairs if comparison is whole else _both_pairs(comparison, p_first, settings),
         confirm=limits.confirm,
+        settings=settings,
     )
     if active:
         screws, screws_doubted = _screws_found_again(again, screws, explanations, world, limits.confirm)
@@ -1323,6 +1322,74 @@ class _SecondVisit:
         return pairs[0], pairs[1]
 
 
+def _screws_read(
+    world: World,
+    view: Sensed,
+    source: str,
+    pairs: tuple[tuple[PairResult, PairResult], tuple[PairResult, PairResult]],
+    changed: NDArray[np.bool_] | None,
+    *,
+    stored: StoredView,
+    done: frozenset[str],
+    confirm: float,
+    settings: MissionSettings,
+) -> tuple[list[MissionFinding], frozenset[str]]:
+    """:func:`rsi.mission.evidence.screw_checks` of the screws the view sees, each against the comparison
+    that holds its head: `pairs` is the whole frame's comparisons with both pristine visits, then those
+    without the discoloured components' pixels (`changed`, :func:`discoloured_pixels`).
+
+    A found swap's pixels, a margin wider, leave the frame's photometric fit (:func:`_without_discoloured`),
+    and a screw on that component leaves with them: held-out truss seed 2240 in space, the solar panel
+    repainted, its screw_C_1 seen only from C_panel_west_back, where none of its disc was left to judge, and
+    its removal was missed. Those screws are read against the whole frame, as before the swap was known:
+    the head's pattern is a normalised correlation, blind to the fit's gain, and its darkening is read
+    against the plate's own change (:func:`rsi.mission.evidence.screw_change`). The others are read without
+    the swap, whose drag on the fit they would otherwise carry.
+    """
+    whole, without = pairs
+    names = frozenset(site.name for site in world.mockup.candidates.screw_sites)
+    on_changed = _screws_on(world, view, changed)
+    findings: list[MissionFinding] = []
+    checked: frozenset[str] = frozenset()
+    for chosen, left in ((without, on_changed), (whole, names - on_changed)):
+        found, judged = screw_checks(
+            world,
+            view,
+            source,
+            settings=settings,
+            range_m=view.range_m,
+            reliefs=stored.reliefs,
+            glints=stored.glints,
+            done=done | left,
+            pairs=chosen,
+            confirm=confirm,
+        )
+        findings += found
+        checked |= judged
+    return findings, checked
+
+
+def _screws_on(world: World, view: Sensed, changed: NDArray[np.bool_] | None) -> frozenset[str]:
+    """The screws whose centre lies on `changed` or in a hole of it (by the believed pose); none without it.
+
+    A head is a part of its own, not of the component it holds (:mod:`rsi.sim.mockup`): the component's
+    pixels ring it, and a head wider than their margin stays a hole in them.
+    """
+    from scipy.ndimage import binary_fill_holes
+
+    sites = world.mockup.candidates.screw_sites
+    if changed is None or not sites:
+        return frozenset()
+    changed = np.asarray(binary_fill_holes(changed), dtype=bool)
+    rows, cols, _ = to_field(view, np.asarray([site.position_m for site in sites]))
+    height, width = changed.shape
+    return frozenset(
+        site.name
+        for site, row, col in zip(sites, np.round(rows).astype(int), np.round(cols).astype(int), strict=True)
+        if 0 <= row < height and 0 <= col < width and changed[row, col]
+    )
+
+
 def _trusted(view: Sensed, settings: MissionSettings) -> NDArray[np.bool_]:
     """Where the comparison is trusted: well inside the strobe's beam, on a surface seen within the grazing
     incidence (:func:`_mostly_within`)."""
@@ -1395,17 +1462,16 @@ def _screws_found_again(
     sites = world.mockup.candidates.screw_sites
     doubtful = {site.name for site in sites if site.position_m in {f.position_m for f in screws}}
     view = again.view
-    found, _ = screw_checks(
+    found, _ = _screws_read(
         world,
         view,
         again.point.name,
-        settings=again.settings,
-        range_m=view.range_m,
-        reliefs=again.stored.reliefs,
-        glints=again.stored.glints,
+        (again.pairs, again.pairs_without(explanations)),
+        discoloured_pixels(view, explanations, again.settings),
+        stored=again.stored,
         done=frozenset(site.name for site in sites if site.name not in doubtful),
-        pairs=again.pairs_without(explanations),
         confirm=confirm,
+        settings=again.settings,
     )
     missing = {finding.position_m for finding in found}
     kept = [finding for finding in screws if finding.position_m in missing]
