@@ -435,6 +435,43 @@ def test_a_spot_is_judged_against_its_own_surroundings() -> None:
     assert spot_score(dark, (70, 60, 73, 63), score, "dark", kernel) <= score
 
 
+def _lined(spot_dn: float, line_dn: float, angle_deg: float) -> Any:
+    """A plain pair whose inspection carries a line 2 px wide of `line_dn` across the frame through
+    (71, 61) at `angle_deg` (an edge's residual), and a 3x3 spot of `spot_dn` on it there."""
+    import cv2
+
+    rng = np.random.default_rng(7)
+    reference, inspection = (
+        np.float32(80.0) + rng.normal(0.0, 1.0, (120, 160)).astype(np.float32) for _ in "ab"
+    )
+    line = np.zeros((120, 160), np.uint8)
+    direction = np.array([math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))]) * 200
+    ends = (np.array([61.0, 71.0]) - direction, np.array([61.0, 71.0]) + direction)
+    cv2.line(line, *(tuple(round(float(v)) for v in end) for end in ends), 1, 2)
+    inspection += np.float32(line_dn) * line
+    inspection[70:73, 60:63] += np.float32(spot_dn)
+    return compare(_image(reference, 1.0), _image(inspection, 1.0), SETTINGS.p_false_alarm, SETTINGS)
+
+
+@pytest.mark.parametrize("angle_deg", [12.0, 33.0, 90.0, 128.0, 150.0])
+def test_a_spot_on_an_edges_residual_is_judged_against_the_line(angle_deg: float) -> None:
+    """Seed §2.3: an edge re-sampled leaves a line in the difference, too thin to move the ring's median;
+    a part of it read as a spot stands out of its ring but not out of the line (truss seed 2251, CAD
+    plan: a solar-cell gap confirmed as three impacts), and a flaw on the line still stands out of it."""
+    from rsi.mission.evidence import spot_score
+    from rsi.mission.visual import thresholds
+
+    confirm, kernel = thresholds(SETTINGS).confirm, SETTINGS.flaw_size_px
+    bbox = (70, 60, 73, 63)
+    only_line = _lined(0.0, 4.0, angle_deg)
+    score = float(only_line.detection.score[70:73, 60:63].max())
+    assert score > confirm  # the line's residual alone reads as a confirmed spot against the noise model
+    assert spot_score(only_line, bbox, score, "bright", kernel) < confirm
+    on_line = _lined(12.0, 4.0, angle_deg)
+    score = float(on_line.detection.score[70:73, 60:63].max())
+    assert spot_score(on_line, bbox, score, "bright", kernel) > confirm
+
+
 def test_a_brighter_sun_shortens_the_inspection_shutter_and_leaves_the_strobe_image() -> None:
     from rsi.mission.run import ORBIT_START_S
     from rsi.mission.tour import Tour
