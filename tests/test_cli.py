@@ -418,10 +418,10 @@ def test_an_unknown_layout_is_refused_by_name_before_any_work(
 
 @pytest.mark.parametrize("name", ["", "  ", "x" * 65])
 def test_a_vista_that_is_no_name_is_refused_before_any_work(name: str, tmp_path: Path) -> None:
-    result = invoke("demo", "--vista", "B_tank", "--vista", name, "--out", tmp_path / "out")
+    result = invoke("demo", "--vista", "cad_03", "--vista", name, "--out", tmp_path / "out")
     assert result.exit_code == cli.EXIT_INVALID_VALUE, result.output
     (line,) = result.stderr.strip().splitlines()
-    assert line.startswith("rsi: error: --vista=") and "e.g. --vista B_tank" in line
+    assert line.startswith("rsi: error: --vista=") and "e.g. --vista cad_03" in line
     assert not (tmp_path / "out").exists()
 
 

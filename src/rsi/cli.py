@@ -343,8 +343,8 @@ def demo(
     layout: Annotated[
         str,
         typer.Option(
-            help="The mock-up's layout: 'truss' (seed §4, the hand plan completed from its CAD model) or "
-            "'truss-b' (issue 15, a plan generated from its CAD model)."
+            help="The mock-up's layout: 'truss' (seed §4) or 'truss-b' (issue 15); either flown with a plan "
+            "generated from its CAD model."
         ),
     ] = "truss",
     vista: Annotated[
@@ -352,7 +352,7 @@ def demo(
         typer.Option(
             "--vista",
             help="Fly only the plan's points taken from this vista, repeated for several (a targeted "
-            "re-inspection: --vista B_tank). Default: the whole plan.",
+            "re-inspection: --vista cad_03). Default: the whole plan.",
         ),
     ] = None,
 ) -> None:
@@ -753,7 +753,7 @@ def _checked_vistas(vistas: list[str] | None) -> tuple[str, ...]:
         if not name.strip() or len(name) > _MAX_VISTA_NAME:
             raise InputError(
                 f"--vista={name[:40]!r} is not a vista name: give one of the plan's vistas (the report's "
-                "plan table lists them), e.g. --vista B_tank."
+                "plan table lists them), e.g. --vista cad_03."
             )
     return tuple(dict.fromkeys(names))
 

@@ -152,7 +152,7 @@ def test_close_panel_views_cover_the_cells_at_half_a_millimetre_per_pixel() -> N
 
     world = load("truss", seed=SEED)
     try:
-        panels = [point for point in plan_vistas(world) if point.name.startswith("C_panel")]
+        panels = [point for point in plan_vistas(world, HAND_PLAN) if point.name.startswith("C_panel")]
         patch = next(p for p in truss_mockup().candidates.impact_patches if p.name == "C_cells")
         half_u, half_v = patch.half_extent_m
         grid = np.array(

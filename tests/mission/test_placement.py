@@ -12,7 +12,7 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.imaging.compensation import compensate_field_pair
-from rsi.mission import plan_vistas
+from rsi.mission import MissionSettings, plan_vistas
 from rsi.mission.settings import MISSION_SIZE
 from rsi.mission.views import placed
 from rsi.sim.capture import capture
@@ -22,7 +22,7 @@ from rsi.sim.world import load
 @pytest.fixture(scope="module")
 def world() -> Iterator[Any]:
     built = load("truss", seed=5, repeatability="space")  # about 10 px of viewpoint error at the standoff
-    plan_vistas(built)
+    plan_vistas(built, MissionSettings(plan="hand"))  # the hand plan's views by name
     yield built
     built.close()
 
@@ -78,7 +78,6 @@ def test_the_ambient_bracket_lifts_the_sunlit_surface_near_the_top_and_keeps_eve
 ) -> None:
     from rsi.errors import InputError
     from rsi.mission.exposure import ambient_bracket, ambient_dn
-    from rsi.mission.settings import MissionSettings
     from rsi.mission.tour import Tour
     from rsi.mission.views import inspection_region, sense
 

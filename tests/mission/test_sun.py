@@ -13,7 +13,7 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.errors import InputError
-from rsi.mission import plan_vistas
+from rsi.mission import MissionSettings, plan_vistas
 from rsi.mission.sun import lab_world_from_lvlh, lamp_light_direction, light_by_sun, pass_starts, sun_setting
 from rsi.sim import orbit as orbits
 from rsi.sim.world import World, load
@@ -26,7 +26,7 @@ PERIOD_S = orbits.orbital_period_s()
 @pytest.fixture(scope="module")
 def world() -> Iterator[World]:
     built = load("truss", seed=SEED)
-    plan_vistas(built)  # the panel's view from above
+    plan_vistas(built, MissionSettings(plan="hand"))  # the hand plan's panel view from above
     yield built
     built.close()
 

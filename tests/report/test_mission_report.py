@@ -55,7 +55,7 @@ SEED = 0
 SMALL = (240, 320)
 # the views the arm flies to (transits, frames behind the jaws; seed 0 has impacts, a swap and screws there):
 # every section of the report is drawn, in a third of the whole plan's time
-ARM_VIEWS = MissionSettings(vistas=("A_door", "A_kapton", "B_tank", "D_tubing"))
+ARM_VIEWS = MissionSettings(plan="hand", vistas=("A_door", "A_kapton", "B_tank", "D_tubing"))
 DATA_URI = "data:image/png;base64,"
 CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
 

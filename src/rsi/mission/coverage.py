@@ -419,7 +419,8 @@ def coverage(
     Parameters
     ----------
     points : sequence of PlanPoint
-        A plan, e.g. ``plan_vistas(world)`` (the hand plan) or a generated plan's points.
+        A plan, e.g. ``plan_vistas(world)`` (the default: generated from the CAD model) or the hand plan's
+        points (``plan_vistas(world, MissionSettings(plan="hand"))``).
     world : World
         Holds the points' vistas and the mock-up (its anomalies are ignored: the CAD is measured). With the
         arm, each frame loses what the ISEE's jaws hide at the point's opening (seed §3.1).

@@ -137,8 +137,8 @@ class MissionSettings:
         the operating point of the figures in docs/mission.md), ``"cad"`` a plan generated from the CAD
         model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 29 points on the truss),
         ``"hand+cad"`` the hand plan, then the points generated for what it leaves at its own 1 mm pixels
-        and 45 deg (five on the truss: the tanks' flanks), ``"auto"`` (default) ``"hand+cad"`` on the
-        truss layout and the CAD plan on any other.
+        and 45 deg (five on the truss: the tanks' flanks), ``"auto"`` (default) the CAD plan on every
+        layout.
     vistas : tuple of str
         Fly only the plan's points taken from these vistas (a targeted re-inspection: the panel again after a
         finding there), in the plan's order, each with its second frame behind the jaws where it has one.
