@@ -649,16 +649,20 @@ def _uncertainty(
 
 def _textured_samples(weight: Image, energy: Image) -> NDArray[np.intp]:
     """Flat indices of the pixels a robust residual scale is taken on: every _SIGMA_STRIDE-th used pixel
-    whose reference gradient energy is above the median of those (a sample is enough for a scale).
+    whose reference gradient energy is above the median of those, and not zero (a sample is enough for a
+    scale).
 
     On a binarised board the flat copper and substrate have no residual at all, and their zeros would make
-    every edge an outlier. Fixed for a weight: computed once, not at every step.
+    every edge an outlier. Most of a board is flat, so the median energy itself is zero there: without the
+    second condition the flat pixels came back, the scale was zero, Huber's clip fell away and the trim
+    dropped every edge with any residual (3-29 % of the used pixels of DeepPCB pairs, most of their edges).
+    Fixed for a weight: computed once, not at every step.
     """
     sampled = np.flatnonzero(weight.ravel()[::_SIGMA_STRIDE] > 0) * _SIGMA_STRIDE
     if not sampled.size:
         return sampled
     sampled_energy = energy.ravel()[sampled]
-    return sampled[sampled_energy >= np.median(sampled_energy)]
+    return sampled[(sampled_energy >= np.median(sampled_energy)) & (sampled_energy > 0)]
 
 
 def _robust_sigma(residual: Image, samples: NDArray[np.intp]) -> float:
