@@ -297,6 +297,10 @@ class _Grid:
             padded[:-1, :-1] + padded[1:, :-1] + padded[:-1, 1:] + padded[1:, 1:], dtype=np.float64
         )
 
+    def sampled(self, row_step: int) -> _Grid:
+        """The same cells on every `row_step`-th row: a cell's rows are the sampled rows within it."""
+        return _Grid(-(-self.row_edges // row_step), self.col_edges)
+
     def hats(self) -> tuple[FloatArray, FloatArray]:
         """Each pixel's hat weight on each node along the rows (M, R) and the columns (N, C)."""
         node_rows, node_cols = self.nodes
@@ -497,10 +501,11 @@ def _gradients(image: Image) -> tuple[Image, Image]:
     return gx, gy
 
 
-def _forward_maps(matrix: FloatArray, shape: tuple[int, int]) -> tuple[Image, Image]:
-    """Inspection coordinates ``matrix @ (x, y, 1)`` of every reference pixel: map_x, map_y (M, N)."""
+def _forward_maps(matrix: FloatArray, shape: tuple[int, int], row_step: int = 1) -> tuple[Image, Image]:
+    """Inspection coordinates ``matrix @ (x, y, 1)`` of every reference pixel of every `row_step`-th row:
+    map_x, map_y (rows sampled, N)."""
     cols = np.arange(shape[1], dtype=np.float64)[None, :]
-    rows = np.arange(shape[0], dtype=np.float64)[:, None]
+    rows = np.arange(0, shape[0], row_step, dtype=np.float64)[:, None]
     denominator = matrix[2, 0] * cols + matrix[2, 1] * rows + matrix[2, 2]
     map_x = (matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2]) / denominator
     map_y = (matrix[1, 0] * cols + matrix[1, 1] * rows + matrix[1, 2]) / denominator
@@ -526,22 +531,26 @@ class _Solver:
         tile_px: int,
         tolerance: float,
         interpolation: int,
+        row_step: int = 1,
     ) -> None:
-        self.reference, self.inspection, self.grid = reference, inspection, grid
+        # Every row_step-th row only (the sums over a tile's rows then hold its rows' sample).
+        sampled = slice(None, None, row_step)
+        self.reference, self.inspection, self.grid = reference[sampled], inspection, grid.sampled(row_step)
         self.field_limit = _MAX_FIELD_TILES * tile_px
         self.tolerance = tolerance
         self.interpolation = interpolation
-        self.gx, self.gy = _gradients(reference)
+        self.gx, self.gy = (gradient[sampled] for gradient in _gradients(reference))
         self.energy = self.gx * self.gx + self.gy * self.gy
         shape = (int(reference.shape[0]), int(reference.shape[1]))
-        self.base_x, self.base_y = _forward_maps(matrix, shape)
+        self.base_x, self.base_y = _forward_maps(matrix, shape, row_step)
         # The inspection's gradient at the matched point is J^-T times the reference's (J: the global
         # fit's Jacobian, exact for an affine fit; a homography's hardly varies over a board).
         self.inverse = np.linalg.inv(np.asarray(matrix[:2, :2] / matrix[2, 2], dtype=np.float64))
-        self.hats = grid.hats()
+        row_hat, col_hat = grid.hats()
+        self.hats = (row_hat[sampled], col_hat)
         self.field = np.zeros((*grid.tiles_shape, 2))
         self.iterations = 0
-        self.set_weight(weight)
+        self.set_weight(weight[sampled])
 
     def set_weight(self, weight: Image) -> None:
         self.weight = weight
@@ -707,6 +716,7 @@ def _level_solver(
     level: int,
     tolerance: float,
     interpolation: int,
+    row_step: int,
 ) -> _Solver:
     """A solver on the images ``2**level`` times smaller, `matrix` and `grid` carried to them."""
     scale = np.diag([2.0**-level, 2.0**-level, 1.0])
@@ -722,6 +732,7 @@ def _level_solver(
         tile_px=tile_px >> level,
         tolerance=tolerance,
         interpolation=interpolation,
+        row_step=row_step,
     )
 
 
@@ -735,6 +746,7 @@ def estimate_field(
     *,
     finest_level: int = 0,
     tolerance_px: float = TOLERANCE_PX,
+    row_step: int = 1,
 ) -> LocalField:
     """The local field between the smoothed reference and the smoothed inspection, after a global fit.
 
@@ -763,7 +775,9 @@ def estimate_field(
     level = min(finest_level, max(0, int(np.log2(tile_px / _MIN_TILE_PX))))
     # Bicubic resampling on the finest level: bilinear's bias follows the sub-pixel phase, which a smooth
     # field keeps nearly constant over a tile (0.045 px instead of 0.010 px on the 1 px test warps).
-    on_level = partial(_level_solver, reference, inspection, matrix, valid, grid=grid, tile_px=tile_px)
+    on_level = partial(
+        _level_solver, reference, inspection, matrix, valid, grid=grid, tile_px=tile_px, row_step=row_step
+    )
     solver = on_level(level=level, tolerance=tolerance_px / 2.0**level, interpolation=cv2.INTER_CUBIC)
     if tile_px >> level >= 2 * _MIN_TILE_PX:
         # The field found one level coarser first: twice the capture range, a quarter of the cost.

@@ -784,6 +784,7 @@ def register(
             if field_tolerance_px is None
             else in_range(field_tolerance_px, "field_tolerance_px", low=0.0, low_inclusive=False),
             finest_level=positive_int(finest_level, "finest_level", minimum=0),
+            row_step=row_step,
             started=started,
         )
     for name, value in (("tile_px", tile_px), ("field_tolerance_px", field_tolerance_px)):
@@ -861,6 +862,7 @@ def _register_local(
     tile_px: int,
     tolerance_px: float,
     finest_level: int,
+    row_step: int | None,
     started: float,
 ) -> Registration:
     """The global fit, then the local field between the warped reference and the inspection (seed §2.3)."""
@@ -886,6 +888,7 @@ def _register_local(
         tile_px,
         finest_level=finest_level,
         tolerance_px=tolerance_px,
+        row_step=1 if row_step is None else row_step,
     )
     return dataclasses.replace(
         fit,
