@@ -699,15 +699,21 @@ def _level_grid(grid: _Grid, level: int, shape: tuple[int, int]) -> _Grid:
     return _Grid(np.minimum(grid.row_edges >> level, shape[0]), np.minimum(grid.col_edges >> level, shape[1]))
 
 
-def _halved(image: Image, times: int) -> Image:
-    for _ in range(times):
-        image = np.asarray(cv2.pyrDown(image), dtype=np.float32)
-    return image
+def _pyramid(reference: Image, inspection: Image, levels: int) -> list[tuple[Image, Image]]:
+    """Reference and inspection at levels 0 .. `levels`, each half the one before (cv2.pyrDown)."""
+    pyramid = [(reference, inspection)]
+    for _ in range(levels):
+        pyramid.append(
+            (
+                np.asarray(cv2.pyrDown(pyramid[-1][0]), dtype=np.float32),
+                np.asarray(cv2.pyrDown(pyramid[-1][1]), dtype=np.float32),
+            )
+        )
+    return pyramid
 
 
 def _level_solver(
-    reference: Image,
-    inspection: Image,
+    pyramid: list[tuple[Image, Image]],
     matrix: FloatArray,
     valid: NDArray[np.bool_],
     *,
@@ -718,9 +724,9 @@ def _level_solver(
     interpolation: int,
     row_step: int,
 ) -> _Solver:
-    """A solver on the images ``2**level`` times smaller, `matrix` and `grid` carried to them."""
+    """A solver on `pyramid`'s `level` (``2**level`` times smaller), `matrix` and `grid` carried to it."""
     scale = np.diag([2.0**-level, 2.0**-level, 1.0])
-    level_reference, level_inspection = _halved(reference, level), _halved(inspection, level)
+    level_reference, level_inspection = pyramid[level]
     shape = (int(level_reference.shape[0]), int(level_reference.shape[1]))
     level_valid = cv2.resize(valid.astype(np.uint8), shape[::-1], interpolation=cv2.INTER_NEAREST)
     return _Solver(
@@ -775,11 +781,11 @@ def estimate_field(
     level = min(finest_level, max(0, int(np.log2(tile_px / _MIN_TILE_PX))))
     # Bicubic resampling on the finest level: bilinear's bias follows the sub-pixel phase, which a smooth
     # field keeps nearly constant over a tile (0.045 px instead of 0.010 px on the 1 px test warps).
-    on_level = partial(
-        _level_solver, reference, inspection, matrix, valid, grid=grid, tile_px=tile_px, row_step=row_step
-    )
+    coarser = tile_px >> level >= 2 * _MIN_TILE_PX
+    pyramid = _pyramid(reference, inspection, level + coarser)
+    on_level = partial(_level_solver, pyramid, matrix, valid, grid=grid, tile_px=tile_px, row_step=row_step)
     solver = on_level(level=level, tolerance=tolerance_px / 2.0**level, interpolation=cv2.INTER_CUBIC)
-    if tile_px >> level >= 2 * _MIN_TILE_PX:
+    if coarser:
         # The field found one level coarser first: twice the capture range, a quarter of the cost.
         coarse = on_level(level=level + 1, tolerance=tolerance_px, interpolation=cv2.INTER_LINEAR)
         coarse.run(_MAX_ITERATIONS)
@@ -787,7 +793,9 @@ def estimate_field(
     residual = solver.run(_MAX_ITERATIONS)
     # seed §2.4: a flaw is an outlier of the registration model; drop it and refine (a flaw must not pull
     # its tile).
-    floor = 1e-3 * float(np.std(reference[valid])) if valid.any() else 0.0
+    floor = (
+        1e-3 * float(cv2.meanStdDev(reference, mask=valid.astype(np.uint8))[1][0, 0]) if valid.any() else 0.0
+    )
     trimmed_weight = _trim_weight(residual, solver.weight, solver.textured, floor)
     used = float(solver.weight.sum())
     trimmed_fraction = float((used - float(trimmed_weight.sum())) / used) if used else 0.0

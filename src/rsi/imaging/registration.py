@@ -785,6 +785,7 @@ def register(
             else in_range(field_tolerance_px, "field_tolerance_px", low=0.0, low_inclusive=False),
             finest_level=positive_int(finest_level, "finest_level", minimum=0),
             row_step=row_step,
+            presmooth=presmooth,
             started=started,
         )
     for name, value in (("tile_px", tile_px), ("field_tolerance_px", field_tolerance_px)):
@@ -863,18 +864,21 @@ def _register_local(
     tolerance_px: float,
     finest_level: int,
     row_step: int | None,
+    presmooth: bool | None,
     started: float,
 ) -> Registration:
     """The global fit, then the local field between the warped reference and the inspection (seed §2.3)."""
     prepared = isinstance(reference, PreparedReference)
     fit = register_global(reference, inspection, model=None if prepared else _LOCAL_GLOBAL_MODEL)
     inspection_image = _as_float32(inspection, "inspection")
-    # The field is measured on the images the global fit used: lightly smoothed (5x5 Gaussian).
-    smoothed = (
-        reference.images[0]
-        if isinstance(reference, PreparedReference)
-        else smooth(_as_float32(reference, "reference"))
-    )
+    # The field is measured on the images the global fit used: lightly smoothed (5x5 Gaussian) unless
+    # presmooth is False (a field above full resolution then reads cv2.pyrDown's own smoothing).
+    presmoothed = reference.presmooth if prepared else presmooth is not False
+    if prepared:
+        smoothed = reference.images[0]
+    else:
+        smoothed = _as_float32(reference, "reference")
+        smoothed = smooth(smoothed) if presmoothed else smoothed
     usable = _preimage_inside(fit.matrix, smoothed.shape, inspection_image.shape)
     usable_mask = reference.masks[0] if isinstance(reference, PreparedReference) else mask
     if usable_mask is not None:
@@ -882,7 +886,7 @@ def _register_local(
     predicted = smoothed * np.float32(fit.gain) + np.float32(fit.bias)
     field = estimate_field(
         predicted,
-        smooth(inspection_image),
+        smooth(inspection_image) if presmoothed else inspection_image,
         fit.matrix,
         usable,
         tile_px,
