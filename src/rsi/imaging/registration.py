@@ -720,13 +720,16 @@ def register(
         Rows sampled on each level, >= 1: None (default) every row, and every other row on levels of 512 rows
         or more (their accuracy is limited by interpolation bias, not noise); ``k``: every k-th row on every
         level, at about 1/k of the work. DeepPCB's half-size images use every other row (``docs/deeppcb.md``).
-        A prepared reference fixes it (:func:`prepare_reference`).
+        A prepared reference fixes it (:func:`prepare_reference`). With ``model="local"`` the field's
+        Gauss-Newton steps sample every k-th row too (None: every row); on the test warps of
+        ``tests/imaging`` every other row leaves the field as accurate (``docs/local-registration.md``).
     presmooth : bool, optional
         Smooth both full-resolution images with a 5 x 5 Gaussian before building the pyramid: True by default
         (it makes bilinear resampling at full resolution accurate to a few thousandths of a pixel), or the
         prepared reference's choice. False: the pyramid is built from the images as they are, every coarser
         level smoothed by cv2.pyrDown's own 5-tap Gaussian; for a fit that ends above full resolution
         (`finest_level` >= 1) this only spares the full-resolution filtering (DeepPCB: ``docs/deeppcb.md``).
+        With ``model="local"`` the field reads the same images.
 
     Returns
     -------
@@ -873,10 +876,11 @@ def _register_local(
     inspection_image = _as_float32(inspection, "inspection")
     # The field is measured on the images the global fit used: lightly smoothed (5x5 Gaussian) unless
     # presmooth is False (a field above full resolution then reads cv2.pyrDown's own smoothing).
-    presmoothed = reference.presmooth if prepared else presmooth is not False
-    if prepared:
+    if isinstance(reference, PreparedReference):
+        presmoothed, sampled_rows = reference.presmooth, reference.row_step
         smoothed = reference.images[0]
     else:
+        presmoothed, sampled_rows = presmooth is not False, row_step
         smoothed = _as_float32(reference, "reference")
         smoothed = smooth(smoothed) if presmoothed else smoothed
     usable = _preimage_inside(fit.matrix, smoothed.shape, inspection_image.shape)
@@ -892,7 +896,7 @@ def _register_local(
         tile_px,
         finest_level=finest_level,
         tolerance_px=tolerance_px,
-        row_step=1 if row_step is None else row_step,
+        row_step=1 if sampled_rows is None else sampled_rows,
     )
     return dataclasses.replace(
         fit,
