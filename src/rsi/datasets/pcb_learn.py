@@ -59,6 +59,11 @@ FEATURES = 63  # columns of defect_features
 # box size, strength and area (4), the shrunk window's 11 and the box window's 11 and 6 surroundings. The
 # last 18 columns: each window's pieces and holes with the connectivities swapped (_tight_features).
 _RULE_COLUMN = 32
+# Columns the classifier learns from: all but the box's width and height (columns 0 and 1). An absolute box
+# size is the board's more than the class's (group 44000's scratch strands merge into long boxes): with them
+# the boosting extrapolated, and a small change of the detector collapsed 44000's leave-one-group-out fold
+# (official F 0.945 -> 0.57); without them no collapse on five detector variants (docs/deeppcb.md).
+_LEARNED_COLUMNS = np.arange(2, FEATURES)
 
 
 def _window_features(
@@ -287,7 +292,7 @@ class DefectClassifier:
         if len(table) == 0:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64)
         probabilities = np.zeros((len(table), 7))
-        probabilities[:, self.model.classes_] = self.model.predict_proba(table)
+        probabilities[:, self.model.classes_] = self.model.predict_proba(table[:, _LEARNED_COLUMNS])
         named = 1 + np.argmax(probabilities[:, 1:], axis=1)
         return named.astype(np.int64), probabilities[np.arange(len(table)), named]
 
@@ -315,7 +320,9 @@ def fit_classifier(features: object, labels: object) -> DefectClassifier:
             f"labels hold one class only ({int(classes[0])}): nothing to tell apart. Train on detections of "
             "several defect classes, or name defects by the topology rules (classes='rules')."
         )
-    model = HistGradientBoostingClassifier(random_state=0).fit(table, classes.astype(np.int64))
+    model = HistGradientBoostingClassifier(random_state=0).fit(
+        table[:, _LEARNED_COLUMNS], classes.astype(np.int64)
+    )
     return DefectClassifier(model)
 
 
