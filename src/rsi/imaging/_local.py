@@ -703,12 +703,8 @@ def _pyramid(reference: Image, inspection: Image, levels: int) -> list[tuple[Ima
     """Reference and inspection at levels 0 .. `levels`, each half the one before (cv2.pyrDown)."""
     pyramid = [(reference, inspection)]
     for _ in range(levels):
-        pyramid.append(
-            (
-                np.asarray(cv2.pyrDown(pyramid[-1][0]), dtype=np.float32),
-                np.asarray(cv2.pyrDown(pyramid[-1][1]), dtype=np.float32),
-            )
-        )
+        reference, inspection = (np.asarray(cv2.pyrDown(image), dtype=np.float32) for image in pyramid[-1])
+        pyramid.append((reference, inspection))
     return pyramid
 
 
@@ -775,6 +771,8 @@ def estimate_field(
     tolerance_px : float
         The Gauss-Newton steps stop when no node moves more than this, full-resolution pixels (the coarser
         level that gives the start: this many of its own pixels).
+    row_step : int
+        The Gauss-Newton steps use every `row_step`-th row of each level (1: every row).
     """
     shape = (int(reference.shape[0]), int(reference.shape[1]))
     grid = _grid(shape, tile_px)
