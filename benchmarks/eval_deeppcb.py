@@ -52,7 +52,8 @@ from rsi.datasets.evaluate import (
     sparse_above,
 )
 from rsi.datasets.official import OfficialTally
-from rsi.datasets.pcb_learn import DefectClassifier, fit_classifier, training_labels
+from rsi.datasets.pcb_features import DefectClassifier, fit_classifier
+from rsi.datasets.pcb_learn import training_labels
 from rsi.detection.detect import detect
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "deeppcb"

@@ -309,3 +309,16 @@ def size3(value: object, name: str) -> tuple[float, float, float]:
     if min(sizes) <= 0.0:
         raise InputError(f"{name} must be three half sizes > 0 m; got {_shown(value)}.")
     return sizes
+
+
+def as_table(values: object, name: str, columns: int) -> FloatArray:
+    """`values` as a finite float64 table of shape (K, `columns`); an empty input is (0, `columns`)."""
+    table = as_float_array(values, name)
+    if table.size == 0:
+        return table.reshape(0, columns)
+    if table.ndim != 2 or table.shape[1] != columns or not np.isfinite(table).all():
+        raise InputError(
+            f"{name} must be a finite array of shape (K, {columns}); got shape {table.shape}. "
+            f"Pass one row per item, e.g. np.empty((0, {columns})) for none."
+        )
+    return table

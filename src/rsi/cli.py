@@ -114,7 +114,7 @@ class Split(str, Enum):
 
 
 class ClassSource(str, Enum):
-    """Who names DeepPCB defects (rsi.datasets.evaluate.CLASS_SOURCES)."""
+    """Who names DeepPCB defects (rsi.datasets.pcb_learn.CLASS_SOURCES)."""
 
     learned = "learned"
     rules = "rules"
@@ -691,7 +691,7 @@ def eval_deeppcb(
 ) -> None:
     """Score rsi on DeepPCB template/tested pairs: recall, precision, F1, false alarms per image."""
     with _errors():
-        from rsi.datasets.evaluate import evaluate_deeppcb
+        from rsi.datasets.pcb_learn import evaluate_deeppcb
 
         with _progress_bar(f"DeepPCB {split.value}") as update:
             evaluation = evaluate_deeppcb(root, split=split.value, progress=update, classes=classes.value)

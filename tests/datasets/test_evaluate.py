@@ -15,10 +15,8 @@ from rsi.datasets.evaluate import (
     EvaluationResult,
     MatchCounts,
     PcbDetections,
-    box_iou,
     centre_in_box,
     detect_defects,
-    evaluate_deeppcb,
     evaluate_pairs,
     group_defects,
     group_detection,
@@ -29,7 +27,9 @@ from rsi.datasets.evaluate import (
     predicted_template,
     register_pair,
 )
-from rsi.datasets.pcb_learn import FEATURES
+from rsi.datasets.official import box_iou
+from rsi.datasets.pcb_features import FEATURES
+from rsi.datasets.pcb_learn import evaluate_deeppcb
 from rsi.errors import InputError
 
 REAL_ROOT = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "deeppcb"

@@ -11,17 +11,10 @@ import numpy as np
 import pytest
 
 from rsi.datasets.deeppcb import DEFECT_TYPES, DeepPcbPair
-from rsi.datasets.evaluate import PcbDetections, evaluate_deeppcb
+from rsi.datasets.evaluate import PcbDetections
 from rsi.datasets.pcb_classes import classify_defects
-from rsi.datasets.pcb_learn import (
-    FEATURES,
-    defect_features,
-    fit_classifier,
-    opened_count,
-    rule_classes,
-    train_classifier,
-    training_labels,
-)
+from rsi.datasets.pcb_features import FEATURES, defect_features, fit_classifier, opened_count, rule_classes
+from rsi.datasets.pcb_learn import evaluate_deeppcb, train_classifier, training_labels
 from rsi.errors import InputError
 
 Drawn = Callable[[str], tuple[np.ndarray, np.ndarray]]

@@ -63,6 +63,7 @@ MODULES = (
     "rsi.datasets.evaluate",
     "rsi.datasets.official",
     "rsi.datasets.pcb_classes",
+    "rsi.datasets.pcb_features",
     "rsi.datasets.pcb_learn",
     "rsi.datasets.rendered",
     "rsi.mission.plan",

@@ -14,7 +14,6 @@ Two matching rules are reported (``docs/deeppcb.md``):
 from __future__ import annotations
 
 import dataclasses
-import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -25,8 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsi._validate import (
-    as_float_array,
     as_image,
+    as_table,
     choice,
     in_range,
     instance_of,
@@ -34,7 +33,9 @@ from rsi._validate import (
     positive_int,
     same_shape,
 )
-from rsi.datasets.deeppcb import DeepPcbPair, load_split, read_pair
+from rsi.datasets.deeppcb import DeepPcbPair, read_pair
+from rsi.datasets.official import OFFICIAL_IOU, OfficialTally, box_iou
+from rsi.datasets.pcb_features import DefectClassifier, _checked_features, rule_classes
 from rsi.detection.flaw_models import FLAW_MODELS
 from rsi.errors import InputError
 from rsi.imaging._components import component_stats, nonzero_pixels, occupied, pixel_components
@@ -42,16 +43,12 @@ from rsi.imaging._warps import scratch
 from rsi.imaging.registration import LOCAL_MODEL, REGISTRATION_MODELS, Registration
 
 if TYPE_CHECKING:
-    from rsi.datasets.official import OfficialTally
-    from rsi.datasets.pcb_learn import DefectClassifier
     from rsi.detection.detect import Detection
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
-PathLike = str | os.PathLike[str]
 
-OFFICIAL_IOU = 0.33  # Tang et al. 2019: a detection is correct when IoU > 0.33 (and the class agrees)
 _BOX_COLUMNS = 4
 
 
@@ -220,7 +217,7 @@ class PcbDetections:
     areas_px, strengths : ndarray of shape (D,), float64, optional
         Mask pixels of each defect, and its largest score (when a score map was given to the grouping).
     features : ndarray of shape (D, F), float64, optional
-        Topology features (:func:`rsi.datasets.pcb_learn.defect_features`), to train a classifier on.
+        Topology features (:func:`rsi.datasets.pcb_features.defect_features`), to train a classifier on.
     """
 
     centres_xy: FloatArray
@@ -276,18 +273,6 @@ class EvaluationResult:
         return dataclasses.asdict(self)
 
 
-def _as_table(values: object, name: str, columns: int) -> FloatArray:
-    table = as_float_array(values, name)
-    if table.size == 0:
-        return table.reshape(0, columns)
-    if table.ndim != 2 or table.shape[1] != columns or not np.isfinite(table).all():
-        raise InputError(
-            f"{name} must be a finite array of shape (K, {columns}); got shape {table.shape}. "
-            f"Pass one row per item, e.g. np.empty((0, {columns})) for none."
-        )
-    return table
-
-
 def centre_in_box(centres_xy: object, boxes_xyxy: object) -> tuple[BoolArray, BoolArray]:
     """Match detections to ground-truth boxes by the class-agnostic centre-in-box rule.
 
@@ -311,37 +296,13 @@ def centre_in_box(centres_xy: object, boxes_xyxy: object) -> tuple[BoolArray, Bo
     >>> found.tolist(), false_alarm.tolist()
     ([True, False], [False, True])
     """
-    centres = _as_table(centres_xy, "centres_xy", _CENTRE_COLUMNS)
-    boxes = _as_table(boxes_xyxy, "boxes_xyxy", _BOX_COLUMNS)
+    centres = as_table(centres_xy, "centres_xy", _CENTRE_COLUMNS)
+    boxes = as_table(boxes_xyxy, "boxes_xyxy", _BOX_COLUMNS)
     x, y = centres[:, :1], centres[:, 1:]
     inside = (x >= boxes[:, 0]) & (x <= boxes[:, 2]) & (y >= boxes[:, 1]) & (y <= boxes[:, 3])
     found: BoolArray = np.asarray(inside.any(axis=0), dtype=bool)
     false_alarm: BoolArray = ~np.asarray(inside.any(axis=1), dtype=bool)
     return found, false_alarm
-
-
-def box_iou(first_xyxy: object, second_xyxy: object) -> FloatArray:
-    """Intersection over union of every pair of boxes, corners inclusive (a box covers whole pixels).
-
-    Parameters
-    ----------
-    first_xyxy : array_like of shape (D, 4)
-    second_xyxy : array_like of shape (K, 4)
-
-    Returns
-    -------
-    ndarray of shape (D, K), float64
-    """
-    first = _as_table(first_xyxy, "first_xyxy", _BOX_COLUMNS)
-    second = _as_table(second_xyxy, "second_xyxy", _BOX_COLUMNS)
-    a, b = first[:, None, :], second[None, :, :]
-    width = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]) + 1.0, 0.0, None)
-    height = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]) + 1.0, 0.0, None)
-    intersection = width * height
-    area_a = (a[..., 2] - a[..., 0] + 1.0) * (a[..., 3] - a[..., 1] + 1.0)
-    area_b = (b[..., 2] - b[..., 0] + 1.0) * (b[..., 3] - b[..., 1] + 1.0)
-    iou: FloatArray = intersection / (area_a + area_b - intersection)
-    return iou
 
 
 def iou_match(
@@ -591,7 +552,7 @@ def detect_defects(
         Defaults to ``DeepPcbSettings()``.
     classifier : DefectClassifier, optional
         Names the defects from their topology features
-        (:func:`rsi.datasets.pcb_learn.fit_classifier`); None: the topology rules of
+        (:func:`rsi.datasets.pcb_features.fit_classifier`); None: the topology rules of
         :mod:`rsi.datasets.pcb_classes`.
 
     Returns
@@ -599,7 +560,6 @@ def detect_defects(
     PcbDetections
         In inspection-image pixels, with ``features`` to train a classifier on.
     """
-    from rsi.datasets.pcb_learn import DefectClassifier
     from rsi.detection.detect import detect
 
     chosen = instance_or_default(settings, "settings", DeepPcbSettings)
@@ -727,7 +687,6 @@ def group_detection(detection: Detection, settings: DeepPcbSettings) -> PcbDetec
 
 def _check_to_name(found: PcbDetections, classifier: DefectClassifier | None) -> None:
     """`found` holds the grouping's strengths and areas, and `classifier` is None or a DefectClassifier."""
-    from rsi.datasets.pcb_learn import DefectClassifier
 
     instance_of(found, "found", PcbDetections, none_allowed=False)
     if classifier is not None:
@@ -758,7 +717,6 @@ def _named(
     classifier: DefectClassifier | None,
 ) -> PcbDetections:
     """:func:`name_defects` of checked images and detections that hold strengths and areas."""
-    from rsi.datasets.pcb_learn import _checked_features, rule_classes
 
     features = _checked_features(template, test, found.boxes_xyxy, found.strengths, found.areas_px)
     if classifier is None:
@@ -869,7 +827,6 @@ def count_pairs(
     With `tally` (:class:`rsi.datasets.official.OfficialTally`), each pair is also scored by the official
     rule.
     """
-    from rsi.datasets.official import OfficialTally  # it builds on this module's IoU
 
     _check_pairs(pairs)
     _check_callable(detector, "detector", "detector(reference, inspection) -> PcbDetections")
@@ -914,7 +871,6 @@ def evaluate_pairs(
     -------
     EvaluationResult
     """
-    from rsi.datasets.official import OfficialTally  # it builds on this module's IoU
 
     tally = OfficialTally()
     counts = sum(count_pairs(pairs, detector, progress=progress, tally=tally), MatchCounts())
@@ -993,58 +949,3 @@ def leave_one_group_out(counts: dict[str, dict[str, MatchCounts]]) -> LeaveOneGr
         chosen[group] = best
         held_out[group] = counts[best][group]
     return LeaveOneGroupOut(chosen, held_out, sum(held_out.values(), MatchCounts()))
-
-
-# Where the defects' classes come from (evaluate_deeppcb's `classes`).
-CLASS_SOURCES = ("learned", "rules")
-
-
-def evaluate_deeppcb(
-    root: PathLike,
-    split: str,
-    *,
-    settings: DeepPcbSettings | None = None,
-    progress: Progress | None = None,
-    classes: str = "learned",
-) -> EvaluationResult:
-    """Evaluate rsi's PCB detector on a DeepPCB split.
-
-    Parameters
-    ----------
-    root : str or os.PathLike
-        The DeepPCB folder (holding ``PCBData/``).
-    split : {"trainval", "test"}
-        Official split; the same ``settings`` serve every split.
-    settings : DeepPcbSettings, optional
-        Defaults to ``DeepPcbSettings()``.
-    progress : callable, optional
-        Called as ``progress(stage, done, total)`` after each pair (the CLI's progress bar).
-    classes : {"learned", "rules"}
-        Who names the defects for the official figures. "learned": the classifier of
-        :mod:`rsi.datasets.pcb_learn`, never fitted on the pairs it names (the test split by one fitted on
-        trainval, ~1 min more; trainval cross-fitted by board group: :func:`~rsi.datasets.pcb_learn.
-        evaluate_learned`). "rules": the topology rules of :mod:`rsi.datasets.pcb_classes`, nothing
-        fitted. The class-agnostic figures are the same with either.
-
-    Returns
-    -------
-    EvaluationResult
-
-    Examples
-    --------
-    >>> result = evaluate_deeppcb("../shared/data/deeppcb", "trainval")  # doctest: +SKIP
-    >>> sorted(result.to_dict())[:3]  # doctest: +SKIP
-    ['classes', 'confusion', 'defects']
-    """
-    chosen = DeepPcbSettings() if settings is None else settings
-    if not isinstance(chosen, DeepPcbSettings):
-        raise InputError(f"settings must be a DeepPcbSettings; got {type(chosen).__name__}.")
-    if choice(classes, "classes", CLASS_SOURCES) == "learned":
-        from rsi.datasets.pcb_learn import evaluate_learned
-
-        return evaluate_learned(root, split, settings=chosen, progress=progress)
-
-    def detector(reference: NDArray[np.float32], inspection: NDArray[np.float32]) -> PcbDetections:
-        return detect_defects(reference, inspection, settings=chosen)
-
-    return evaluate_pairs(load_split(root, split), detector, progress=progress)

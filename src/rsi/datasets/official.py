@@ -20,15 +20,40 @@ from typing import TypedDict
 import numpy as np
 from numpy.typing import NDArray
 
-from rsi._validate import as_float_array, positive_int
+from rsi._validate import as_float_array, as_table, positive_int
 from rsi.datasets.deeppcb import DEFECT_TYPES
-from rsi.datasets.evaluate import OFFICIAL_IOU, box_iou
 from rsi.errors import InputError
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 CLASSES = tuple(DEFECT_TYPES)
 NONE = 0  # the confusion matrix's row of unpaired detections and column of missed boxes
+OFFICIAL_IOU = 0.33  # Tang et al. 2019: a detection is correct when IoU > 0.33 (and the class agrees)
+_BOX_COLUMNS = 4
+
+
+def box_iou(first_xyxy: object, second_xyxy: object) -> FloatArray:
+    """Intersection over union of every pair of boxes, corners inclusive (a box covers whole pixels).
+
+    Parameters
+    ----------
+    first_xyxy : array_like of shape (D, 4)
+    second_xyxy : array_like of shape (K, 4)
+
+    Returns
+    -------
+    ndarray of shape (D, K), float64
+    """
+    first = as_table(first_xyxy, "first_xyxy", _BOX_COLUMNS)
+    second = as_table(second_xyxy, "second_xyxy", _BOX_COLUMNS)
+    a, b = first[:, None, :], second[None, :, :]
+    width = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]) + 1.0, 0.0, None)
+    height = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]) + 1.0, 0.0, None)
+    intersection = width * height
+    area_a = (a[..., 2] - a[..., 0] + 1.0) * (a[..., 3] - a[..., 1] + 1.0)
+    area_b = (b[..., 2] - b[..., 0] + 1.0) * (b[..., 3] - b[..., 1] + 1.0)
+    iou: FloatArray = intersection / (area_a + area_b - intersection)
+    return iou
 
 
 def _classes(value: object, name: str, count: int) -> IntArray:

@@ -52,7 +52,7 @@ def _tight_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
 
     A crack that leaves copper touching only at pixel corners splits a trace here, not in
     :func:`_copper_pieces`; a hole whose wall is broken only at a corner is still a hole. Binarisation
-    leaves such corner contacts on many opens and pin-holes (:mod:`rsi.datasets.pcb_learn` reads both)."""
+    leaves such corner contacts on many opens and pin-holes (:mod:`rsi.datasets.pcb_features` reads both)."""
     return _pieces_and_holes(copper, 4)
 
 
@@ -133,7 +133,7 @@ def classify_copper(
 ) -> tuple[int, float]:
     """:func:`classify_window` from the windows' copper (1) and their (pieces, holes) already counted.
 
-    For callers that count the pieces anyway (:mod:`rsi.datasets.pcb_learn`): the connected components
+    For callers that count the pieces anyway (:mod:`rsi.datasets.pcb_features`): the connected components
     are most of the time of naming a defect. Raises InputError for windows that are not equal-shaped 2-D
     0/1 uint8 arrays or counts that are not two whole numbers >= 0 each.
     """
@@ -173,7 +173,7 @@ def _class_of_change(
     changed: tuple[float, float, float, float], pieces_before: tuple[int, int], pieces_after: tuple[int, int]
 ) -> int:
     """:func:`classify_copper`'s class from the changed pixels counted already: copper added and removed,
-    raw and after the 3 x 3 opening (:mod:`rsi.datasets.pcb_learn`'s first window features)."""
+    raw and after the 3 x 3 opening (:mod:`rsi.datasets.pcb_features`'s first window features)."""
     added, removed = changed[2], changed[3]
     if added == removed == 0:
         # Nothing survives the opening: decide on the raw difference (a thin defect).

@@ -14,44 +14,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
-from typing import TYPE_CHECKING
-
-import numpy as np
-from numpy.typing import NDArray
 
 from rsi.errors import InputError
 from rsi.imaging.camera import CameraModel, Frame
 from rsi.imaging.stereo import StereoRig
-from rsi.sim.render import CameraPose
-
-if TYPE_CHECKING:
-    from rsi.sim.world import View, World
-
-F32 = NDArray[np.float32]
-BoolArray = NDArray[np.bool_]
-
-
-@dataclass(frozen=True)
-class CadView:
-    """The robot's CAD model seen from a pose (:meth:`rsi.sim.world.World.cad_projection`).
-
-    Attributes
-    ----------
-    expected_depth_m : ndarray of shape (M, N), float32
-        Depth of the pristine model along the view axis (the far plane, >= 10 m, where nothing is).
-    truss : ndarray of shape (M, N), bool
-        Pixels of the truss frame and the robot's own arm: not inspected surface.
-    components : dict of str to ndarray of shape (M, N), bool
-        Pixels of each swappable component the model puts in view.
-    parts : ndarray of shape (M, N), int32, or None
-        The model's part (one surface of one finish) in each pixel, as an id; -1 where none. None: not
-        drawn.
-    """
-
-    expected_depth_m: F32
-    truss: BoolArray
-    components: dict[str, BoolArray] = field(default_factory=dict)
-    parts: NDArray[np.int32] | None = None
+from rsi.sim.render import CadView, CameraPose
+from rsi.sim.scene import STEREO_BASELINE_M
+from rsi.sim.world import View, World
 
 
 @dataclass(frozen=True)
@@ -98,9 +67,6 @@ def capture(world: World, view: View, *, cad: CadView | None = None) -> Capture:
     second frame (the strobe in the other field) is taken here, from the same pose. `cad`: the model's
     projection from the same believed pose when already made (a frame taken again from the same pose).
     """
-    from rsi.sim.scene import STEREO_BASELINE_M
-    from rsi.sim.world import View
-
     if not isinstance(view, View) or view.stereo is None or view.believed_pose is None:
         raise InputError(
             "view must be a View from World.render or World.render_from_tool with stereo=True; "

@@ -31,7 +31,7 @@ import ctypes.util
 import importlib
 import os
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
 
@@ -190,6 +190,29 @@ FAST_TESSELLATION = (16, 8)
 # Quads along a box face's side in live video: MuJoCo's default. The inspection frames' fine quads
 # (rsi.sim.scene.BOX_QUAD_M) make the strobe's light true per point; the operator's video shows no strobe
 FAST_BOX_QUADS = 4
+
+
+@dataclass(frozen=True)
+class CadView:
+    """The robot's CAD model seen from a pose (:meth:`rsi.sim.world.World.cad_projection`).
+
+    Attributes
+    ----------
+    expected_depth_m : ndarray of shape (M, N), float32
+        Depth of the pristine model along the view axis (the far plane, >= 10 m, where nothing is).
+    truss : ndarray of shape (M, N), bool
+        Pixels of the truss frame and the robot's own arm: not inspected surface.
+    components : dict of str to ndarray of shape (M, N), bool
+        Pixels of each swappable component the model puts in view.
+    parts : ndarray of shape (M, N), int32, or None
+        The model's part (one surface of one finish) in each pixel, as an id; -1 where none. None: not
+        drawn.
+    """
+
+    expected_depth_m: F32
+    truss: BoolArray
+    components: dict[str, BoolArray] = field(default_factory=dict)
+    parts: NDArray[np.int32] | None = None
 
 
 class SceneRenderer:

@@ -22,7 +22,6 @@ from rsi.imaging.camera import DEFAULT_CAMERA, CameraModel, Frame, expose
 from rsi.sim import fields
 from rsi.sim.anomalies import AnomalySet, AnomalySettings, seed_anomalies
 from rsi.sim.arm import RANGEFINDER_RECESS_M, WORLD_ARM_PREFIX, Arm
-from rsi.sim.capture import CadView
 from rsi.sim.mockup import (
     A_FACE_Y_M,
     BAY_M,
@@ -43,7 +42,7 @@ from rsi.sim.orbit import (
     SUN_ILLUMINANCE_LUX,
     compensating_exposure,
 )
-from rsi.sim.render import STATES, CameraPose, SceneRenderer, import_mujoco
+from rsi.sim.render import STATES, CadView, CameraPose, SceneRenderer, import_mujoco
 from rsi.sim.scene import (
     CAMERA_FOVY_DEG,
     HALOGEN_LEVEL,
