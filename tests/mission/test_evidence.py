@@ -26,7 +26,8 @@ from rsi.mission.exposure import (
     shortened,
     strobe_dn,
 )
-from rsi.mission.visual import compare, fuse_findings, thresholds
+from rsi.mission.fusion import fuse_findings
+from rsi.mission.visual import compare, thresholds
 
 SETTINGS = MissionSettings()
 SHAPE = (40, 60)

@@ -8,7 +8,7 @@ import numpy as np
 
 from rsi.imaging.compensation import Compensated
 from rsi.imaging.registration import register
-from rsi.mission.visual import photometric_refit
+from rsi.mission.photometry import photometric_refit
 
 
 def _strobe_image(image: np.ndarray, valid: np.ndarray | None = None) -> Compensated:

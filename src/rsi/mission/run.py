@@ -29,6 +29,7 @@ from rsi.imaging.compensation import compensate_field_pair
 from rsi.mission.coverage import coverage
 from rsi.mission.evidence import Explanation, head_glint, screw_relief_m
 from rsi.mission.exposure import ambient_bracket, metered, settle
+from rsi.mission.fusion import fuse_findings
 from rsi.mission.plan import plan_vistas
 from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
 from rsi.mission.score import run_roc
@@ -37,7 +38,7 @@ from rsi.mission.surveys import gas_pass, pyrometer_pass
 from rsi.mission.truth import with_truth
 from rsi.mission.viewing import pose_error_m
 from rsi.mission.views import seen_screws, sense
-from rsi.mission.visual import StoredView, Visit, fuse_findings, inspect_visit, stored_strobe
+from rsi.mission.visual import StoredView, Visit, inspect_visit, stored_strobe
 from rsi.sim.anomalies import AnomalySettings
 from rsi.sim.mockup import LAYOUT_NAMES as LAYOUTS
 from rsi.sim.orbit import orbital_period_s
