@@ -50,6 +50,7 @@ MODULES = (
     "rsi.mission.batch",
     "rsi.mission.batch_manifest",
     "rsi.mission.batch_cluster",
+    "rsi.mission.batch_records",
     "rsi.archive.records",
     "rsi.archive.store",
     "rsi.sim.orbit",

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rsi.archive import Archive, Finding
-    from rsi.mission.batch import PairRecord
     from rsi.mission.batch_manifest import BatchItem
+    from rsi.mission.batch_records import PairRecord
 
 FINDING_KINDS = {"flaw": "flaw", "inspected": "inspected", "failure": "failure"}
 """Kinds of the findings a batch stores: one ``"flaw"`` per detected flaw, one ``"inspected"`` summary per

@@ -14,39 +14,25 @@ taken from the first look's viewpoint, they share every artefact it made (door-e
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rsi.imaging.compensation import Compensated
-from rsi.mission.evidence import CLUTTER_REACH_PX, FOLLOW_HALF_PX, Look, follow_window, second_look_score
+from rsi.mission.evidence import (
+    CLUTTER_REACH_PX,
+    FOLLOW_HALF_PX,
+    Echo,
+    Look,
+    follow_window,
+    second_look_score,
+)
 from rsi.mission.settings import MissionSettings
 
 if TYPE_CHECKING:
     from rsi.detection.pair import PairResult
     from rsi.imaging.bracket import AmbientImage
     from rsi.imaging.registration import Registration
-
-
-@dataclass(frozen=True)
-class Echo:
-    """What the two passes' images under another light say of a look (:func:`echo_in`).
-
-    Attributes
-    ----------
-    score : float
-        The look's place compared in those images (a translation registered about it, gain and bias
-        fitted), judged against its ring (:func:`rsi.mission.evidence.spot_score`), noise sigmas, signed.
-    reach : float
-        The score a change of the look's own contrast would give there: a change of reflectance scales
-        every light alike (seed §4: tape, soot, a discoloured surface), so ``reach`` is what such a change
-        must show under this light. A change of shape (a crater's slopes) relit from another angle may
-        show less.
-    """
-
-    score: float
-    reach: float
 
 
 # registered pixels below which a translation, gain and bias are not fitted: a flaw kernel's few hundred

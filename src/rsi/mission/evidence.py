@@ -32,7 +32,6 @@ if TYPE_CHECKING:
     from rsi.detection.detect import Flaw
     from rsi.detection.pair import PairResult
     from rsi.imaging.compensation import Compensated
-    from rsi.mission.echoes import Echo
     from rsi.sim.anomalies import Site
     from rsi.sim.world import World
 
@@ -42,6 +41,26 @@ FloatArray = NDArray[np.float64]
 def confidence(margin: float) -> float:
     """Confidence from a margin over the threshold in noise sigmas: Phi(margin), in [0.5, 1)."""
     return float(0.5 * special.erfc(-margin / math.sqrt(2.0)))
+
+
+@dataclass(frozen=True)
+class Echo:
+    """What the two passes' images under another light say of a look (:func:`rsi.mission.echoes.echo_in`).
+
+    Attributes
+    ----------
+    score : float
+        The look's place compared in those images (a translation registered about it, gain and bias
+        fitted), judged against its ring (:func:`spot_score`), noise sigmas, signed.
+    reach : float
+        The score a change of the look's own contrast would give there: a change of reflectance scales
+        every light alike (seed §4: tape, soot, a discoloured surface), so ``reach`` is what such a change
+        must show under this light. A change of shape (a crater's slopes) relit from another angle may
+        show less.
+    """
+
+    score: float
+    reach: float
 
 
 @dataclass
