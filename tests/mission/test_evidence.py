@@ -17,7 +17,7 @@ from rsi.detection.detect import Flaw
 from rsi.errors import InputError
 from rsi.imaging.compensation import Compensated
 from rsi.mission import MissionFinding, MissionSettings
-from rsi.mission.evidence import Explanation, Look, contrast, discoloured_pixels, explained_by, screw_relief_m
+from rsi.mission.evidence import Explanation, Look, contrast, discoloured_pixels, explained_by
 from rsi.mission.exposure import (
     ambient_dn,
     flash_clipped,
@@ -27,6 +27,7 @@ from rsi.mission.exposure import (
     strobe_dn,
 )
 from rsi.mission.fusion import fuse_findings
+from rsi.mission.screws import screw_relief_m
 from rsi.mission.visual import compare, thresholds
 
 SETTINGS = MissionSettings()
@@ -540,7 +541,7 @@ def test_a_local_shift_explains_an_edge_left_off_but_not_a_spot_beside_it() -> N
 
 def test_a_removed_screw_loses_its_head_pattern_and_a_present_one_keeps_it() -> None:
     from rsi.mission import plan_vistas
-    from rsi.mission.evidence import HEAD_KEPT, head_kept, head_likeness, screw_change
+    from rsi.mission.screws import HEAD_KEPT, head_kept, head_likeness, screw_change
     from rsi.mission.settings import MISSION_SIZE
     from rsi.mission.views import sense
     from rsi.sim.anomalies import AnomalySettings
@@ -664,7 +665,7 @@ def test_a_spot_beyond_a_swaps_outline_stands_though_in_its_box() -> None:
 def test_a_glint_judges_a_head_when_its_whole_loss_would_read_three_sigma() -> None:
     """fraction * sqrt(pixels) >= 3: the binomial spread of the disc's pixels (truss-b's screw_B_3 glints
     over 0.26-0.47 of a ~250-pixel disc, which the comparison cannot read)."""
-    from rsi.mission.evidence import GLINT_LOSS_MIN_SD, NO_GLINT, HeadGlint
+    from rsi.mission.screws import GLINT_LOSS_MIN_SD, NO_GLINT, HeadGlint
 
     assert GLINT_LOSS_MIN_SD == 3.0
     assert HeadGlint(0.26, 3000.0, 245).telling  # 4.1 sd
@@ -678,9 +679,9 @@ def test_a_removed_panel_screw_loses_its_glint_and_a_present_one_keeps_it() -> N
     """Seen from above at 16 deg off the axis, a polished head returns the metered flash of the dark panel
     into saturation: the comparison cannot read the head's disc, the glint tells (both under a sun moved
     300 s between the passes)."""
-    from rsi.mission.evidence import head_glint, head_likeness, screw_checks
     from rsi.mission.exposure import metered
     from rsi.mission.run import ORBIT_START_S
+    from rsi.mission.screws import head_glint, head_likeness, screw_checks
     from rsi.mission.tour import Tour
     from rsi.mission.views import sense
     from rsi.mission.visual import thresholds
@@ -1144,7 +1145,7 @@ def test_a_dents_crater_reaches_no_farther_than_its_rims_bound(tank_view: Any, r
 
 
 def test_a_screws_relief_is_known_as_well_as_the_range_maps_own_scatter_allows(tank_view: Any) -> None:
-    from rsi.mission.evidence import screw_relief_sigma_m
+    from rsi.mission.screws import screw_relief_sigma_m
 
     view, _ = tank_view
     screw = _screw_in_view(view)

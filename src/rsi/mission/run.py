@@ -27,12 +27,13 @@ from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.imaging.compensation import compensate_field_pair
 from rsi.mission.coverage import coverage
-from rsi.mission.evidence import Explanation, head_glint, screw_relief_m
+from rsi.mission.evidence import Explanation
 from rsi.mission.exposure import ambient_bracket, metered, settle
 from rsi.mission.fusion import fuse_findings
 from rsi.mission.plan import plan_vistas
 from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
 from rsi.mission.score import run_roc
+from rsi.mission.screws import head_glint, screw_relief_m
 from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, MissionSettings
 from rsi.mission.surveys import gas_pass, pyrometer_pass
 from rsi.mission.truth import with_truth

@@ -90,7 +90,7 @@ class MissionSettings:
         (:func:`rsi.mission.evidence.impact_sized`).
     screw_relief_lost_m : float
         Half the 2 mm head height. A loss counts only beyond three standard deviations of the relief as well
-        (:func:`rsi.mission.evidence.screw_relief_sigma_m`, from the range map's scatter around the screw):
+        (:func:`rsi.mission.screws.screw_relief_sigma_m`, from the range map's scatter around the screw):
         with the matcher's 5 px blocks a head at the CAD plan's standoffs is read to 0.3-0.6 mm, and a
         present glinting head read 1.3 mm lower than in the reference (truss-b development seed 2017).
     component_disc_m : float

@@ -28,7 +28,6 @@ from rsi.mission.echoes import ambient_echo, echo_in
 from rsi.mission.evidence import (
     CLUTTER_REACH_PX,
     Explanation,
-    HeadGlint,
     Look,
     apart_from_swaps,
     blobs,
@@ -43,7 +42,6 @@ from rsi.mission.evidence import (
     light_explains,
     line_shaped,
     same_sign_again,
-    screw_checks,
     second_look_score,
     shift_explained,
     spot_score,
@@ -53,6 +51,7 @@ from rsi.mission.exposure import ambient_bracket, shortened
 from rsi.mission.fusion import component_of
 from rsi.mission.photometry import PHOTOMETRIC_MIN_PIXELS, PHOTOMETRIC_TRIM_SIGMAS, photometric_refit
 from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
+from rsi.mission.screws import HeadGlint, screw_checks
 from rsi.mission.settings import MissionSettings
 from rsi.mission.views import (
     FAR_M,
@@ -104,7 +103,7 @@ class StoredView:
     reliefs : mapping of str to float
         Stereo relief of every screw site the reference saw, metres.
     glints : mapping of str to HeadGlint
-        The flash's glint on every seen screw head in the reference (:func:`rsi.mission.evidence.head_glint`).
+        The flash's glint on every seen screw head in the reference (:func:`rsi.mission.screws.head_glint`).
     strobe_energy, shutter : float
         The metered flash energy and shutter, kept for every later visit of the point.
     second_range_m : ndarray of shape (M, N), float32, or None
@@ -1049,7 +1048,7 @@ def _screws_read(
     confirm: float,
     settings: MissionSettings,
 ) -> tuple[list[MissionFinding], frozenset[str]]:
-    """:func:`rsi.mission.evidence.screw_checks` of the screws the view sees, each against the comparison
+    """:func:`rsi.mission.screws.screw_checks` of the screws the view sees, each against the comparison
     that holds its head: `pairs` is the whole frame's comparisons with both pristine visits, then those
     without the discoloured components' pixels (`changed`, :func:`discoloured_pixels`).
 
@@ -1058,7 +1057,7 @@ def _screws_read(
     repainted, its screw_C_1 seen only from C_panel_west_back, where none of its disc was left to judge, and
     its removal was missed. Those screws are read against the whole frame, as before the swap was known:
     the head's pattern is a normalised correlation, blind to the fit's gain, and its darkening is read
-    against the plate's own change (:func:`rsi.mission.evidence.screw_change`). The others are read without
+    against the plate's own change (:func:`rsi.mission.screws.screw_change`). The others are read without
     the swap, whose drag on the fit they would otherwise carry.
     """
     whole, without = pairs
