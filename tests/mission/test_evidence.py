@@ -85,6 +85,23 @@ def test_two_frames_sightings_of_one_impact_merge_within_both_frames_pose_errors
     assert len(fuse_findings(one_frame, (), SETTINGS, bounds)) == 2  # one pose: their offset is real
 
 
+def test_one_impact_seen_from_several_frames_is_placed_at_their_mean() -> None:
+    # seed §2.3: each visit misses its vista by its own draw of the repeatability, so the frames' placements
+    # of one impact err independently; a frame's second sighting shares its pose (held-out truss 2274)
+    bounds = {"cad_17": 0.012, "cad_18": 0.012, "cad_19": 0.012}
+    strong = _finding("impact", 0.300, 25.0, "cad_17")
+    again = _finding("impact", 0.309, 23.0, "cad_18")
+    (merged,) = fuse_findings([again, strong], (), SETTINGS, bounds)
+    assert (merged.source, merged.score) == ("cad_17", 25.0)  # the strongest sighting stands for it
+    assert merged.position_m == pytest.approx((0.3045, -0.472, 1.2), abs=1e-12)
+    twice = _finding("impact", 0.300 + SETTINGS.impact_merge_m / 2, 20.0, "cad_17")
+    third = _finding("impact", 0.303, 10.0, "cad_19")
+    (merged,) = fuse_findings([strong, again, twice, third], (), SETTINGS, bounds)
+    assert merged.position_m[0] == pytest.approx((0.300 + 0.309 + 0.303) / 3, abs=1e-12)
+    (alone,) = fuse_findings([strong], (), SETTINGS, bounds)
+    assert alone == strong
+
+
 def test_a_frame_that_sees_two_impacts_apart_keeps_both_when_another_frame_saw_one() -> None:
     # truss seed 2174 in space: fill_04 placed a 3.2 mm and a 1.9 mm impact 23 mm apart from one pose;
     # D_tubing's stronger sighting of the first lay within both frames' bounds of either
