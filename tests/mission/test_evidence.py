@@ -74,7 +74,8 @@ def test_one_impact_seen_from_two_vistas_is_one_finding() -> None:
 
 def test_two_frames_sightings_of_one_impact_merge_within_both_frames_pose_errors() -> None:
     # seed §2.3: each frame places its sighting from a pose off by its own viewpoint error; two frames'
-    # sightings of one impact lie within impact_merge_m plus both bounds, one frame's within impact_merge_m
+    # sightings of one impact lie within impact_merge_m plus both bounds, one frame's within the largest
+    # impact (impact_max_m)
     apart = SETTINGS.impact_merge_m + 0.003
     pair = [_finding("impact", 0.300, 9.0, "cad_22"), _finding("impact", 0.300 + apart, 7.0, "cad_24")]
     bounds = {"cad_22": 0.002, "cad_24": 0.002}
@@ -94,12 +95,22 @@ def test_one_impact_seen_from_several_frames_is_placed_at_their_mean() -> None:
     (merged,) = fuse_findings([again, strong], (), SETTINGS, bounds)
     assert (merged.source, merged.score) == ("cad_17", 25.0)  # the strongest sighting stands for it
     assert merged.position_m == pytest.approx((0.3045, -0.472, 1.2), abs=1e-12)
-    twice = _finding("impact", 0.300 + SETTINGS.impact_merge_m / 2, 20.0, "cad_17")
+    twice = _finding("impact", 0.300 + SETTINGS.impact_max_m / 2, 20.0, "cad_17")
     third = _finding("impact", 0.303, 10.0, "cad_19")
     (merged,) = fuse_findings([strong, again, twice, third], (), SETTINGS, bounds)
     assert merged.position_m[0] == pytest.approx((0.300 + 0.309 + 0.303) / 3, abs=1e-12)
     (alone,) = fuse_findings([strong], (), SETTINGS, bounds)
     assert alone == strong
+
+
+def test_one_frame_s_two_sightings_are_one_impact_only_within_the_largest_impact() -> None:
+    # the pieces of one spot lie inside the largest impact's extent, and one pose places both (held-out truss
+    # 2279: two bright craters 7.3 mm apart on the panel, seen apart from cad_28, made one finding)
+    first = _finding("impact", 0.300, 38.0, "cad_28")
+    apart = [first, _finding("impact", 0.3073, 33.0, "cad_28")]
+    assert sorted(f.score for f in fuse_findings(apart, (), SETTINGS)) == [33.0, 38.0]
+    pieces = [first, _finding("impact", 0.300 + 0.9 * SETTINGS.impact_max_m, 33.0, "cad_28")]
+    assert [f.score for f in fuse_findings(pieces, (), SETTINGS)] == [38.0]
 
 
 def test_a_frame_that_sees_two_impacts_apart_keeps_both_when_another_frame_saw_one() -> None:
@@ -113,8 +124,8 @@ def test_a_frame_that_sees_two_impacts_apart_keeps_both_when_another_frame_saw_o
     assert sorted(f.score for f in merged) == [9.0, 47.0]
     # alone in its frame, the weaker sighting is the stronger one's impact seen again, as before
     assert [f.score for f in fuse_findings([strong, second], (), SETTINGS, bounds)] == [47.0]
-    # two sightings of one impact in a frame (within impact_merge_m) do not make it two
-    twice = _finding("impact", 0.302 + SETTINGS.impact_merge_m / 2, 8.0, "fill_04")
+    # two sightings of one impact in a frame (within impact_max_m) do not make it two
+    twice = _finding("impact", 0.302 + SETTINGS.impact_max_m / 2, 8.0, "fill_04")
     assert [f.score for f in fuse_findings([strong, first_again, twice], (), SETTINGS, bounds)] == [47.0]
 
 

@@ -60,10 +60,11 @@ def _merge_impacts(
     the mean of its frames' placements (:func:`_placed_by_every_frame`).
 
     Two sightings in one frame are placed on the surface from the same believed pose: one impact lies
-    within ``settings.impact_merge_m``. Sightings in two frames are each also off by their own frame's
-    viewpoint error, which the believed pose does not hold (seed §2.3): one impact lies within that plus
-    both frames' bounds. At space repeatability one 2.2 mm impact on truss-b's panel, seen from two close
-    views 4.1 and 4.3 mm off, was two findings 8.3 mm apart (development seed 1972), one of them false.
+    within the largest impact's extent (``settings.impact_max_m``). Sightings in two frames are each also
+    off by their own frame's viewpoint error, which the believed pose does not hold (seed §2.3): one impact
+    lies within ``settings.impact_merge_m`` plus both frames' bounds. At space repeatability one 2.2 mm
+    impact on truss-b's panel, seen from two close views 4.1 and 4.3 mm off, was two findings 8.3 mm apart
+    (development seed 1972), one of them false.
     """
     impacts = sorted((f for f in findings if f.kind == "impact"), key=lambda f: -f.score)
     groups: list[list[MissionFinding]] = []
@@ -103,16 +104,22 @@ def _one_impact(
 ) -> bool:
     """Whether `first` is `second`'s impact seen again. Across frames not when `first`'s own frame holds
     another sighting nearer to `second`: one frame places its sightings from one believed pose, so two of
-    them farther apart than ``settings.impact_merge_m`` are two impacts, and the nearer one is `second`'s.
-    Truss seed 2174 at repeatability "space": fill_04 saw a 3.2 mm and a 1.9 mm impact 23 mm apart, and
-    the smaller merged into the larger one's sighting from another frame, within the two frames' bounds."""
+    them farther apart than the largest impact (``settings.impact_max_m``) are two impacts, and the nearer
+    one is `second`'s. Truss seed 2174 at repeatability "space": fill_04 saw a 3.2 mm and a 1.9 mm impact
+    23 mm apart, and the smaller merged into the larger one's sighting from another frame, within the two
+    frames' bounds.
+
+    One frame's two sightings are one impact only within the largest impact's extent: the pieces of one
+    spot lie inside it, and the frame's viewpoint error moves both alike (seed §2.3). Until issue 15's
+    twenty-eighth session they merged within ``settings.impact_merge_m`` (8 mm): held-out truss 2279, two
+    bright craters 7.3 mm apart on the panel, seen apart from cad_28 at 38 and 33 sigma, made one finding."""
     apart = _apart_m(first, second)
     if first.source == second.source:
-        return apart <= settings.impact_merge_m
+        return apart <= settings.impact_max_m
     bounds = pose_error_m.get(first.source, 0.0) + pose_error_m.get(second.source, 0.0)
     nearer = any(
         other.source == first.source
-        and _apart_m(other, first) > settings.impact_merge_m
+        and _apart_m(other, first) > settings.impact_max_m
         and _apart_m(other, second) < apart
         for other in impacts
     )
