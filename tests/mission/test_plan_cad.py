@@ -176,16 +176,25 @@ def test_the_truss_plan_covers_99_percent_with_more_points_than_the_hand_plan(
     truss_plan: CadPlan,
 ) -> None:
     """The acceptance asks >= 99 % with <= 10 points; at 0.5 mm pixels, the ISEE's jaws hiding part of each
-    frame the arm takes, the generator needs 29, every site's disc seen (30 when the jaws were left out:
-    weighing each view at three jaw openings gives the cover more views to choose from; an exact set cover
-    of the earlier candidates by area, 23: docs/mission.md). Points out of the arm's reach are flagged."""
-    assert truss_plan.coverage.fraction >= 0.99
+    frame the arm takes, the generator needs 30 for its 99.9 % (29 for 99.5 %; an exact set cover of the
+    earlier candidates by area, 23 for 99 %: docs/mission.md), every site's disc seen. Points out of the
+    arm's reach are flagged."""
+    assert truss_plan.coverage.fraction >= 0.999
     kinds = truss_plan.coverage.by_kind()
     assert kinds["screw"] == kinds["peltier"] == kinds["leak"] == 1.0
-    assert len(truss_plan.points) == 29
+    assert len(truss_plan.points) == 30
     assert truss_plan.generation_s < 60.0
     assert set(truss_plan.unreachable) < {point.name for point in truss_plan.points}
     assert all(name.startswith("cad_") for name in truss_plan.unreachable)
+
+
+def test_the_truss_plan_sees_the_d_tank_s_lower_side(truss_plan: CadPlan) -> None:
+    """The 0.995 cover's largest gap, where held-out missions 2269, 2281 and 2289 each missed a crater
+    (docs/mission.md): every sample within 3 cm of (1.61, -0.425, 1.15) m is covered now (21 of 28 before)."""
+    samples = truss_plan.coverage.samples
+    near = np.linalg.norm(samples.points_m - np.array([1.61, -0.425, 1.15]), axis=1) < 0.03
+    assert near.sum() > 20
+    assert truss_plan.coverage.covered[near].all()
 
 
 def test_a_generated_plan_runs_on_a_world(truss_world: World, truss_plan: CadPlan) -> None:

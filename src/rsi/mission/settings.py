@@ -135,7 +135,7 @@ class MissionSettings:
     plan : {"auto", "hand", "cad", "hand+cad"}
         The vista points: ``"hand"`` the ten hand-placed points of the truss (:mod:`rsi.mission.plan`,
         the operating point of docs/mission.md's earlier figures), ``"cad"`` a plan generated from the CAD
-        model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 29 points on the truss),
+        model for 0.5 mm pixels (:mod:`rsi.mission.plan_cad`; issue 15: 30 points on the truss),
         ``"hand+cad"`` the hand plan, then the points generated for what it leaves at its own 1 mm pixels
         and 45 deg (five on the truss: the tanks' flanks), ``"auto"`` (default) the CAD plan on every
         layout.
