@@ -197,6 +197,13 @@ def test_the_truss_plan_sees_the_d_tank_s_lower_side(truss_plan: CadPlan) -> Non
     assert truss_plan.coverage.covered[near].all()
 
 
+def test_the_plan_s_cover_is_a_setting(truss_plan: CadPlan) -> None:
+    """`MissionSettings.plan_cover` stops the cover where asked: 99.5 % takes fewer points and leaves more."""
+    looser = generate_plan(truss_mockup(), MissionSettings(plan_cover=0.995))
+    assert 0.995 <= looser.coverage.fraction < truss_plan.coverage.fraction
+    assert len(looser.points) < len(truss_plan.points)
+
+
 def test_a_generated_plan_runs_on_a_world(truss_world: World, truss_plan: CadPlan) -> None:
     """Measured again where the arm's jaws hide part of each frame, as the generator weighed it; the free
     camera of a world without the arm sees a little more."""
@@ -288,6 +295,8 @@ def test_missionsettings_plan_chooses_the_generator() -> None:
         (lambda: inspectable_samples(truss_mockup(), 0.0), "spacing_m"),
         (lambda: inspectable_samples(_mockup([], [])), "no inspectable surface"),
         (lambda: MissionSettings(plan="manual"), "plan must be one of"),
+        (lambda: MissionSettings(plan_cover=1.5), r"plan_cover must lie in \(0, 1\]"),
+        (lambda: MissionSettings(plan_cover=0.0), "plan_cover must be > 0"),
         (lambda: generate_plan(truss_mockup(), covered=np.ones(3, dtype=bool)), "covered must be"),
         (lambda: generate_plan(truss_mockup(), prefix="1 st"), "prefix must be"),
     ],

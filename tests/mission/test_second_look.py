@@ -46,14 +46,19 @@ def _stored(tour: Any, point: Any) -> StoredView:
 
 
 def _active_visit(
-    seed: int | np.random.SeedSequence, point_name: str, *, layout: str = "truss", repeatability: str = "lab"
+    seed: int | np.random.SeedSequence,
+    point_name: str,
+    *,
+    layout: str = "truss",
+    repeatability: str = "lab",
+    cover: float = MissionSettings().plan_cover,
 ) -> tuple[tuple[Any, ...], Any]:
     """Seed `seed`'s wide-draw anomalies and its active inspection visit of plan point `point_name` (both
-    passes at the same sun, no arm, no orbit)."""
+    passes at the same sun, no arm, no orbit; a generated plan stops its cover at `cover`)."""
     world = load(layout, seed=seed, repeatability=repeatability)
     try:
         # the truss's points by name are the completed hand plan's (B_tank), truss-b's the CAD plan's
-        plan = MissionSettings(plan="hand+cad" if layout == "truss" else "auto")
+        plan = MissionSettings(plan="hand+cad" if layout == "truss" else "auto", plan_cover=cover)
         point = next(p for p in plan_vistas(world, plan) if p.name == point_name)
         tour = Tour(world, seed=seed, size=MISSION_SIZE, arm=False, orbit=False)
         tour.start_pass("reference", ORBIT_START_S[0])
@@ -102,7 +107,10 @@ def test_an_impact_on_a_repainted_glossy_tank_stands_out_of_the_glare_the_repain
     # strobe's glare (seed §4), so the tank's own gain and bias left tens of DN over its pixels, and the
     # impact read 3.5 sigma in space. The blocks' gain and offset take that out; the impact stays.
     world_seed = np.random.SeedSequence(2154).spawn(3)[0]
-    anomalies, visit = _active_visit(world_seed, "cad_03", layout="truss-b", repeatability="space")
+    # truss-b's cad_03 of the plan at its 99.5 % cover, as flown then
+    anomalies, visit = _active_visit(
+        world_seed, "cad_03", layout="truss-b", repeatability="space", cover=0.995
+    )
     tank = next(a for a in anomalies if a.KIND == "swapped_component" and a.site == "B_tank")
     assert tank.defect == "discoloured" and tank.reflectance_factor < 0.7
     impact = next(a for a in anomalies if a.KIND == "impact" and a.site == "B_tank_mid")
@@ -134,13 +142,14 @@ def test_a_swap_found_by_one_vista_leaves_the_fit_of_the_views_before_and_after_
     # bright, and put a 1.9 mm dark crater (seen from cad_01) and a 3.6 mm bright one (from cad_05) on the
     # plate beside it. Only cad_03 sees the tank's centre, where its swap is read; the other two see its
     # side, which stayed in their photometric fit and left both craters under the threshold, each -10 sigma
-    # a pixel. cad_05 comes after cad_03 and knows the swap; cad_01 is visited again knowing it.
+    # a pixel. cad_05 comes after cad_03 and knows the swap; cad_01 is visited again knowing it. (The plan
+    # at its 99.5 % cover, as flown then.)
     calls: list[tuple[object, ...]] = []
     result = run_mission(
         2226,
         layout="truss-b",
         repeatability="space",
-        settings=MissionSettings(vistas=("cad_01", "cad_03", "cad_05")),
+        settings=MissionSettings(plan_cover=0.995, vistas=("cad_01", "cad_03", "cad_05")),
         on_visit=lambda vista, found: calls.append((vista,)),
         progress=lambda stage, done, total: calls.append((stage, done, total)),
     )

@@ -162,7 +162,15 @@ def _generated(
     from rsi.mission.plan_cad import generate_plan
 
     mockup = world.mockup
-    what = (mockup.parts, mockup.door, mockup.candidates, settings.door_open_rad, rules, prefix)
+    what = (
+        mockup.parts,
+        mockup.door,
+        mockup.candidates,
+        settings.door_open_rad,
+        settings.plan_cover,
+        rules,
+        prefix,
+    )
     key = hashlib.sha256(repr(what).encode() + (b"" if covered is None else covered.tobytes())).hexdigest()
     if key not in _GENERATED:
         if len(_GENERATED) >= _GENERATED_MAX:

@@ -59,12 +59,6 @@ AZIMUTHS = 8  # tilt directions around the normal
 STANDOFF_FRACTIONS = (0.9, 0.75)  # of the farthest standoff at the image centre: the corners need less
 UNREACHABLE_WEIGHT = 0.7
 DOOR_CHANGE_S = 30.0  # the door swung and the exposure settled again: more than any transfer
-# The cover's stopping point. A spot at the edge of the cover is seen by one view only, at its frame's edge
-# and near 45 deg: the last half percent of the surface is where spots go unseen. Held-out truss missions
-# 2269, 2281 and 2289 (space, docs/mission.md) each missed a crater within 2 cm on D_tank_1_skin's lower
-# side, the 0.995 cover's largest gap (8.8 cm^2); 0.999 covers it, with one point more on the truss (30)
-# and two on truss-b (42), about 3 s of mission each. A figure chosen after those three cases.
-COVER_TARGET = 0.999
 IK_PERIOD_S = 1.0 / 44.0  # the proximity loop's period (seed §3.1)
 IK_STEPS = 300
 IK_SPEED_M_S, IK_TURN_RAD_S = 1.0, 2.0  # a solver's steps, not a transit's: four times the rail's limits
@@ -563,7 +557,7 @@ def generate_plan(
     settings: MissionSettings | None = None,
     rules: CoverageRules | None = None,
     *,
-    target: float = COVER_TARGET,
+    target: float | None = None,
     arm: bool = True,
     covered: BoolArray | None = None,
     prefix: str = "cad",
@@ -579,7 +573,8 @@ def generate_plan(
     rules : CoverageRules, optional
         When a view covers a sample; default 0.5 mm per pixel and 45 deg.
     target : float
-        Fraction of the coverable area, in (0, 1], at which the greedy cover stops (``COVER_TARGET``).
+        Fraction of the coverable area, in (0, 1], at which the greedy cover stops. None: `settings`'s
+        ``plan_cover`` (0.999; :class:`rsi.mission.settings.MissionSettings` says why).
     arm : bool
         Check reach by the arm on its rail (prefer reachable views, flag the others); False: any view.
     covered : ndarray of bool, optional
@@ -600,6 +595,7 @@ def generate_plan(
     mockup = _mockup_of(source)
     settings = v.instance_or_default(settings, "settings", MissionSettings)
     rules = v.instance_or_default(rules, "rules", CoverageRules)
+    target = settings.plan_cover if target is None else target
     target = v.in_range(target, "target", low=0.0, high=1.0, low_inclusive=False)
     if not isinstance(arm, bool):
         raise InputError(f"arm must be True or False; got {arm!r}.")
@@ -694,7 +690,6 @@ def add_plan_vistas(world: World, plan: CadPlan) -> tuple[PlanPoint, ...]:
 
 
 __all__ = [
-    "COVER_TARGET",
     "CadPlan",
     "Candidate",
     "add_plan_vistas",
