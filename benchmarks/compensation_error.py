@@ -62,7 +62,7 @@ from rsi.mission import ORBIT_START_S
 from rsi.sim.orbit import in_sunlight
 
 if TYPE_CHECKING:
-    from rsi.mission.records import PlanPoint
+    from rsi.mission.plan_point import PlanPoint
     from rsi.mission.tour import Tour
     from rsi.sim.world import View, World
 

@@ -37,7 +37,7 @@ from rsi.imaging import parallax
 from rsi.imaging.compensation import Compensated
 from rsi.mission import coverage as coverage_module
 from rsi.mission import plan_cad, proximity_demo, records, transit, viewing
-from rsi.mission.records import PlanPoint
+from rsi.mission.plan_point import PlanPoint
 from rsi.report import plan as report_plan
 from rsi.sim import arm as sim_arm
 from rsi.sim import world as sim_world
@@ -48,6 +48,7 @@ MODULES = (
     "rsi.imaging.parallax",
     "rsi.report.plan",
     "rsi.mission.records",
+    "rsi.mission.plan_point",
     "rsi.mission.coverage",
     "rsi.mission.plan_cad",
     "rsi.mission.transit",

@@ -12,7 +12,8 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from rsi.mission import MissionSettings
-from rsi.mission.records import MissionFinding, PlanPoint
+from rsi.mission.plan_point import PlanPoint
+from rsi.mission.records import MissionFinding
 from rsi.mission.store import filed_under
 from rsi.mission.surveys import gas_pass, gas_stations
 from rsi.sim.anomalies import AnomalySet, AnomalySettings, GasLeak, Site, seed_anomalies

@@ -20,12 +20,12 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from rsi._lazy import lazy_getattr
+from rsi.mission.plan_point import PlanPoint
 from rsi.mission.records import (
     IMPACT_MIN_SIZE_M,
     SCORED_TYPES,
     MissionFinding,
     MissionResult,
-    PlanPoint,
     VisitImages,
     VisitRecord,
     counts_towards_recall,

@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 
 from rsi import _validate as v
 from rsi.errors import InputError
-from rsi.mission.records import PlanPoint
+from rsi.mission.plan_point import PlanPoint
 from rsi.mission.settings import FRAME_MARGIN_PX, MISSION_SIZE
 from rsi.mission.viewing import focal_px
 from rsi.mission.views import point_region

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.mission.coverage import CoverageRules, Sight, coverage
-from rsi.mission.records import PlanPoint
+from rsi.mission.plan_point import PlanPoint
 from rsi.mission.settings import MissionSettings
 from rsi.mission.views import point_region
 from rsi.sim.arm import JAW_MAX_OPENING_M

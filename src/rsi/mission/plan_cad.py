@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from rsi import _validate as v
 from rsi.errors import InputError
 from rsi.mission.coverage import Coverage, CoverageRules, Sight, coverage, inspectable_items
-from rsi.mission.records import PlanPoint
+from rsi.mission.plan_point import PlanPoint
 from rsi.mission.settings import MissionSettings
 from rsi.sim.anomalies import CylinderPatch, Patch, Site
 from rsi.sim.arm import DEFAULT_JAW_OPENING_M, JAW_MAX_OPENING_M

@@ -31,7 +31,8 @@ from rsi.mission.evidence import Explanation
 from rsi.mission.exposure import ambient_bracket, metered, settle
 from rsi.mission.fusion import fuse_findings
 from rsi.mission.plan import plan_vistas
-from rsi.mission.records import MissionFinding, MissionResult, PlanPoint, VisitRecord
+from rsi.mission.plan_point import PlanPoint
+from rsi.mission.records import MissionFinding, MissionResult, VisitRecord
 from rsi.mission.score import run_roc
 from rsi.mission.screws import head_glint, screw_relief_m
 from rsi.mission.settings import MISSION_SIZE, OVERVIEW_SIZE, REPEATABILITY, MissionSettings

@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rsi.mission.records import MissionFinding, PlanPoint
+from rsi.mission.plan_point import PlanPoint
+from rsi.mission.records import MissionFinding
 from rsi.mission.settings import MissionSettings
 
 if TYPE_CHECKING:

@@ -19,7 +19,7 @@ from rsi.mission.settings import FRAME_MARGIN_PX, MissionSettings
 
 if TYPE_CHECKING:
     from rsi.imaging.compensation import Compensated
-    from rsi.mission.records import PlanPoint
+    from rsi.mission.plan_point import PlanPoint
     from rsi.sim.anomalies import Site
     from rsi.sim.capture import Capture
     from rsi.sim.render import CameraPose

@@ -50,7 +50,8 @@ from rsi.mission.evidence import (
 from rsi.mission.exposure import ambient_bracket, shortened
 from rsi.mission.fusion import component_of
 from rsi.mission.photometry import PHOTOMETRIC_MIN_PIXELS, PHOTOMETRIC_TRIM_SIGMAS, photometric_refit
-from rsi.mission.records import MissionFinding, PlanPoint, VisitRecord
+from rsi.mission.plan_point import PlanPoint
+from rsi.mission.records import MissionFinding, VisitRecord
 from rsi.mission.screws import HeadGlint, screw_checks
 from rsi.mission.settings import MissionSettings
 from rsi.mission.views import (
