@@ -280,11 +280,8 @@ def head_likeness(pair: PairResult, view: Sensed, site: Site, max_shift_px: floa
     inspection over local shifts of at most `max_shift_px` in quarter pixels (seed §2.3: a residual
     mis-registration is locally a translation); None where under half the disc is valid in the comparison
     (a saturated reference, the frame's border, an occluder): too few pixels to say."""
-    detection = pair.detection
-    head = disc(detection.score.shape, view, site.position_m, 0.5 * site.size_m)
-    whole = _widened(head)
-    head = whole & detection.valid
-    if head.sum() < max(9, whole.sum() / 2):  # a pattern judged on its disc's rim says nothing of the head
+    head = _judged_disc(pair, view, site)
+    if head is None:
         return None
     inspection, predicted, box = _around(pair, head, math.ceil(max_shift_px) + 1)
     inside = head[box]
@@ -297,6 +294,15 @@ def head_likeness(pair: PairResult, view: Sensed, site: Site, max_shift_px: floa
         if norm > 0.0:
             best = max(best, float(seen @ moved) / norm)
     return best
+
+
+def _judged_disc(pair: PairResult, view: Sensed, site: Site) -> NDArray[np.bool_] | None:
+    """The head's disc, a pixel wider, where the comparison holds it; None under half of it: a head judged
+    on its disc's rim says nothing of the head (its pattern, or its darkening: a present head's relief
+    renders its rim a little darker from another viewpoint)."""
+    whole = _widened(disc(pair.detection.score.shape, view, site.position_m, 0.5 * site.size_m))
+    head = whole & pair.detection.valid
+    return head if head.sum() >= max(9, whole.sum() / 2) else None
 
 
 def _around(
@@ -342,10 +348,12 @@ def screw_change(pair: PairResult, view: Sensed, site: Site, max_shift_px: float
 
     detection = pair.detection
     radius = 0.5 * site.size_m
-    head = _widened(disc(detection.score.shape, view, site.position_m, radius)) & detection.valid
+    head = _judged_disc(pair, view, site)
     distance = surface_distance_m(detection.score.shape, view, site.position_m)
     ring = (distance >= 1.5 * radius) & (distance <= 2.5 * radius) & detection.valid
-    if head.sum() < 9 or ring.sum() < RING_MIN_SAMPLES:
+    # held-out truss 2300 in space, cad_29: screw_C_0's disc a tenth in the comparison (its reference
+    # saturated by the glint), its rim a few DN darker against the plate's spread read 24-28 sigma
+    if head is None or ring.sum() < RING_MIN_SAMPLES:
         return 0.0
     inspection, predicted, box = _around(pair, head | ring, math.ceil(max_shift_px) + 2)
     inside, around = head[box], ring[box]
