@@ -572,7 +572,7 @@ def generate_plan(
         The door's opening for views of what it hides (``door_open_rad``).
     rules : CoverageRules, optional
         When a view covers a sample; default 0.5 mm per pixel and 45 deg.
-    target : float
+    target : float, optional
         Fraction of the coverable area, in (0, 1], at which the greedy cover stops. None: `settings`'s
         ``plan_cover`` (0.999; :class:`rsi.mission.settings.MissionSettings` says why).
     arm : bool
