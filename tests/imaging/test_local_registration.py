@@ -16,6 +16,7 @@ from rsi.cli import app
 from rsi.datasets.synthetic import textured_surface
 from rsi.detection.detect import detect
 from rsi.errors import InputError
+from rsi.imaging import _local
 from rsi.imaging.io import write_image
 from rsi.imaging.registration import LocalField, Registration, prepare_reference, register
 
@@ -196,6 +197,23 @@ def test_a_binarised_board_keeps_its_edges(finest_level: int) -> None:
     assert result.local.trimmed_fraction < 0.08
     field = smooth_field(2.0)
     assert float(np.sqrt(np.mean(field_error_px(result, field) ** 2))) < 0.5
+
+
+@pytest.mark.parametrize("finest_level", [0, 1])
+def test_a_binarised_board_s_field_reads_its_textured_pixels_alone(
+    finest_level: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Most of a binarised board is flat: its pixels add nothing to the normal matrix or the gradient, and the
+    # steps read the textured ones alone. The field must be the one every pixel gives (same steps, same
+    # result up to float rounding); swapping two of a pixel's four hat weights moved it by ~0.1 px.
+    reference, inspection = binarised_board(2.0)
+    textured = register(reference, inspection, model="local", finest_level=finest_level)
+    monkeypatch.setattr(_local, "_SPARSE_BELOW", 0.0)
+    every = register(reference, inspection, model="local", finest_level=finest_level)
+    assert textured.local is not None and every.local is not None
+    assert textured.iterations == every.iterations
+    np.testing.assert_allclose(textured.local.shift_xy, every.local.shift_xy, atol=1e-4)
+    np.testing.assert_array_equal(textured.local.fallback, every.local.fallback)
 
 
 def test_local_detection_finds_every_flaw_where_affine_leaves_edges() -> None:

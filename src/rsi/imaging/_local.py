@@ -44,6 +44,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_solve_banded, cholesky_banded
+from scipy.sparse import csr_matrix
 from threadpoolctl import ThreadpoolController
 
 from rsi.errors import InputError
@@ -82,6 +83,10 @@ TOLERANCE_PX = 0.01
 _MAP_STEP_PX = 4
 # Largest departure of a node from the global fit, as a fraction of the tile, per axis (step 7 above).
 _MAX_FIELD_TILES = 1.0 / 8.0
+# The Gauss-Newton steps read the textured pixels alone when they are fewer than this fraction of the level
+# (_Solver._stepping_pixels): 1,920 px binarised boards (DeepPCB pairs scaled 3x, a quarter textured) took
+# 255-285 ms instead of 370, camera-like textures (all textured) would take twice as long.
+_SPARSE_BELOW = 0.5
 
 
 _P = ParamSpec("_P")
@@ -228,14 +233,21 @@ def _hats(nodes: FloatArray, size: int) -> FloatArray:
     second), constant beyond the outer nodes."""
     if nodes.size < 2:
         return np.ones((size, nodes.size))
-    position = np.interp(np.arange(size, dtype=np.float64), nodes, np.arange(nodes.size, dtype=np.float64))
-    low = np.minimum(position.astype(np.intp), nodes.size - 2)
-    fraction = position - low
+    low, fraction = _hat_parts(nodes, np.arange(size, dtype=np.float64))
     hat = np.zeros((size, nodes.size))
     pixels = np.arange(size)
     hat[pixels, low] = 1.0 - fraction
     hat[pixels, low + 1] = fraction
     return hat
+
+
+def _hat_parts(nodes: FloatArray, positions: FloatArray) -> tuple[NDArray[np.intp], FloatArray]:
+    """Each position's first node and its fraction of the way to the next, clamped to the outer nodes
+    (:func:`_hats`' two non-zeros are ``1 - fraction`` at ``low`` and ``fraction`` at ``low + 1``); needs two
+    nodes or more."""
+    position = np.interp(positions, nodes, np.arange(nodes.size, dtype=np.float64))
+    low = np.minimum(position.astype(np.intp), nodes.size - 2)
+    return low, position - low
 
 
 def _interpolate(values: FloatArray, hats: tuple[FloatArray, FloatArray]) -> Image:
@@ -410,10 +422,11 @@ class _Mesh:
     ``phi_j(x) = p_r(row) p_c(col)``, so the normal matrix is ``N = sum_x w phi phi^T (J^-T g)(J^-T g)^T``
     over node pairs. With the hats as matrices (pixels x nodes, two non-zeros a row), every entry is a product
     ``P_r^T (w g_a g_b) P_c`` over the hats' pairwise products, computed once per reference and weight; each
-    iteration needs only ``P_r^T (w g_a r) P_c``. The step minimises ``|r + g^T phi du|^2 + lambda (u + du)^T
-    L (u + du) + mu |u + du|^2`` with N scaled so that a typical node weighs 1 (the smoothness is then
-    scale-free). The matrix couples a node with its eight neighbours only: with the two components of a node
-    side by side it is banded (half-width 2C + 3), factored once by Cholesky.
+    iteration needs only ``sum w phi g_a r``, over the textured pixels alone on a mostly flat image
+    (:class:`_TexturedPixels`). The step minimises ``|r + g^T phi du|^2 + lambda (u + du)^T L (u + du) +
+    mu |u + du|^2`` with N scaled so that a typical node weighs 1 (the smoothness is then scale-free). The
+    matrix couples a node with its eight neighbours only: with the two components of a node side by side it
+    is banded (half-width 2C + 3), factored once by Cholesky.
     """
 
     def __init__(
@@ -427,8 +440,7 @@ class _Mesh:
         self.grid, self.inverse = grid, inverse
         self.shape = grid.tiles_shape
         rows, cols = self.shape
-        self.row_hat, self.col_hat = (np.asarray(hat, dtype=np.float32) for hat in hats)
-        row_pairs, col_pairs = (_hat_pairs(hat) for hat in (self.row_hat, self.col_hat))
+        row_pairs, col_pairs = (_hat_pairs(np.asarray(hat, dtype=np.float32)) for hat in hats)
         gx, gy = gradients
         xx, xy, yy = (weight * first * second for first, second in ((gx, gx), (gx, gy), (gy, gy)))
 
@@ -446,13 +458,6 @@ class _Mesh:
         textured = textured[textured > 0]
         self.scale = float(np.median(textured)) / 2.0 if textured.size else 1.0
         self.factor = cholesky_banded(_banded_system(*(c.scaled(1.0 / self.scale) for c in couplings)))
-
-    def gradient(self, weighted_x: Image, weighted_y: Image) -> FloatArray:
-        """``sum w phi J^-T g r`` per node (R, C, 2)."""
-        first = np.asarray(self.row_hat.T @ weighted_x @ self.col_hat, dtype=np.float64)
-        second = np.asarray(self.row_hat.T @ weighted_y @ self.col_hat, dtype=np.float64)
-        (a, b), (c, d) = self.inverse
-        return np.stack([a * first + c * second, b * first + d * second], axis=-1)
 
     def step(self, field: FloatArray, gradient: FloatArray) -> FloatArray:
         """The Gauss-Newton update of the field (R, C, 2) from the nodes' gradient (R, C, 2)."""
@@ -512,6 +517,113 @@ def _forward_maps(matrix: FloatArray, shape: tuple[int, int], row_step: int = 1)
     return np.asarray(map_x, dtype=np.float32), np.asarray(map_y, dtype=np.float32)
 
 
+# Points per row of the 2-D maps that cv2.remap reads the field's pixels through (below its 32767 a side).
+_POINTS_PER_ROW = 1024
+
+
+def _remap_points(image: Image, map_x: Image, map_y: Image, interpolation: int) -> Image:
+    """`image` at the points ``(map_x, map_y)`` (1-D, float32) as cv2.remap reads them (border replicated)."""
+    count = int(map_x.size)
+    if not count:
+        return np.zeros(0, np.float32)
+    padded = -(-count // _POINTS_PER_ROW) * _POINTS_PER_ROW
+    maps = np.zeros((2, padded), np.float32)
+    maps[0, :count], maps[1, :count] = map_x, map_y
+    rows = (-1, _POINTS_PER_ROW)
+    moved = cv2.remap(
+        image, maps[0].reshape(rows), maps[1].reshape(rows), interpolation, borderMode=cv2.BORDER_REPLICATE
+    )
+    return np.asarray(moved, dtype=np.float32).ravel()[:count]
+
+
+def _rows_of(values: FloatArray, columns: NDArray[np.intp], width: int) -> csr_matrix:
+    """A sparse matrix with as many non-zeros on every row: `values` and their `columns`, both (K, n)."""
+    count, per_row = values.shape
+    pointers = np.arange(0, count * per_row + 1, per_row)
+    return csr_matrix((values.ravel(), columns.ravel(), pointers), shape=(count, width))
+
+
+class _EveryPixel:
+    """Every pixel of a level's sampled rows (shape ``(rows, cols)``), the field read through the hats as
+    matrices: ``P_r U P_c^T`` per component (three times faster than a remap of the node image) and
+    ``P_r^T q P_c`` onto the nodes, both BLAS products."""
+
+    def __init__(self, hats: tuple[FloatArray, FloatArray]) -> None:
+        self.row_hat, self.col_hat = (np.asarray(hat, dtype=np.float32) for hat in hats)
+        self.shape = (int(self.row_hat.shape[0]), int(self.col_hat.shape[0]))
+
+    def at(self, image: NDArray[np.floating]) -> Image:
+        """`image` (the level's sampled rows) as the pixels' values, 1-D float32."""
+        return np.asarray(image, dtype=np.float32).ravel()
+
+    def sample(self, image: Image, field: FloatArray, base: tuple[Image, Image], interpolation: int) -> Image:
+        """`image` at the pixels' ``base + u`` for the node field `field` (R, C, 2), 1-D."""
+        maps = [
+            self.row_hat @ field[..., k].astype(np.float32) @ self.col_hat.T + base[k].reshape(self.shape)
+            for k in (0, 1)
+        ]
+        moved = cv2.remap(image, maps[0], maps[1], interpolation, borderMode=cv2.BORDER_REPLICATE)
+        return np.asarray(moved, dtype=np.float32).ravel()
+
+    def node_sums(self, values: Image) -> FloatArray:
+        """``sum phi_j q`` of per-pixel `values` (1-D) over each node's hats, (R, C)."""
+        return np.asarray(self.row_hat.T @ values.reshape(self.shape) @ self.col_hat, dtype=np.float64)
+
+
+class _TexturedPixels:
+    """The pixels that move the field: used (weight > 0) and with a reference gradient (energy > 0).
+
+    A pixel without gradient adds nothing to the normal matrix or to the nodes' gradient (both are weighted
+    by the gradient), and a binarised board is mostly flat: 4-45 % of a half-size DeepPCB board's pixels
+    have any gradient (ten trainval pairs, every hundredth). The Gauss-Newton steps then resample the
+    inspection at these pixels only; the dense residual is formed once a level has converged (the trim and
+    the uncertainty read every used pixel). ``spread`` is the bilinear field's matrix, pixels x nodes (four
+    non-zeros a row, ``p_r(row) p_c(col)``): the field at the pixels is ``spread @ U``, and a per-pixel
+    quantity summed onto the nodes is ``gather @ q`` (``spread``'s transpose, kept).
+    """
+
+    def __init__(
+        self,
+        index: NDArray[np.intp],
+        columns: int,
+        row_parts: tuple[NDArray[np.intp], FloatArray],
+        col_parts: tuple[NDArray[np.intp], FloatArray],
+        nodes_shape: tuple[int, int],
+    ) -> None:
+        self.index = index
+        rows, cols = np.divmod(index, columns)
+        row_low, row_fraction = (part[rows] for part in row_parts)
+        col_low, col_fraction = (part[cols] for part in col_parts)
+        first = row_low * nodes_shape[1] + col_low
+        corners = np.stack([first, first + 1, first + nodes_shape[1], first + nodes_shape[1] + 1], axis=1)
+        weights = np.stack(
+            [
+                (1.0 - row_fraction) * (1.0 - col_fraction),
+                (1.0 - row_fraction) * col_fraction,
+                row_fraction * (1.0 - col_fraction),
+                row_fraction * col_fraction,
+            ],
+            axis=1,
+        )
+        self.spread = _rows_of(weights, corners, nodes_shape[0] * nodes_shape[1])
+        self.gather = self.spread.T.tocsr()
+        self.nodes_shape = nodes_shape
+
+    def at(self, image: NDArray[np.floating]) -> Image:
+        """`image`'s values at the pixels (1-D, float32)."""
+        return np.asarray(image.ravel()[self.index], dtype=np.float32)
+
+    def sample(self, image: Image, field: FloatArray, base: tuple[Image, Image], interpolation: int) -> Image:
+        """`image` at the pixels' ``base + u`` for the node field `field` (R, C, 2), 1-D."""
+        shift = self.spread @ field.reshape(-1, 2)
+        map_x, map_y = (np.asarray(shift[:, k] + base[k], dtype=np.float32) for k in (0, 1))
+        return _remap_points(image, map_x, map_y, interpolation)
+
+    def node_sums(self, values: Image) -> FloatArray:
+        """``sum phi_j q`` of per-pixel `values` (1-D) over each node's hats, (R, C)."""
+        return np.asarray(self.gather @ values.astype(np.float64)).reshape(self.nodes_shape)
+
+
 class _Solver:
     """Iterates Gauss-Newton steps of the node field on one pyramid level.
 
@@ -550,29 +662,72 @@ class _Solver:
         self.hats = (row_hat[sampled], col_hat)
         self.field = np.zeros((*grid.tiles_shape, 2))
         self.iterations = 0
-        self.set_weight(weight[sampled])
+        used = weight[sampled]
+        self.every_pixel = _EveryPixel(self.hats)
+        self.pixels = self._stepping_pixels(used, grid, row_step)
+        self.at_pixels = {
+            name: self.pixels.at(image)
+            for name, image in (
+                ("reference", self.reference),
+                ("gx", self.gx),
+                ("gy", self.gy),
+                ("base_x", self.base_x),
+                ("base_y", self.base_y),
+            )
+        }
+        self.set_weight(used)
+
+    def _stepping_pixels(self, used: Image, grid: _Grid, row_step: int) -> _EveryPixel | _TexturedPixels:
+        """The pixels the Gauss-Newton steps read: the textured ones alone where they are few (a binarised
+        board), else every pixel (a camera's image, where the BLAS products over the whole level are faster
+        than the sparse ones: 64 ms a 3 px warp of ``benchmarks/bench_local_registration.py`` against 139)."""
+        textured = np.flatnonzero((used > 0) & (self.energy > 0))
+        if textured.size >= _SPARSE_BELOW * used.size:
+            return self.every_pixel
+        node_rows, node_cols = grid.nodes
+        rows, cols = self.every_pixel.shape
+        return _TexturedPixels(
+            textured,
+            cols,
+            _hat_parts(node_rows, np.arange(0, rows * row_step, row_step, dtype=np.float64)),
+            _hat_parts(node_cols, np.arange(cols, dtype=np.float64)),
+            grid.tiles_shape,
+        )
 
     def set_weight(self, weight: Image) -> None:
+        """Use `weight` (a trim only ever lowers it: the pixels stay a superset of those it uses)."""
         self.weight = weight
+        self.weight_at = self.pixels.at(weight)
         self.mesh = _Mesh(self.grid, self.hats, (self.gx, self.gy), weight, self.inverse)
         self.textured = _textured_samples(weight, self.energy)
+        self.textured_at = (
+            np.searchsorted(self.pixels.index, self.textured)
+            if isinstance(self.pixels, _TexturedPixels)
+            else self.textured
+        )
         self.tiles = self.mesh.tiles
 
     def residual(self) -> Image:
-        # The bilinear field at every pixel, P_r U P_c^T per component: three times faster than a remap of
-        # the node image.
-        row_hat, col_hat = self.mesh.row_hat, self.mesh.col_hat
-        map_x = row_hat @ self.field[..., 0].astype(np.float32) @ col_hat.T
-        map_x += self.base_x
-        map_y = row_hat @ self.field[..., 1].astype(np.float32) @ col_hat.T
-        map_y += self.base_y
-        moved = cv2.remap(self.inspection, map_x, map_y, self.interpolation, borderMode=cv2.BORDER_REPLICATE)
+        """The residual at every pixel of the level's sampled rows under the current field."""
+        bases = (self.base_x, self.base_y)
+        moved = self.every_pixel.sample(self.inspection, self.field, bases, self.interpolation)
         self.iterations += 1
-        return np.asarray(moved, dtype=np.float32) - self.reference
+        return moved.reshape(self.reference.shape) - self.reference
+
+    def pixel_residual(self) -> Image:
+        """The residual at the stepping pixels (1-D) under the current field."""
+        values = self.at_pixels
+        bases = (values["base_x"], values["base_y"])
+        moved = self.pixels.sample(self.inspection, self.field, bases, self.interpolation)
+        self.iterations += 1
+        return moved - values["reference"]
 
     def gradient(self, residual: Image) -> FloatArray:
-        weighted = residual * self.weight
-        return self.mesh.gradient(weighted * self.gx, weighted * self.gy)
+        """``sum w phi J^-T g r`` per node (R, C, 2) from the residual at the stepping pixels."""
+        weighted = residual * self.weight_at
+        first, second = (self.pixels.node_sums(weighted * self.at_pixels[name]) for name in ("gx", "gy"))
+        (a, b), (c, d) = self.inverse
+        return np.stack([a * first + c * second, b * first + d * second], axis=-1)
 
     def tile_gradient(self, residual: Image) -> FloatArray:
         """``sum w J^-T g r`` over each tile (uniform weights, R, C, 2)."""
@@ -587,7 +742,7 @@ class _Solver:
         A flaw's residual then pulls no harder than a mis-registered edge's; as Huber's weight never
         exceeds 1, the fixed normal matrix still bounds the curvature and every step still descends.
         """
-        sigma = _robust_sigma(residual, self.textured)
+        sigma = _robust_sigma(residual, self.textured_at)
         if sigma > 0.0:
             limit = np.float32(_HUBER_SIGMAS * sigma)
             residual = np.clip(residual, -limit, limit)
@@ -613,10 +768,10 @@ class _Solver:
         area = self.grid.tile_sums(np.ones(self.reference.shape, np.float32))
         return np.stack([self.grid.tile_sums(field[..., axis]) / area for axis in (0, 1)], axis=-1)
 
-    def run(self, max_iterations: int) -> Image:
-        """Gauss-Newton steps of the field to convergence; returns the last residual."""
-        residual = self.residual()
+    def run(self, max_iterations: int) -> None:
+        """Gauss-Newton steps of the field to convergence (the residual read at the field's pixels only)."""
         for _ in range(max_iterations):
+            residual = self.pixel_residual()
             proposed = self.mesh.step(self.field, self.robust_gradient(residual))
             change = proposed - self.field
             # A step beyond a pixel leaves the linear range of the lightly smoothed images: damp it. The whole
@@ -628,10 +783,8 @@ class _Solver:
             moved = np.clip(self.field + change, -self.field_limit, self.field_limit)
             # Converged when no node moves (one held at the trust bound may press on, in vain).
             change, self.field = moved - self.field, moved
-            residual = self.residual()
             if float(np.abs(change).max(initial=0.0)) < self.tolerance:
                 break
-        return residual
 
 
 def _uncertainty(
@@ -675,7 +828,8 @@ def _textured_samples(weight: Image, energy: Image) -> NDArray[np.intp]:
 
 
 def _robust_sigma(residual: Image, samples: NDArray[np.intp]) -> float:
-    """Robust (MAD) sigma of the residual at the textured samples; 0 without any."""
+    """Robust (MAD) sigma of the residual at the textured samples (flat indices into `residual`); 0 without
+    any."""
     return _MAD_TO_SIGMA * float(np.median(np.abs(residual.ravel()[samples]))) if samples.size else 0.0
 
 
@@ -788,7 +942,8 @@ def estimate_field(
         coarse = on_level(level=level + 1, tolerance=tolerance_px, interpolation=cv2.INTER_LINEAR)
         coarse.run(_MAX_ITERATIONS)
         solver.field = 2.0 * coarse.field
-    residual = solver.run(_MAX_ITERATIONS)
+    solver.run(_MAX_ITERATIONS)
+    residual = solver.residual()
     # seed §2.4: a flaw is an outlier of the registration model; drop it and refine (a flaw must not pull
     # its tile).
     floor = (
@@ -799,7 +954,8 @@ def estimate_field(
     trimmed_fraction = float((used - float(trimmed_weight.sum())) / used) if used else 0.0
     if trimmed_fraction > 0.0:
         solver.set_weight(trimmed_weight)
-        residual = solver.run(_MAX_ITERATIONS)
+        solver.run(_MAX_ITERATIONS)
+        residual = solver.residual()
     steps = solver.own_steps(residual)
     measured = solver.tile_means() - steps
     # A level's pixel is 2**level full-resolution pixels; its nodes lie within a pixel of the full grid's.
