@@ -93,18 +93,13 @@ def test_local_field_follows_a_smooth_warp(amplitude_px: float, seed: int) -> No
 
 
 @pytest.mark.parametrize(("amplitude_px", "seed"), [(1.0, 1), (3.0, 0)])
-@pytest.mark.parametrize(
-    "sampled",
-    [{}, {"row_step": 2, "presmooth": False}, {"row_step": 2, "presmooth": False, "coarsest_level": 1}],
-)
+@pytest.mark.parametrize("sampled", [{}, {"row_step": 2, "presmooth": False}])
 def test_local_field_on_the_half_size_images(
     amplitude_px: float, seed: int, sampled: dict[str, object]
 ) -> None:
     # finest_level=1 solves the field on the half-size images (DeepPCB's setting) and reports it in full
     # pixels: measured 0.086 and 0.091 px RMS on these warps (full resolution: 0.017 and 0.041 px). Every
-    # other row and no full-resolution smoothing (DeepPCB's too) leave it as accurate: 0.081 and 0.088 px;
-    # so does starting on the half-size images without the quarter-size level (coarsest_level=1, DeepPCB's
-    # too): 0.081 and 0.088 px.
+    # other row and no full-resolution smoothing (DeepPCB's too) leave it as accurate: 0.081 and 0.088 px.
     reference, inspection, field = warped_pair(amplitude_px, seed=seed)
     half = register(reference, inspection, model="local", finest_level=1, **sampled)
     full = register(reference, inspection, model="local")

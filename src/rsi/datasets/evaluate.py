@@ -83,10 +83,7 @@ class DeepPcbSettings:
         Coarsest pyramid level the registration refines (:func:`rsi.register`'s ``coarsest_level``; None:
         down to 128 px a side). 1: the fit starts and ends on the half-size images, from the identity (the
         pairs come pre-aligned, within a few pixels), without the quarter-size level before it; the fits
-        lie within 0.01 px of the two-level ones for the median pair (``docs/deeppcb.md``). The local field
-        starts on the half-size images too: its quarter-size start cost 3 ms a pair, and without it
-        leave-one-group-out moved by at most 0.002 but in group 44000 (official F 0.942 -> 0.931; pooled
-        0.9867 -> 0.9868, false alarms 0.034 -> 0.032 per image).
+        lie within 0.01 px of the two-level ones for the median pair (``docs/deeppcb.md``).
     registration_row_step : int or None
         Rows the registration samples (:func:`rsi.register`'s ``row_step``; None: every row below 512).
         2: every other row of the half-size images, half the work; the fits move by 0.04 px for the median

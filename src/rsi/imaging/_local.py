@@ -901,7 +901,6 @@ def estimate_field(
     tile_px: int,
     *,
     finest_level: int = 0,
-    coarsest_level: int | None = None,
     tolerance_px: float = TOLERANCE_PX,
     row_step: int = 1,
 ) -> LocalField:
@@ -923,10 +922,6 @@ def estimate_field(
         The field is solved on the images ``2**finest_level`` times smaller (0: full resolution) and scaled
         back to full-resolution pixels; tiles keep their full-resolution size, so a level keeps
         ``tile_px >> finest_level`` >= _MIN_TILE_PX pixels a side (coarser levels are not used).
-    coarsest_level : int or None
-        The field starts one level coarser than it is solved on (twice the capture range) unless this
-        bounds the levels to the one it is solved on (None: no bound), as :func:`rsi.register`'s
-        `coarsest_level` does for the global fit.
     tolerance_px : float
         The Gauss-Newton steps stop when no node moves more than this, full-resolution pixels (the coarser
         level that gives the start: this many of its own pixels).
@@ -938,7 +933,7 @@ def estimate_field(
     level = min(finest_level, max(0, int(np.log2(tile_px / _MIN_TILE_PX))))
     # Bicubic resampling on the finest level: bilinear's bias follows the sub-pixel phase, which a smooth
     # field keeps nearly constant over a tile (0.045 px instead of 0.010 px on the 1 px test warps).
-    coarser = tile_px >> level >= 2 * _MIN_TILE_PX and (coarsest_level is None or coarsest_level > level)
+    coarser = tile_px >> level >= 2 * _MIN_TILE_PX
     pyramid = _pyramid(reference, inspection, level + coarser)
     on_level = partial(_level_solver, pyramid, matrix, valid, grid=grid, tile_px=tile_px, row_step=row_step)
     solver = on_level(level=level, tolerance=tolerance_px / 2.0**level, interpolation=cv2.INTER_CUBIC)

@@ -715,8 +715,7 @@ def register(
         128 px a side. Coarse levels widen the basin of convergence; a start already close to the answer
         (`initial` on pre-aligned images) needs none: with ``finest_level=coarsest_level=1`` DeepPCB's pairs
         are registered on their half-size images alone (``docs/deeppcb.md``). Without `initial`, phase
-        correlation then runs on that level. With ``model="local"`` it bounds the field's levels too: the
-        field starts one level coarser than it is solved on unless this is that level.
+        correlation then runs on that level.
     row_step : int, optional
         Rows sampled on each level, >= 1: None (default) every row, and every other row on levels of 512 rows
         or more (their accuracy is limited by interpolation bias, not noise); ``k``: every k-th row on every
@@ -788,7 +787,6 @@ def register(
             if field_tolerance_px is None
             else in_range(field_tolerance_px, "field_tolerance_px", low=0.0, low_inclusive=False),
             finest_level=positive_int(finest_level, "finest_level", minimum=0),
-            coarsest_level=coarsest_level,
             row_step=row_step,
             presmooth=presmooth,
             started=started,
@@ -868,7 +866,6 @@ def _register_local(
     tile_px: int,
     tolerance_px: float,
     finest_level: int,
-    coarsest_level: int | None,
     row_step: int | None,
     presmooth: bool | None,
     started: float,
@@ -898,7 +895,6 @@ def _register_local(
         usable,
         tile_px,
         finest_level=finest_level,
-        coarsest_level=coarsest_level,
         tolerance_px=tolerance_px,
         row_step=1 if sampled_rows is None else sampled_rows,
     )
