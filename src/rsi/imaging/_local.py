@@ -432,7 +432,7 @@ class _Mesh:
     def __init__(
         self,
         grid: _Grid,
-        hats: tuple[FloatArray, FloatArray],
+        hats: tuple[Image, Image],
         gradients: tuple[Image, Image],
         weight: Image,
         inverse: FloatArray,
@@ -440,7 +440,7 @@ class _Mesh:
         self.grid, self.inverse = grid, inverse
         self.shape = grid.tiles_shape
         rows, cols = self.shape
-        row_pairs, col_pairs = (_hat_pairs(np.asarray(hat, dtype=np.float32)) for hat in hats)
+        row_pairs, col_pairs = (_hat_pairs(hat) for hat in hats)
         gx, gy = gradients
         xx, xy, yy = (weight * first * second for first, second in ((gx, gx), (gx, gy), (gy, gy)))
 
@@ -556,6 +556,10 @@ class _EveryPixel:
         """`image` (the level's sampled rows) as the pixels' values, 1-D float32."""
         return np.asarray(image, dtype=np.float32).ravel()
 
+    def positions(self, flat: NDArray[np.intp]) -> NDArray[np.intp]:
+        """Where the level's pixels at flat indices `flat` lie among these pixels: the same indices."""
+        return flat
+
     def sample(self, image: Image, field: FloatArray, base: tuple[Image, Image], interpolation: int) -> Image:
         """`image` at the pixels' ``base + u`` for the node field `field` (R, C, 2), 1-D."""
         maps = [
@@ -612,6 +616,10 @@ class _TexturedPixels:
     def at(self, image: NDArray[np.floating]) -> Image:
         """`image`'s values at the pixels (1-D, float32)."""
         return np.asarray(image.ravel()[self.index], dtype=np.float32)
+
+    def positions(self, flat: NDArray[np.intp]) -> NDArray[np.intp]:
+        """Where the level's pixels at flat indices `flat` (all among these pixels) lie among them."""
+        return np.searchsorted(self.index, flat)
 
     def sample(self, image: Image, field: FloatArray, base: tuple[Image, Image], interpolation: int) -> Image:
         """`image` at the pixels' ``base + u`` for the node field `field` (R, C, 2), 1-D."""
@@ -698,13 +706,10 @@ class _Solver:
         """Use `weight` (a trim only ever lowers it: the pixels stay a superset of those it uses)."""
         self.weight = weight
         self.weight_at = self.pixels.at(weight)
-        self.mesh = _Mesh(self.grid, self.hats, (self.gx, self.gy), weight, self.inverse)
+        hats = (self.every_pixel.row_hat, self.every_pixel.col_hat)
+        self.mesh = _Mesh(self.grid, hats, (self.gx, self.gy), weight, self.inverse)
         self.textured = _textured_samples(weight, self.energy)
-        self.textured_at = (
-            np.searchsorted(self.pixels.index, self.textured)
-            if isinstance(self.pixels, _TexturedPixels)
-            else self.textured
-        )
+        self.textured_at = self.pixels.positions(self.textured)
         self.tiles = self.mesh.tiles
 
     def residual(self) -> Image:
