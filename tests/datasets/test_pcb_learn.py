@@ -13,7 +13,14 @@ import pytest
 from rsi.datasets.deeppcb import DEFECT_TYPES, DeepPcbPair
 from rsi.datasets.evaluate import PcbDetections
 from rsi.datasets.pcb_classes import classify_defects
-from rsi.datasets.pcb_features import FEATURES, defect_features, fit_classifier, opened_count, rule_classes
+from rsi.datasets.pcb_features import (
+    FEATURE_NAMES,
+    FEATURES,
+    defect_features,
+    fit_classifier,
+    opened_count,
+    rule_classes,
+)
 from rsi.datasets.pcb_learn import evaluate_deeppcb, train_classifier, training_labels
 from rsi.errors import InputError
 
@@ -60,9 +67,38 @@ def test_a_crack_touching_at_pixel_corners_splits_the_trace_in_the_tight_counts(
     features = defect_features(template, test, box, np.array([6.0]), np.array([10.0]))
     classes, _ = rule_classes(features)
     assert DEFECT_TYPES[int(classes[0])] == "mousebite"
-    # The last 18 columns: per window (shrunk, box, grown) tight pieces before, after, change, holes ...
-    box_window = features[0, FEATURES - 12 : FEATURES - 6]
-    np.testing.assert_array_equal(box_window, [1.0, 2.0, 1.0, 0.0, 0.0, 0.0])
+    tight = [
+        f"box_tight_{kind}_{when}" for kind in ("pieces", "holes") for when in ("before", "after", "change")
+    ]
+    np.testing.assert_array_equal(_columns(features, tight), [1.0, 2.0, 1.0, 0.0, 0.0, 0.0])
+
+
+def _columns(features: np.ndarray, names: list[str]) -> np.ndarray:
+    return features[0, [FEATURE_NAMES.index(name) for name in names]]
+
+
+def test_an_open_reaches_the_window_s_edge_and_a_scratch_loop_does_not() -> None:
+    # Both split copper into two pieces; only the open's two pieces run on out of the window (a trace cut
+    # across), the loop's island stays inside it (a scratch closed on itself inside a pad).
+    template = np.full((40, 40), 255.0)
+    template[10:30] = 0.0
+    cut, looped = template.copy(), template.copy()
+    cut[10:30, 19:21] = 255.0
+    looped[14:26, 14:26] = 255.0
+    looped[16:24, 16:24] = 0.0
+    box = np.array([[10, 10, 29, 29]])
+    reaching = [
+        f"box_{prefix}reaching_{when}" for prefix in ("", "tight_") for when in ("before", "after", "change")
+    ]
+    pieces = ["box_pieces_before", "box_pieces_after", "box_pieces_change"]
+    for test, reached in ((cut, [1.0, 2.0, 1.0]), (looped, [1.0, 1.0, 0.0])):
+        features = defect_features(template, test, box, np.array([6.0]), np.array([40.0]))
+        np.testing.assert_array_equal(_columns(features, pieces), [1.0, 2.0, 1.0])
+        np.testing.assert_array_equal(_columns(features, reaching), reached * 2)
+
+
+def test_the_feature_names_are_one_per_column_and_unique() -> None:
+    assert len(FEATURE_NAMES) == FEATURES == len(set(FEATURE_NAMES))
 
 
 def test_a_classifier_learns_the_six_hand_drawn_classes(drawn_defect: Drawn) -> None:

@@ -58,23 +58,51 @@ def _tight_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
 
 def _pieces_and_holes(copper: NDArray[np.uint8], connectivity: int) -> tuple[int, int]:
     """Copper pieces at `connectivity` (4 or 8) and enclosed board pieces at the other one."""
+    pieces, holes, _ = _piece_counts(copper, connectivity)
+    return pieces, holes
+
+
+def _piece_counts(copper: NDArray[np.uint8], connectivity: int) -> tuple[int, int, int]:
+    """(copper pieces, holes, copper pieces reaching the window's edge) of a 0/1 copper window.
+
+    Copper is `connectivity`-connected (4 or 8) and the board the other way; pieces and holes are at least
+    _MIN_PIECE_PX, a hole is board that never reaches the window's edge. The third count is the copper
+    pieces that do reach it: a trace running on out of the window (what an open cuts) rather than an island
+    inside it (what a scratch closing on itself leaves, :mod:`rsi.datasets.pcb_features`).
+    """
     # Areas from the labels (OpenCV's statistics cost more than the labelling on these small windows); a
     # window with one piece (most) has it counted directly.
     count, labels = labelled(copper, connectivity)
     if count <= 2:
-        pieces = int(count == 2 and np.count_nonzero(copper) >= _MIN_PIECE_PX)
+        whole = count == 2 and np.count_nonzero(copper) >= _MIN_PIECE_PX
+        pieces, reaching = int(whole), int(whole and _edge_labels(labels).any())
     else:
-        pieces = int(np.count_nonzero(np.bincount(labels.ravel(), minlength=count)[1:] >= _MIN_PIECE_PX))
+        large = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
+        large[0] = False
+        pieces = int(np.count_nonzero(large))
+        reaching = int(np.count_nonzero(large & _on_edge(labels, count)))
     board = 1 - copper  # uint8: the scalar takes the array's type
     count, labels = labelled(board, 12 - connectivity)
-    edges = np.concatenate((labels[0], labels[-1], labels[:, 0], labels[:, -1]))
     if count <= 2:
         # No board, or one piece of it: a hole only if it never reaches the window's edge.
-        return pieces, int(count == 2 and not edges.any() and np.count_nonzero(board) >= _MIN_PIECE_PX)
+        hole = count == 2 and not _edge_labels(labels).any() and np.count_nonzero(board) >= _MIN_PIECE_PX
+        return pieces, int(hole), reaching
     enclosed = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
     enclosed[0] = False
-    enclosed[edges] = False
-    return pieces, int(np.count_nonzero(enclosed))
+    enclosed &= ~_on_edge(labels, count)
+    return pieces, int(np.count_nonzero(enclosed)), reaching
+
+
+def _edge_labels(labels: NDArray[np.int32]) -> NDArray[np.int32]:
+    """The labels along the window's four edges (0: background)."""
+    return np.concatenate((labels[0], labels[-1], labels[:, 0], labels[:, -1]))
+
+
+def _on_edge(labels: NDArray[np.int32], count: int) -> NDArray[np.bool_]:
+    """For each of `count` labels, whether it reaches the window's edge."""
+    reaching = np.zeros(count, dtype=bool)
+    reaching[_edge_labels(labels)] = True
+    return reaching
 
 
 def _window(value: object, name: str) -> NDArray[np.float64]:
