@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from rsi.datasets.deeppcb import DEFECT_TYPES
-from rsi.datasets.pcb_classes import _copper_pieces, classify_copper, classify_defects, classify_window
+from rsi.datasets.pcb_classes import (
+    _copper_pieces,
+    _piece_counts,
+    classify_copper,
+    classify_defects,
+    classify_window,
+)
 from rsi.errors import InputError
 
 BOARD, COPPER = 255.0, 0.0
@@ -50,6 +56,17 @@ def test_classify_copper_refuses_what_is_not_counted_copper(arguments: tuple, na
         classify_copper(*arguments)
 
 
+def _reaching_by_opencv_statistics(copper: np.ndarray) -> int:
+    """Copper pieces of 12 px or more with a pixel on the window's edge, from OpenCV's statistics."""
+    count, _, stats, _ = cv2.connectedComponentsWithStats(copper, connectivity=8)
+    rows, cols = copper.shape
+    left, top = stats[1:, cv2.CC_STAT_LEFT], stats[1:, cv2.CC_STAT_TOP]
+    right, bottom = left + stats[1:, cv2.CC_STAT_WIDTH], top + stats[1:, cv2.CC_STAT_HEIGHT]
+    # a piece touches the edge iff its bounding box does (the box's sides hold a pixel of the piece)
+    on_edge = (left == 0) | (top == 0) | (right == cols) | (bottom == rows)
+    return int((on_edge & (stats[1:, cv2.CC_STAT_AREA] >= 12)).sum()) if count > 1 else 0
+
+
 def _pieces_by_opencv_statistics(copper: np.ndarray) -> tuple[int, int]:
     """The count as first written: OpenCV's statistics and a set of the border's labels."""
     _, _, stats, _ = cv2.connectedComponentsWithStats(copper, connectivity=8)
@@ -71,7 +88,10 @@ def test_pieces_and_holes_are_counted_as_by_opencvs_statistics() -> None:
         if trial % 2:
             copper = cv2.morphologyEx(copper, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
         window = copper[1:, 1:] if trial % 3 == 0 and min(shape) > 1 else copper
-        assert _copper_pieces(window) == _pieces_by_opencv_statistics(np.ascontiguousarray(window))
+        contiguous = np.ascontiguousarray(window)
+        assert _copper_pieces(window) == _pieces_by_opencv_statistics(contiguous)
+        # the pieces reaching the window's edge (the classifier's open against a closed scratch)
+        assert _piece_counts(window, 8)[2] == _reaching_by_opencv_statistics(contiguous)
     # One piece of copper around one piece of board (the counted-directly case): a hole if 12 px or more.
     for side, holes in ((4, 1), (3, 0)):
         copper = np.ones((20, 20), np.uint8)
