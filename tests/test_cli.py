@@ -258,6 +258,22 @@ def test_eval_deeppcb_json_is_the_last_stdout_line(defect_tree: Path) -> None:
     assert "pin-hole" in table.stdout and "Confusion" in table.stdout
 
 
+def test_eval_deeppcb_writes_its_results_folder(defect_tree: Path, tmp_path: Path) -> None:
+    out = tmp_path / "scored"
+    result = invoke(
+        "eval", "deeppcb", defect_tree, "--split", "trainval", "--classes", "rules", "--json", "--out", out
+    )
+    assert result.exit_code == 0, result.output
+    assert sorted(path.name for path in out.iterdir()) == [
+        "confusion.png",
+        "deeppcb.json",
+        "per_class.csv",
+        "per_class.png",
+    ]
+    assert json.loads((out / "deeppcb.json").read_text()) == last_json_line(result)
+    assert (out / "confusion.png").read_bytes().startswith(PNG_SIGNATURE)
+
+
 def test_eval_deeppcb_names_the_test_split_with_a_classifier_fitted_on_trainval(two_group_tree: Path) -> None:
     result = invoke("eval", "deeppcb", two_group_tree, "--json")  # the defaults: the test split, learned
     assert result.exit_code == 0, result.output
@@ -300,6 +316,7 @@ def error_cases(
         "unreadable image": (("inspect", not_an_image, pair.inspection, "--out", out), cli.EXIT_FILE),
         "out is a file": (("inspect", pair.reference, pair.inspection, "--out", not_an_image), cli.EXIT_FILE),
         "missing dataset": (("eval", "deeppcb", out / "no-such-folder"), cli.EXIT_FILE),
+        "deeppcb out is a file": (("eval", "deeppcb", out, "--out", not_an_image), cli.EXIT_FILE),
         "demo negative seed": (("demo", "--seed", "-1", "--out", out), cli.EXIT_USAGE),
         "demo out is a file": (("demo", "--out", not_an_image), cli.EXIT_FILE),
     }
@@ -321,6 +338,7 @@ def error_cases(
         "unreadable image",
         "out is a file",
         "missing dataset",
+        "deeppcb out is a file",
         "demo negative seed",
         "demo out is a file",
     ],

@@ -688,20 +688,42 @@ def eval_deeppcb(
     as_json: Annotated[
         bool, typer.Option("--json", help="End with one JSON object on the last stdout line.")
     ] = False,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Also write deeppcb.json, per_class.csv, per_class.png and confusion.png to this folder "
+            "(created if missing).",
+        ),
+    ] = None,
 ) -> None:
     """Score rsi on DeepPCB template/tested pairs: recall, precision, F1, false alarms per image."""
     with _errors():
+        if out is not None:
+            _out_folder(out)
         from rsi.datasets.pcb_learn import evaluate_deeppcb
 
         with _progress_bar(f"DeepPCB {split.value}") as update:
             evaluation = evaluate_deeppcb(root, split=split.value, progress=update, classes=classes.value)
         record = evaluation.to_dict()
+        written = _deeppcb_files(out, record)
         if as_json:
             _print_json(record)
             return
         per_class, confusion = record.pop("per_class"), record.pop("confusion")
         _print_record(record, title=f"DeepPCB {split.value}")
         _print_classes(per_class, confusion)
+        if written:
+            _stdout().print(f"Wrote {', '.join(str(path) for path in written.values())}")
+
+
+def _deeppcb_files(out: Path | None, record: dict[str, Any]) -> dict[str, Path]:
+    """The evaluation's results folder (:func:`rsi.report.deeppcb.write_deeppcb_report`), if asked for."""
+    if out is None:
+        return {}
+    from rsi.report.deeppcb import write_deeppcb_report
+
+    return write_deeppcb_report(out, record)
 
 
 def _print_classes(per_class: Mapping[str, Mapping[str, float]], confusion: Sequence[Sequence[int]]) -> None:
