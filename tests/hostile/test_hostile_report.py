@@ -40,6 +40,7 @@ MODULES = (
     "rsi.report.writers",
     "rsi.report.sim",
     "rsi.report.batch",
+    "rsi.report.deeppcb",
     "rsi.report.isee",
     "rsi.sim.dent",
     "rsi.sim.clearance",

@@ -94,6 +94,22 @@ def test_the_table_has_a_column_per_figure() -> None:
         (lambda record: [record], "record must be"),
         (lambda record: {**record, "per_class": None}, "record must be"),
         (lambda record: {**record, "per_class": {"open": {"boxes": 1}}}, "per_class"),
+        (lambda record: {**record, "per_class": {}}, "1 to 64 classes"),
+        (lambda record: {**record, "per_class": {f"c{i}": {} for i in range(65)}}, "1 to 64 classes"),
+        (
+            lambda record: {
+                **record,
+                "per_class": {**record["per_class"], "open": dict.fromkeys(CLASS_COLUMNS, "x")},
+            },
+            "finite number",
+        ),
+        (
+            lambda record: {
+                **record,
+                "per_class": {**record["per_class"], "open": dict.fromkeys(CLASS_COLUMNS, float("nan"))},
+            },
+            "finite number",
+        ),
         (lambda record: {**record, "confusion": [[0, 1], [1, 0]]}, "7 x 7"),
         (lambda record: {**record, "confusion": "many"}, "7 x 7"),
         (lambda record: {**record, "confusion": (-np.eye(7, dtype=int)).tolist()}, ">= 0"),

@@ -8,6 +8,7 @@ the confusions a few, and a linear scale shows only the diagonal.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,8 @@ from rsi.report.writers import csv_text, to_json, write_files
 
 CLASS_COLUMNS = ("boxes", "detections", "precision", "recall", "ap")
 """Columns of per_class.csv after the class (the record's ``per_class`` keys, DeepPCB's official rule)."""
+MAX_CLASSES = 64
+"""Most classes a record may name: the pictures give each a row and a column (DeepPCB names 6)."""
 _RATES = (("precision", "precision"), ("recall", "recall"), ("ap", "AP"))
 _POOLED = (("official_f", "official F"), ("map", "mAP"))
 CountArray = NDArray[np.int64]
@@ -35,14 +38,23 @@ def _checked(record: object) -> tuple[dict[str, Mapping[str, float]], CountArray
             f"confusion; got {type(record).__name__} without per_class."
         )
     per_class = dict(record["per_class"])
+    if not 0 < len(per_class) <= MAX_CLASSES:
+        raise InputError(
+            f"record['per_class'] must name 1 to {MAX_CLASSES} classes (DeepPCB has 6); got {len(per_class)}."
+        )
     for name, row in per_class.items():
-        if not isinstance(row, Mapping) or any(key not in row for key in CLASS_COLUMNS):
+        if (
+            not isinstance(name, str)
+            or not isinstance(row, Mapping)
+            or not all(_is_number(row.get(key)) for key in CLASS_COLUMNS)
+        ):
             raise InputError(
-                f"record['per_class'][{name!r}] must hold {', '.join(CLASS_COLUMNS)}; got {row!r:.80}."
+                f"record['per_class'][{name!r:.40}] must hold a finite number for each of "
+                f"{', '.join(CLASS_COLUMNS)}; got {row!r:.80}."
             )
     try:
         confusion = np.asarray(record.get("confusion"), dtype=np.int64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         confusion = np.zeros((0, 0), dtype=np.int64)
     side = len(per_class) + 1
     if confusion.shape != (side, side) or (confusion < 0).any():
@@ -51,6 +63,11 @@ def _checked(record: object) -> tuple[dict[str, Mapping[str, float]], CountArray
             f"classes, rows true, columns detected); got shape {confusion.shape}."
         )
     return per_class, confusion
+
+
+def _is_number(value: object) -> bool:
+    """A finite int or float, not a bool (the record's figures and counts)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def per_class_csv(record: Mapping[str, Any]) -> str:
@@ -112,8 +129,8 @@ def confusion_png(record: Mapping[str, Any]) -> bytes:
 
 def _title(record: Mapping[str, Any]) -> str:
     """The pairs, the pooled official figures and who named the classes, as far as the record gives them."""
-    parts = [f"{record['pairs']} pairs"] if "pairs" in record else []
-    parts += [f"{label} {float(record[key]):.4f}" for key, label in _POOLED if key in record]
+    parts = [f"{record['pairs']} pairs"] if _is_number(record.get("pairs")) else []
+    parts += [f"{label} {float(record[key]):.4f}" for key, label in _POOLED if _is_number(record.get(key))]
     classes = record.get("classes")
     return ", ".join(parts) + (f"; classes: {classes}" if isinstance(classes, str) else "")
 
@@ -144,4 +161,11 @@ def write_deeppcb_report(out_dir: Path | str, record: Mapping[str, Any]) -> dict
     return write_files(out_dir, contents)
 
 
-__all__ = ["CLASS_COLUMNS", "confusion_png", "per_class_csv", "per_class_png", "write_deeppcb_report"]
+__all__ = [
+    "CLASS_COLUMNS",
+    "MAX_CLASSES",
+    "confusion_png",
+    "per_class_csv",
+    "per_class_png",
+    "write_deeppcb_report",
+]
