@@ -6,6 +6,7 @@ Run from the repository root (the data are read in place, never copied)::
     .venv/bin/python benchmarks/eval_deeppcb.py --every 10           # every 10th pair, quick look
     .venv/bin/python benchmarks/eval_deeppcb.py --misregistration-std-px 1,2,3   # sensitivity sweep
     .venv/bin/python benchmarks/eval_deeppcb.py --logo                # leave-one-group-out
+    .venv/bin/python benchmarks/eval_deeppcb.py --logo --out logo/    # + the pooled figures' pictures
 
 ``--logo`` scores every setting of ``--grid`` (registration model and mis-registration floor) on every
 board group, then, for each group in turn, picks the setting with the best F1 on the other six and scores
@@ -55,6 +56,7 @@ from rsi.datasets.official import OfficialTally
 from rsi.datasets.pcb_features import DefectClassifier, fit_classifier
 from rsi.datasets.pcb_learn import training_labels
 from rsi.detection.detect import detect
+from rsi.report.deeppcb import write_deeppcb_report
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "deeppcb"
 MID_GREY_DN = 127.5
@@ -198,8 +200,9 @@ def _fit(found: Found) -> DefectClassifier:
 
 def logo(
     pairs: Sequence[DeepPcbPair], grid: list[str], final_group: str, base: DeepPcbSettings | None = None
-) -> None:
-    """Leave-one-group-out over the board groups; see the module docstring."""
+) -> EvaluationResult:
+    """Leave-one-group-out over the board groups (see the module docstring); returns the pooled figures
+    with the learned classes."""
     groups = sorted({group_of(pair) for pair in pairs})
     runs: dict[str, dict[str, Found]] = {}
     counts: dict[str, dict[str, MatchCounts]] = {}
@@ -227,6 +230,7 @@ def logo(
     pooled = _official(result.held_out, learned)
     print(_row("**pooled, leave-one-group-out, learned**", pooled), flush=True)
     _class_table(pooled)
+    return pooled
 
 
 def _official(counts: dict[str, MatchCounts], tallies: dict[str, OfficialTally]) -> EvaluationResult:
@@ -390,6 +394,12 @@ def main(argv: list[str] | None = None) -> int:
         help="registration_field_tolerance_px (default: DeepPcbSettings()'s): the local field's tolerance",
     )
     parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="write the last run's record, per-class table and pictures here (--logo: the pooled figures)",
+    )
+    parser.add_argument(
         "--distort-px",
         type=float,
         default=None,
@@ -414,7 +424,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print("| --- |" + " ---: |" * 13)
     if args.logo:
-        logo(pairs, args.grid.split(","), args.final_group, default)
+        _written(args.out, logo(pairs, args.grid.split(","), args.final_group, default))
         return 0
     stds = (
         [default.misregistration_std_px]
@@ -441,7 +451,15 @@ def main(argv: list[str] | None = None) -> int:
         print(_row(f"difference + 5x5 opening{suffix}", evaluate_pairs(pairs, chosen(baseline))), flush=True)
     if last is not None:
         _class_table(last)
+        _written(args.out, last)
     return 0
+
+
+def _written(out: Path | None, result: EvaluationResult) -> None:
+    """The result's folder (rsi.report.deeppcb: deeppcb.json, per_class.csv, per_class.png, confusion.png)."""
+    if out is not None:
+        files = write_deeppcb_report(out, result.to_dict())
+        print(f"\nwrote {', '.join(str(path) for path in files.values())}")
 
 
 if __name__ == "__main__":
