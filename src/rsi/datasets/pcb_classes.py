@@ -44,21 +44,7 @@ FloatArray = NDArray[np.float64]
 def _copper_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
     """(copper pieces, holes): 8-connected copper components and 4-connected board components off the
     window's border, each of at least _MIN_PIECE_PX (a sliver cut off at the window's edge is no piece)."""
-    return _pieces_and_holes(copper, 8)
-
-
-def _tight_pieces(copper: NDArray[np.uint8]) -> tuple[int, int]:
-    """(copper pieces, holes) with the connectivities swapped: 4-connected copper, 8-connected board.
-
-    A crack that leaves copper touching only at pixel corners splits a trace here, not in
-    :func:`_copper_pieces`; a hole whose wall is broken only at a corner is still a hole. Binarisation
-    leaves such corner contacts on many opens and pin-holes (:mod:`rsi.datasets.pcb_features` reads both)."""
-    return _pieces_and_holes(copper, 4)
-
-
-def _pieces_and_holes(copper: NDArray[np.uint8], connectivity: int) -> tuple[int, int]:
-    """Copper pieces at `connectivity` (4 or 8) and enclosed board pieces at the other one."""
-    pieces, holes, _ = _piece_counts(copper, connectivity)
+    pieces, holes, _ = _piece_counts(copper, 8)
     return pieces, holes
 
 
@@ -66,7 +52,10 @@ def _piece_counts(copper: NDArray[np.uint8], connectivity: int) -> tuple[int, in
     """(copper pieces, holes, copper pieces reaching the window's edge) of a 0/1 copper window.
 
     Copper is `connectivity`-connected (4 or 8) and the board the other way; pieces and holes are at least
-    _MIN_PIECE_PX, a hole is board that never reaches the window's edge. The third count is the copper
+    _MIN_PIECE_PX, a hole is board that never reaches the window's edge. With 4-connected copper a crack
+    that leaves copper touching only at pixel corners splits a trace, and a hole whose wall is broken only
+    at a corner is still a hole: binarisation leaves such contacts on many opens and pin-holes
+    (:mod:`rsi.datasets.pcb_features` reads both connectivities). The third count is the copper
     pieces that do reach it: a trace running on out of the window (what an open cuts) rather than an island
     inside it (what a scratch closing on itself leaves, :mod:`rsi.datasets.pcb_features`).
     """

@@ -138,10 +138,10 @@ def opened_count(change: NDArray[np.uint8], count: int) -> float:
     return float(np.count_nonzero(cv2.morphologyEx(change, cv2.MORPH_OPEN, _SQUARE)))
 
 
-Counts = tuple[int, int, int]  # (copper pieces, holes, copper pieces reaching the window's edge)
+_Counts = tuple[int, int, int]  # (copper pieces, holes, copper pieces reaching the window's edge)
 
 
-def _tight_features(before: Counts, after: Counts) -> list[float]:
+def _tight_features(before: _Counts, after: _Counts) -> list[float]:
     """Copper pieces and holes before and after with 4-connected copper and 8-connected board, and their
     changes: a crack that leaves the two sides of an open touching at a pixel corner, or a pin-hole whose
     wall binarisation broke at a corner, shows here and not in :func:`_window_features`' counts.
@@ -161,7 +161,7 @@ def _tight_features(before: Counts, after: Counts) -> list[float]:
     ]
 
 
-def _reaching_features(loose: tuple[Counts, Counts], tight: tuple[Counts, Counts]) -> list[float]:
+def _reaching_features(loose: tuple[_Counts, _Counts], tight: tuple[_Counts, _Counts]) -> list[float]:
     """Copper pieces reaching the window's edge before and after, and their change, with 8- and with
     4-connected copper (`loose`, `tight`: the window's counts before and after).
 

@@ -27,10 +27,10 @@ MAX_CLASSES = 64
 """Most classes a record may name: the pictures give each a row and a column (DeepPCB names 6)."""
 _RATES = (("precision", "precision"), ("recall", "recall"), ("ap", "AP"))
 _POOLED = (("official_f", "official F"), ("map", "mAP"))
-CountArray = NDArray[np.int64]
+_CountArray = NDArray[np.int64]
 
 
-def _checked(record: object) -> tuple[dict[str, Mapping[str, float]], CountArray]:
+def _checked(record: object) -> tuple[dict[str, Mapping[str, float]], _CountArray]:
     """The record's per-class figures and its confusion (classes + 1 rows and columns: "none" first)."""
     if not isinstance(record, Mapping) or not isinstance(record.get("per_class"), Mapping):
         raise InputError(
@@ -91,7 +91,7 @@ def per_class_png(record: Mapping[str, Any]) -> bytes:
     lowest = 1.0
     for index, (key, label) in enumerate(_RATES):
         values = [float(per_class[name][key]) for name in names]
-        lowest = min(lowest, *values) if values else lowest
+        lowest = min(lowest, *values)
         axes.bar(positions + (index - 1) * width, values, width, label=label)
     axes.set_xticks(positions, names, rotation=20, ha="right")
     # The figures sit near 1: the axis starts a little below the lowest, so that their differences show.
@@ -113,10 +113,11 @@ def confusion_png(record: Mapping[str, Any]) -> bytes:
     names = ["none", *per_class]
     figure = Figure(figsize=(7.0, 6.0), dpi=100)
     axes = figure.subplots()
+    top = max(int(confusion.max()), 2)
     shown = np.ma.masked_equal(confusion, 0)  # an empty cell is left white: log(0) has no colour
-    image = axes.imshow(shown, cmap="Blues", norm=LogNorm(vmin=1, vmax=max(int(confusion.max()), 2)))
+    image = axes.imshow(shown, cmap="Blues", norm=LogNorm(vmin=1, vmax=top))
     for (row, col), count in np.ndenumerate(confusion):
-        dark = count > 0 and np.log(count) > 0.6 * np.log(max(int(confusion.max()), 2))
+        dark = count > 0 and np.log(count) > 0.6 * np.log(top)
         axes.text(col, row, str(count), ha="center", va="center", color="white" if dark else "black")
     axes.set_xticks(range(len(names)), names, rotation=30, ha="right")
     axes.set_yticks(range(len(names)), names)
