@@ -97,6 +97,25 @@ def test_an_open_reaches_the_window_s_edge_and_a_scratch_loop_does_not() -> None
         np.testing.assert_array_equal(_columns(features, reaching), reached * 2)
 
 
+def test_a_cut_leaving_a_one_pixel_sliver_splits_the_copper_s_bulk_and_a_bite_does_not() -> None:
+    # A 20 px trace (copper dark) cut across but for a one-pixel sliver along its lower edge: the piece counts
+    # (both connectivities) still see one trace and the rules a mousebite; without its slivers the copper's
+    # bulk is two pieces, both running on out of the window. A bite 8 px deep leaves the bulk whole.
+    template = np.full((40, 40), 255.0)
+    template[10:30] = 0.0
+    cut, bitten = template.copy(), template.copy()
+    cut[10:29, 19:21] = 255.0
+    bitten[10:18, 17:23] = 255.0
+    box = np.array([[10, 10, 29, 29]])
+    bulk = [f"box_bulk_reaching_{when}" for when in ("before", "after", "change")]
+    pieces = ["box_pieces_change", "box_tight_pieces_change"]
+    for test, reached in ((cut, [1.0, 2.0, 1.0]), (bitten, [1.0, 1.0, 0.0])):
+        features = defect_features(template, test, box, np.array([6.0]), np.array([40.0]))
+        assert DEFECT_TYPES[int(rule_classes(features)[0][0])] == "mousebite"
+        np.testing.assert_array_equal(_columns(features, pieces), [0.0, 0.0])
+        np.testing.assert_array_equal(_columns(features, bulk), reached)
+
+
 def test_the_feature_names_are_one_per_column_and_unique() -> None:
     assert len(FEATURE_NAMES) == FEATURES == len(set(FEATURE_NAMES))
 

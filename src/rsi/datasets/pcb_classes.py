@@ -59,27 +59,33 @@ def _piece_counts(copper: NDArray[np.uint8], connectivity: int) -> tuple[int, in
     pieces that do reach it: a trace running on out of the window (what an open cuts) rather than an island
     inside it (what a scratch closing on itself leaves, :mod:`rsi.datasets.pcb_features`).
     """
+    pieces, reaching = _copper_counts(copper, connectivity)
+    return pieces, _holes(1 - copper, 12 - connectivity), reaching
+
+
+def _copper_counts(copper: NDArray[np.uint8], connectivity: int) -> tuple[int, int]:
+    """(copper pieces, those reaching the window's edge) of a 0/1 copper window (:func:`_piece_counts`)."""
     # Areas from the labels (OpenCV's statistics cost more than the labelling on these small windows); a
     # window with one piece (most) has it counted directly.
     count, labels = labelled(copper, connectivity)
     if count <= 2:
         whole = count == 2 and np.count_nonzero(copper) >= _MIN_PIECE_PX
-        pieces, reaching = int(whole), int(whole and _edge_labels(labels).any())
-    else:
-        large = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
-        large[0] = False
-        pieces = int(np.count_nonzero(large))
-        reaching = int(np.count_nonzero(large & _on_edge(labels, count)))
-    board = 1 - copper  # uint8: the scalar takes the array's type
-    count, labels = labelled(board, 12 - connectivity)
+        return int(whole), int(whole and _edge_labels(labels).any())
+    large = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
+    large[0] = False
+    return int(np.count_nonzero(large)), int(np.count_nonzero(large & _on_edge(labels, count)))
+
+
+def _holes(board: NDArray[np.uint8], connectivity: int) -> int:
+    """Pieces of a 0/1 board window that never reach its edge (:func:`_piece_counts`)."""
+    count, labels = labelled(board, connectivity)
     if count <= 2:
         # No board, or one piece of it: a hole only if it never reaches the window's edge.
-        hole = count == 2 and not _edge_labels(labels).any() and np.count_nonzero(board) >= _MIN_PIECE_PX
-        return pieces, int(hole), reaching
+        return int(count == 2 and not _edge_labels(labels).any() and np.count_nonzero(board) >= _MIN_PIECE_PX)
     enclosed = np.bincount(labels.ravel(), minlength=count) >= _MIN_PIECE_PX
     enclosed[0] = False
     enclosed &= ~_on_edge(labels, count)
-    return pieces, int(np.count_nonzero(enclosed)), reaching
+    return int(np.count_nonzero(enclosed))
 
 
 def _edge_labels(labels: NDArray[np.int32]) -> NDArray[np.int32]:

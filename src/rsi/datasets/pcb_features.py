@@ -24,6 +24,7 @@ from rsi.datasets.pcb_classes import (
     COPPER_BELOW_DN,
     _boxes_inside,
     _class_of_change,
+    _copper_counts,
     _core_px,
     _piece_counts,
 )
@@ -67,9 +68,11 @@ _TIGHT_COLUMNS = tuple(
 _REACHING_COLUMNS = tuple(
     f"{prefix}reaching_{when}" for prefix in ("", "tight_") for when in ("before", "after", "change")
 )
+_BULK_COLUMNS = tuple(f"bulk_reaching_{when}" for when in ("before", "after", "change"))
 # The columns of defect_features, in order: the box, each window's change (the box window's followed by its
 # surroundings and the topology rules' naming of it, classify_window), then each window's counts with the
-# connectivities swapped (_tight_features) and its pieces reaching the window's edge (_reaching_features).
+# connectivities swapped (_tight_features), its pieces reaching the window's edge (_reaching_features) and
+# those of its copper without its slivers (_bulk_features).
 FEATURE_NAMES: tuple[str, ...] = (
     "box_width_px",
     "box_height_px",
@@ -80,6 +83,7 @@ FEATURE_NAMES: tuple[str, ...] = (
     *(f"grown_{column}" for column in _CHANGE_COLUMNS),
     *(f"{window}_{column}" for window in _WINDOW_NAMES for column in _TIGHT_COLUMNS),
     *(f"{window}_{column}" for window in _WINDOW_NAMES for column in _REACHING_COLUMNS),
+    *(f"{window}_{column}" for window in _WINDOW_NAMES for column in _BULK_COLUMNS),
 )
 FEATURES = len(FEATURE_NAMES)  # columns of defect_features
 _RULE_COLUMN = FEATURE_NAMES.index("box_rule_class")
@@ -178,6 +182,23 @@ def _reaching_features(loose: tuple[_Counts, _Counts], tight: tuple[_Counts, _Co
     return features
 
 
+def _bulk_features(bulk_before: NDArray[np.uint8], bulk_after: NDArray[np.uint8]) -> list[float]:
+    """Pieces of the copper's bulk (the copper eroded by a 3 x 3 square) reaching the window's edge before and
+    after, and their change.
+
+    A cut across a trace that leaves a sliver of copper one or two pixels wide is an open to DeepPCB's
+    annotators (and, electrically, all but one), yet the piece counts see one trace and the rules a
+    mousebite. The erosion takes slivers of up to two pixels away and leaves every trace wider than that,
+    so the cut trace's two sides reach the window's edge as two pieces of bulk; a bite into the edge
+    leaves one. Nothing tuned: the smallest square there is. Leave-one-group-out on three cached detector
+    variants (the default, a 2.5 px floor, the affine fit; each fold's classifier fitted on the other six
+    groups): mAP +0.0010 to +0.0012, official F +0.0007 to +0.0010, opens named mousebites 24 -> 21 on the
+    default (docs/deeppcb.md, "The copper's bulk").
+    """
+    before, after = (_copper_counts(bulk, 8)[1] for bulk in (bulk_before, bulk_after))
+    return [float(before), float(after), float(after - before)]
+
+
 def _surroundings(
     before: NDArray[np.uint8], changes: tuple[NDArray[np.uint8], NDArray[np.uint8]]
 ) -> list[float]:
@@ -224,8 +245,13 @@ def _box_features(
     )
     copper_before = (template[outer] < COPPER_BELOW_DN).astype(np.uint8)
     copper_after = (test[outer] < COPPER_BELOW_DN).astype(np.uint8)
+    # Eroded over the largest window, so that a window's edge does not thin the copper that runs on past it.
+    bulk_before, bulk_after = (
+        np.asarray(cv2.erode(copper, _SQUARE), dtype=np.uint8) for copper in (copper_before, copper_after)
+    )
     tight: list[float] = []
     reaching: list[float] = []
+    bulk: list[float] = []
     for growth in _WINDOW_GROWTH_PX:
         top, bottom = max(0, y1 - growth), min(rows, y2 + 1 + growth)
         left, right = max(0, x1 - growth), min(cols, x2 + 1 + growth)
@@ -244,12 +270,13 @@ def _box_features(
         features += counted
         tight += _tight_features(*tight_counts)
         reaching += _reaching_features(loose, tight_counts)
+        bulk += _bulk_features(bulk_before[window], bulk_after[window])
         if growth == 0:
             features += _surroundings(before, changes)
             # The rules' class on the same window, pieces and changes (classify_window, counted once).
             rule = _class_of_change((counted[0], counted[1], counted[2], counted[3]), *pieces)
             features += [float(rule), _core_px(before, after)]
-    return features + tight + reaching
+    return features + tight + reaching + bulk
 
 
 def defect_features(
