@@ -77,22 +77,33 @@ def _columns(features: np.ndarray, names: list[str]) -> np.ndarray:
     return features[0, [FEATURE_NAMES.index(name) for name in names]]
 
 
+def _trace_box_features(test_drawn: Callable[[np.ndarray], None]) -> np.ndarray:
+    """The features of the box over the middle of a 20 px horizontal trace (copper dark) on a 40 px board,
+    against a copy of it changed by `test_drawn`."""
+    template = np.full((40, 40), 255.0)
+    template[10:30] = 0.0
+    test = template.copy()
+    test_drawn(test)
+    box = np.array([[10, 10, 29, 29]])
+    return defect_features(template, test, box, np.array([6.0]), np.array([40.0]))
+
+
 def test_an_open_reaches_the_window_s_edge_and_a_scratch_loop_does_not() -> None:
     # Both split copper into two pieces; only the open's two pieces run on out of the window (a trace cut
     # across), the loop's island stays inside it (a scratch closed on itself inside a pad).
-    template = np.full((40, 40), 255.0)
-    template[10:30] = 0.0
-    cut, looped = template.copy(), template.copy()
-    cut[10:30, 19:21] = 255.0
-    looped[14:26, 14:26] = 255.0
-    looped[16:24, 16:24] = 0.0
-    box = np.array([[10, 10, 29, 29]])
+    def cut(test: np.ndarray) -> None:
+        test[10:30, 19:21] = 255.0
+
+    def looped(test: np.ndarray) -> None:
+        test[14:26, 14:26] = 255.0
+        test[16:24, 16:24] = 0.0
+
     reaching = [
         f"box_{prefix}reaching_{when}" for prefix in ("", "tight_") for when in ("before", "after", "change")
     ]
     pieces = ["box_pieces_before", "box_pieces_after", "box_pieces_change"]
-    for test, reached in ((cut, [1.0, 2.0, 1.0]), (looped, [1.0, 1.0, 0.0])):
-        features = defect_features(template, test, box, np.array([6.0]), np.array([40.0]))
+    for drawn, reached in ((cut, [1.0, 2.0, 1.0]), (looped, [1.0, 1.0, 0.0])):
+        features = _trace_box_features(drawn)
         np.testing.assert_array_equal(_columns(features, pieces), [1.0, 2.0, 1.0])
         np.testing.assert_array_equal(_columns(features, reaching), reached * 2)
 
@@ -101,16 +112,16 @@ def test_a_cut_leaving_a_one_pixel_sliver_splits_the_copper_s_bulk_and_a_bite_do
     # A 20 px trace (copper dark) cut across but for a one-pixel sliver along its lower edge: the piece counts
     # (both connectivities) still see one trace and the rules a mousebite; without its slivers the copper's
     # bulk is two pieces, both running on out of the window. A bite 8 px deep leaves the bulk whole.
-    template = np.full((40, 40), 255.0)
-    template[10:30] = 0.0
-    cut, bitten = template.copy(), template.copy()
-    cut[10:29, 19:21] = 255.0
-    bitten[10:18, 17:23] = 255.0
-    box = np.array([[10, 10, 29, 29]])
+    def cut(test: np.ndarray) -> None:
+        test[10:29, 19:21] = 255.0
+
+    def bitten(test: np.ndarray) -> None:
+        test[10:18, 17:23] = 255.0
+
     bulk = [f"box_bulk_reaching_{when}" for when in ("before", "after", "change")]
     pieces = ["box_pieces_change", "box_tight_pieces_change"]
-    for test, reached in ((cut, [1.0, 2.0, 1.0]), (bitten, [1.0, 1.0, 0.0])):
-        features = defect_features(template, test, box, np.array([6.0]), np.array([40.0]))
+    for drawn, reached in ((cut, [1.0, 2.0, 1.0]), (bitten, [1.0, 1.0, 0.0])):
+        features = _trace_box_features(drawn)
         assert DEFECT_TYPES[int(rule_classes(features)[0][0])] == "mousebite"
         np.testing.assert_array_equal(_columns(features, pieces), [0.0, 0.0])
         np.testing.assert_array_equal(_columns(features, bulk), reached)
