@@ -40,7 +40,7 @@ if TYPE_CHECKING:
 HAND_RULES = CoverageRules(max_pixel_m=1e-3)
 
 # The second frame's jaw openings: closed or wide open the jaws stand at the frame's bottom or top corner,
-# clear of the rows they hide half open (rsi.sim.World.own_body_footprint)
+# clear of the rows they hide half open (rsi.sim.world.World.own_body_footprint)
 JAWS_MOVED_M = (0.0, JAW_MAX_OPENING_M)
 
 # The hand plan on the truss layout only: the panel's four quarters (rows across the truss) and its centre,

@@ -67,7 +67,7 @@ IK_TOLERANCE_M = 2e-3
 IK_TOLERANCE_RAD = 5e-3
 MIN_CLEARANCE_M = 0.005  # the arm may not touch the mock-up at the pose
 # The jaws half open (the mission's default) and closed or wide open: at the frame's right-hand middle rows,
-# its bottom or its top corner (rsi.sim.World.own_body_footprint)
+# its bottom or its top corner (rsi.sim.world.World.own_body_footprint)
 JAW_OPENINGS_M = (DEFAULT_JAW_OPENING_M, 0.0, JAW_MAX_OPENING_M)
 SITE_KINDS = ("screw", "peltier", "leak")  # each sample of these a plan must see (greedy_cover's `must`)
 

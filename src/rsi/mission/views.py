@@ -211,7 +211,7 @@ def jaws_region(
 ) -> NDArray[np.bool_]:
     """Pixels of the arm's ISEE frame that its jaws hide at `opening_m`, grown by `margin_px`.
 
-    The jaws are rigid with the camera but for their opening (:meth:`rsi.sim.World.own_body_footprint`);
+    The jaws are rigid with the camera but for their opening (:meth:`rsi.sim.world.World.own_body_footprint`);
     the band about them is lost to the comparison as a frame's border is (the registration's shift and the
     detector's windows, seed §2.3-2.4).
     """
